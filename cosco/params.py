@@ -1,0 +1,107 @@
+"""The one parameter object of the COSCO method, with its documented defaults.
+
+Every length is in metres, every angle in radians. The defaults follow the paper (Xue et al. 2020, sections 3-4)
+where it gives a value and were tuned on the shared data otherwise (see docs/METHOD.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+
+@dataclass(frozen=True)
+class CoscoParams:
+    """Defaults of the method.
+
+    Symmetry (paper 3.2, ODAS):
+
+    sym_voxel : float
+        Voxel edge (m) of the weighted down-sampling before symmetry search. Down-sampling equalises density, so a
+        side seen by fewer scan lines counts as much as the side facing the sensor.
+    sym_tol : float
+        Correspondence tolerance (m): a mirrored point "corresponds" when a point lies within it. It is raised
+        to ``sym_tol_spacing`` times the median point spacing on sparse objects.
+    sym_tol_spacing : float
+        Multiplier of the median nearest-neighbour spacing that bounds ``sym_tol`` from below.
+    pcr_threshold : float
+        Point correspondence ratio (PCR) at and above which a symmetry counts as found.
+    sym_iterations : int
+        Iterations of the derivative-free optimiser (Nelder-Mead) per start (the paper's k).
+    sym_starts : int
+        How many of the best distinct starting planes the optimiser refines.
+    sym_max_points : int
+        The voxel is enlarged until at most this many down-sampled points remain (the paper's octree depth).
+    sym_refine_steps : int
+        Closed-form refinement steps on full-resolution mirror pairs after the optimiser.
+
+    Sections (paper 3.2, Figure 6):
+
+    section_eps : float
+        Half-width (m) of the slab around the symmetry plane (longitudinal) and the transverse plane.
+    section_min_points : int
+        A slab is widened (up to ``section_eps_max``) until it holds at least this many points (sparse scans).
+    section_eps_max : float
+        Largest slab half-width (m) used on sparse objects.
+    section_res : float
+        Voxel size (m) of the section voxelisation (paper: 10 cm).
+    size_quantile : float
+        Share of points ignored at each end when reading length, width and height (robust to stray returns).
+
+    Dissimilarity (paper 3.3, Eq. 1-2):
+
+    tz_max, tz_step : float
+        Range and coarse step (m) of the continuous vertical shift; refined below the step afterwards.
+    du_max, du_step : float
+        Range and step (m) of the small axial shift (beyond the paper; 0 disables it).
+    field_cell : float
+        Cell (m) of the distance fields sections are matched against.
+
+    Clustering (paper 3.3):
+
+    cluster_threshold : float
+        Dendrogram cut (m of RMSE); the paper used 6.5 cm.
+    linkage : str
+        scipy linkage method.
+
+    Matching (paper 4.3):
+
+    size_tol : float
+        Size prefilter tolerance (m) on each of L, W, H (paper: 0.2 m).
+    """
+
+    sym_voxel: float = 0.10
+    sym_tol: float = 0.08
+    sym_tol_spacing: float = 1.2
+    pcr_threshold: float = 0.60
+    sym_iterations: int = 40
+    sym_starts: int = 2
+    sym_max_points: int = 600
+    sym_refine_steps: int = 4
+
+    section_eps: float = 0.10
+    section_min_points: int = 30
+    section_eps_max: float = 0.40
+    section_res: float = 0.10
+    size_quantile: float = 0.005
+
+    tz_max: float = 0.40
+    tz_step: float = 0.02
+    du_max: float = 0.20
+    du_step: float = 0.05
+    field_cell: float = 0.02
+
+    cluster_threshold: float = 0.065
+    linkage: str = "average"
+
+    size_tol: float = 0.20
+
+    def with_(self, **changes) -> "CoscoParams":
+        """A copy with some values changed.
+
+        >>> CoscoParams().with_(section_res=0.05).section_res
+        0.05
+        """
+        return replace(self, **changes)
+
+
+DEFAULT = CoscoParams()

@@ -1,0 +1,196 @@
+"""Symmetric cross-sections and size of one object (paper 3.2, Figures 3 and 6).
+
+The object frame has ``u`` along the symmetry axis (the heading), ``v`` across it (0 on the symmetry plane) and
+``z`` up from the object's ground level. The longitudinal section is the slab ``|v| <= eps`` projected to
+``(u, z)``; the transverse section is the slab ``|u - u_c| <= eps`` around the longitudinal section's centroid,
+projected to ``(v, z)``. Both are voxelised at ``res`` on a grid anchored at the frame origin, so that moving the
+object moves nothing in its sections.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .footprint import as_points, from_frame, min_area_rectangle, to_frame
+from .params import DEFAULT, CoscoParams
+from .symmetry import Symmetry, detect_symmetry
+
+
+@dataclass(frozen=True)
+class Frame:
+    """An object frame: ``origin_xy`` (2,) metres on the symmetry plane, ``heading`` rad in [0, pi), ``ground_z`` m."""
+
+    origin_xy: np.ndarray
+    heading: float
+    ground_z: float
+
+    def to_local(self, points: np.ndarray) -> np.ndarray:
+        """(n, 3) scene points to (u, v, z - ground_z)."""
+        uvz = to_frame(points, self.origin_xy, self.heading)
+        uvz[:, 2] -= self.ground_z
+        return uvz
+
+    def to_scene(self, uvz: np.ndarray) -> np.ndarray:
+        """(n, 3) frame points back to the scene."""
+        pts = from_frame(uvz, self.origin_xy, self.heading)
+        pts[:, 2] += self.ground_z
+        return pts
+
+
+@dataclass(frozen=True)
+class Size:
+    """Length along the heading, width across it, height above ground; metres."""
+
+    length: float
+    width: float
+    height: float
+
+    def as_array(self) -> np.ndarray:
+        return np.array([self.length, self.width, self.height])
+
+    def as_dict(self, ndigits: int = 3) -> dict:
+        return {"length": round(self.length, ndigits), "width": round(self.width, ndigits),
+                "height": round(self.height, ndigits)}
+
+
+@dataclass(frozen=True)
+class Sections:
+    """Voxelised sections: ``longitudinal`` (m, 2) as (u, z), ``transverse`` (k, 2) as (v, z); metres, frame coords."""
+
+    longitudinal: np.ndarray
+    transverse: np.ndarray
+    res: float
+
+
+@dataclass(frozen=True)
+class ObjectShape:
+    """Everything COSCO reads from one object: symmetry, frame, sections, size and footprint centre.
+
+    centroid : (3,) metres, the centre of the oriented footprint rectangle in x/y (on the symmetry plane when one
+    was found) and mid-height in z.
+    """
+
+    n_points: int
+    symmetry: Symmetry
+    frame: Frame
+    sections: Sections
+    size: Size
+    centroid: np.ndarray
+
+    @property
+    def heading(self) -> float:
+        return self.frame.heading
+
+
+def voxelise_2d(points2d: np.ndarray, res: float) -> np.ndarray:
+    """Centres of the occupied ``res`` cells of a 2D point set, anchored at (0, 0).
+
+    points2d : (n, 2) metres. Returns (m, 2) metres, sorted.
+
+    >>> voxelise_2d(np.array([[0.01, 0.02], [0.04, 0.03], [0.26, 0.0]]), 0.1).tolist()
+    [[0.05, 0.05], [0.25, 0.05]]
+    """
+    pts = np.asarray(points2d, dtype=np.float64)
+    if len(pts) == 0:
+        return np.zeros((0, 2))
+    cells = np.unique(np.floor(pts / res).astype(np.int64), axis=0)
+    return np.round((cells + 0.5) * res, 9)
+
+
+def _slab(coord: np.ndarray, centre: float, params: CoscoParams) -> np.ndarray:
+    """Mask of a slab around ``centre``, widened on sparse objects until it holds enough points."""
+    eps = params.section_eps
+    while True:
+        mask = np.abs(coord - centre) <= eps
+        if mask.sum() >= params.section_min_points or eps >= params.section_eps_max:
+            return mask
+        eps = min(eps * 1.5, params.section_eps_max)
+
+
+def _robust_range(x: np.ndarray, q: float) -> tuple[float, float]:
+    lo, hi = np.quantile(x, [q, 1 - q])
+    return float(lo), float(hi)
+
+
+def object_frame(points: np.ndarray, sym: Symmetry, ground_z: float | None, params: CoscoParams = DEFAULT) -> Frame:
+    """The object frame: on the symmetry plane (or the footprint rectangle when none was found), centred in u.
+
+    points : (n, 3) metres. ground_z : metres, or None for the lowest point.
+    """
+    pts = as_points(points)
+    gz = float(pts[:, 2].min()) if ground_z is None else float(ground_z)
+    if sym.found:
+        heading = sym.heading
+        n = sym.normal
+        base = n * sym.rho  # a point on the plane
+    else:
+        rect = min_area_rectangle(pts[:, :2])
+        heading, base = rect.angle, rect.centre
+    uvz = to_frame(pts, base, heading)
+    lo, hi = _robust_range(uvz[:, 0], params.size_quantile)
+    axis = np.array([np.cos(heading), np.sin(heading)])
+    return Frame(origin_xy=base + axis * (lo + hi) / 2, heading=float(heading), ground_z=gz)
+
+
+def cut_sections(points: np.ndarray, frame: Frame, symmetric: bool, params: CoscoParams = DEFAULT) -> Sections:
+    """Longitudinal and transverse sections of an object in its frame, voxelised at ``params.section_res``.
+
+    A symmetric object's transverse section is mirrored about v = 0, so a side the scanner barely saw is filled
+    from the side it saw well.
+    """
+    uvz = frame.to_local(as_points(points))
+    lon = uvz[_slab(uvz[:, 1], 0.0, params)]
+    u_c = float(lon[:, 0].mean()) if len(lon) else 0.0
+    tra = uvz[_slab(uvz[:, 0], u_c, params)]
+    tra_vz = tra[:, [1, 2]]
+    if symmetric:
+        tra_vz = np.vstack([tra_vz, tra_vz * [-1.0, 1.0]])
+    res = params.section_res
+    return Sections(voxelise_2d(lon[:, [0, 2]], res), voxelise_2d(tra_vz, res), res)
+
+
+def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: CoscoParams = DEFAULT) -> Size:
+    """Length, width and height (m) of an object in its frame.
+
+    Length is the robust extent along u; width is twice the robust largest ``|v|`` for a symmetric object (read
+    from its better-seen side) and the v extent otherwise, mirrors included; height is the robust top above the
+    ground level.
+    """
+    uvz = frame.to_local(as_points(points))
+    q = params.size_quantile
+    lo, hi = _robust_range(uvz[:, 0], q)
+    if symmetric:
+        width = 2.0 * float(np.quantile(np.abs(uvz[:, 1]), 1 - q))
+    else:
+        vlo, vhi = _robust_range(uvz[:, 1], q)
+        width = vhi - vlo
+    top = float(np.quantile(uvz[:, 2], 1 - q))
+    return Size(length=hi - lo, width=width, height=max(top, 0.0))
+
+
+def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | None = None) -> ObjectShape:
+    """Symmetry, frame, sections, size and footprint centre of one object's points.
+
+    points : (n, 3) float, metres (n >= 10). ground_z : the ground level under the object (m); the lowest point
+    when None.
+
+    >>> rng = np.random.default_rng(1)
+    >>> box = rng.uniform([-2.2, -0.9, 0], [2.2, 0.9, 1.5], (3000, 3)) + [100.0, 50.0, 3.0]
+    >>> shape = describe_object(box)
+    >>> [round(float(v), 1) for v in shape.size.as_array()], np.round(shape.centroid[:2], 1).tolist()
+    ([4.4, 1.8, 1.5], [100.0, 50.0])
+    """
+    pts = as_points(points, min_points=10)
+    sym = detect_symmetry(pts, params)
+    frame = object_frame(pts, sym, ground_z, params)
+    sections = cut_sections(pts, frame, sym.found, params)
+    size = measure_size(pts, frame, sym.found, params)
+    v_centre = 0.0
+    if not sym.found:
+        uvz = frame.to_local(pts)
+        lo, hi = _robust_range(uvz[:, 1], params.size_quantile)
+        v_centre = (lo + hi) / 2
+    centre = frame.to_scene(np.array([[0.0, v_centre, size.height / 2]]))[0]
+    return ObjectShape(n_points=len(pts), symmetry=sym, frame=frame, sections=sections, size=size, centroid=centre)
