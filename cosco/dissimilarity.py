@@ -189,8 +189,8 @@ def dissimilarity(a: Sections, b: Sections, params: CoscoParams = DEFAULT) -> fl
     """Dissimilarity (m, RMSE) of two objects' sections.
 
     >>> from cosco.sections import Sections
-    >>> lon = np.array([[u, 1.2] for u in np.arange(-2, 2, 0.1)] + [[-2, 0.5], [2, 0.5]])
-    >>> tra = np.array([[v, 1.2] for v in np.arange(-0.9, 0.9, 0.1)])
+    >>> lon = np.array([[u, 1.2] for u in np.linspace(-2, 2, 41)] + [[-2, 0.5], [2, 0.6]])
+    >>> tra = np.array([[v, 1.2] for v in np.linspace(-0.9, 0.9, 19)])
     >>> s = Sections(lon, tra, 0.1)
     >>> moved = Sections(lon * [-1, 1] + [0, 0.13], tra + [0, 0.13], 0.1)
     >>> round(dissimilarity(s, moved), 3)

@@ -82,7 +82,7 @@ class CoscoParams:
     section_min_points: int = 30
     section_eps_max: float = 0.40
     section_res: float = 0.10
-    size_quantile: float = 0.005
+    size_quantile: float = 0.0005
 
     tz_max: float = 0.40
     tz_step: float = 0.02

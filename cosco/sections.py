@@ -20,7 +20,8 @@ from .symmetry import Symmetry, detect_symmetry
 
 @dataclass(frozen=True)
 class Frame:
-    """An object frame: ``origin_xy`` (2,) metres on the symmetry plane, ``heading`` rad in [0, pi), ``ground_z`` m."""
+    """An object frame: ``origin_xy`` (2,) metres on the symmetry plane, ``heading`` rad (an axis in [0, pi) unless
+    a front is known), ``ground_z`` m."""
 
     origin_xy: np.ndarray
     heading: float
@@ -114,10 +115,12 @@ def _robust_range(x: np.ndarray, q: float) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def object_frame(points: np.ndarray, sym: Symmetry, ground_z: float | None, params: CoscoParams = DEFAULT) -> Frame:
+def object_frame(points: np.ndarray, sym: Symmetry, ground_z: float | None, params: CoscoParams = DEFAULT,
+                 front_hint: float | None = None) -> Frame:
     """The object frame: on the symmetry plane (or the footprint rectangle when none was found), centred in u.
 
-    points : (n, 3) metres. ground_z : metres, or None for the lowest point.
+    points : (n, 3) metres. ground_z : metres, or None for the lowest point. front_hint : a direction (rad); the
+    heading is turned by pi when that brings it closer to the hint (a catalogue model's front is +X).
     """
     pts = as_points(points)
     gz = float(pts[:, 2].min()) if ground_z is None else float(ground_z)
@@ -128,6 +131,8 @@ def object_frame(points: np.ndarray, sym: Symmetry, ground_z: float | None, para
     else:
         rect = min_area_rectangle(pts[:, :2])
         heading, base = rect.angle, rect.centre
+    if front_hint is not None and np.cos(heading - front_hint) < 0:
+        heading = float(np.mod(heading + np.pi, 2 * np.pi))
     uvz = to_frame(pts, base, heading)
     lo, hi = _robust_range(uvz[:, 0], params.size_quantile)
     axis = np.array([np.cos(heading), np.sin(heading)])
@@ -155,8 +160,8 @@ def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
     """Length, width and height (m) of an object in its frame.
 
     Length is the robust extent along u; width is twice the robust largest ``|v|`` for a symmetric object (read
-    from its better-seen side) and the v extent otherwise, mirrors included; height is the robust top above the
-    ground level.
+    from its better-seen side) and the v extent otherwise, mirrors included; height is the robust top of the
+    longitudinal slab above the ground level (paper: "height read from the longitudinal section").
     """
     uvz = frame.to_local(as_points(points))
     q = params.size_quantile
@@ -166,15 +171,17 @@ def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
     else:
         vlo, vhi = _robust_range(uvz[:, 1], q)
         width = vhi - vlo
-    top = float(np.quantile(uvz[:, 2], 1 - q))
+    # the top is read on the longitudinal section (the roof line), so a whip antenna on a wing does not count
+    top = float(np.quantile(uvz[_slab(uvz[:, 1], 0.0, params), 2], 1 - q))
     return Size(length=hi - lo, width=width, height=max(top, 0.0))
 
 
-def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | None = None) -> ObjectShape:
+def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | None = None,
+                    front_hint: float | None = None) -> ObjectShape:
     """Symmetry, frame, sections, size and footprint centre of one object's points.
 
     points : (n, 3) float, metres (n >= 10). ground_z : the ground level under the object (m); the lowest point
-    when None.
+    when None. front_hint : direction (rad) the heading should point to when known (see :func:`object_frame`).
 
     >>> rng = np.random.default_rng(1)
     >>> box = rng.uniform([-2.2, -0.9, 0], [2.2, 0.9, 1.5], (3000, 3)) + [100.0, 50.0, 3.0]
@@ -184,7 +191,7 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     """
     pts = as_points(points, min_points=10)
     sym = detect_symmetry(pts, params)
-    frame = object_frame(pts, sym, ground_z, params)
+    frame = object_frame(pts, sym, ground_z, params, front_hint)
     sections = cut_sections(pts, frame, sym.found, params)
     size = measure_size(pts, frame, sym.found, params)
     v_centre = 0.0

@@ -1,0 +1,116 @@
+"""Opening a catalogue folder: the SQLite engine (busy timeout, WAL), a process lock for writers, and the alembic
+upgrade to head that every open performs."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+from pathlib import Path
+
+from sqlalchemy import create_engine, event, inspect
+from sqlalchemy.engine import Engine
+
+from ..errors import CatalogueError
+
+DB_NAME = "catalogue.sqlite"
+LOCK_NAME = ".lock"
+BUSY_TIMEOUT_S = 60
+
+
+def migrations_dir() -> Path:
+    """The alembic script folder (``migrations/`` beside the packages)."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        candidate = parent / "migrations"
+        if (candidate / "env.py").is_file():
+            return candidate
+    raise CatalogueError("the migrations folder was not found; reinstall twinreg with `pip install -e .`")
+
+
+def library_path(path=None) -> Path:
+    """``--library`` if given, else ``$TWINREG_LIBRARY``, else ``./library``."""
+    if path:
+        return Path(path)
+    return Path(os.environ.get("TWINREG_LIBRARY", "library"))
+
+
+@contextlib.contextmanager
+def writer_lock(folder: Path):
+    """An exclusive advisory lock on the catalogue folder, held by one writing process at a time."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / LOCK_NAME, "a+") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
+def make_engine(db_file: Path) -> Engine:
+    engine = create_engine(f"sqlite:///{db_file}", connect_args={"timeout": BUSY_TIMEOUT_S})
+
+    @event.listens_for(engine, "connect")
+    def _pragmas(dbapi_conn, _record):  # pragma: no cover - exercised by every connection
+        cur = dbapi_conn.cursor()
+        cur.execute("PRAGMA journal_mode=WAL")
+        cur.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_S * 1000}")
+        cur.execute("PRAGMA foreign_keys=ON")
+        cur.close()
+
+    return engine
+
+
+def upgrade(engine: Engine, revision: str = "head") -> None:
+    """Run the alembic migrations up to ``revision`` on this engine."""
+    from alembic import command
+    from alembic.config import Config
+
+    cfg = Config()
+    cfg.set_main_option("script_location", str(migrations_dir()))
+    with engine.begin() as conn:
+        cfg.attributes["connection"] = conn
+        command.upgrade(cfg, revision)
+
+
+def current_revision(engine: Engine) -> str | None:
+    with engine.connect() as conn:
+        if not inspect(conn).has_table("alembic_version"):
+            return None
+        row = conn.exec_driver_sql("SELECT version_num FROM alembic_version").first()
+        return row[0] if row else None
+
+
+def head_revision() -> str:
+    from alembic.config import Config
+    from alembic.script import ScriptDirectory
+
+    cfg = Config()
+    cfg.set_main_option("script_location", str(migrations_dir()))
+    return ScriptDirectory.from_config(cfg).get_current_head()
+
+
+def open_engine(folder: Path, create: bool = True) -> Engine:
+    """The engine of the catalogue in ``folder``, upgraded to the newest schema.
+
+    Raises :class:`CatalogueError` when the folder cannot be used or the database is not a twinreg catalogue.
+    """
+    folder = Path(folder)
+    db_file = folder / DB_NAME
+    if not db_file.exists() and not create:
+        raise CatalogueError(f"{folder}: no catalogue here; add a model with `twinreg add-model MESH` first")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CatalogueError(f"{folder}: cannot create the catalogue folder ({exc.strerror})") from exc
+    engine = make_engine(db_file)
+    try:
+        if current_revision(engine) != head_revision():
+            with writer_lock(folder):
+                upgrade(engine)
+    except CatalogueError:
+        raise
+    except Exception as exc:
+        raise CatalogueError(f"{db_file}: not a usable twinreg catalogue ({type(exc).__name__}: {exc}); "
+                             "move it away or point --library elsewhere") from exc
+    return engine

@@ -1,0 +1,268 @@
+"""The catalogue: add, query, update and remove reference models, never leaving it half-written.
+
+Layout of a catalogue folder::
+
+    catalogue.sqlite             the database (alembic-managed schema)
+    files/<sha[:2]>/<sha>.<ext>  the source files, content-addressed (the catalogue is self-contained and movable)
+    meshes/<sha>.npz             the normalised meshes (metres, Z up, front +X) used to build twins
+
+Writes follow one pattern: compute everything first, then under the folder's writer lock write files to temporary
+names and rename them, insert the row in one transaction, and delete the new files again if the transaction fails.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from sqlalchemy import and_, func, select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+import cosco
+
+from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError
+from .db import DB_NAME, open_engine, writer_lock
+from .models import RefModel, pack, unpack
+from .prepare import PreparedModel, prepare_model
+
+EDITABLE = ("name", "make", "model", "body_class", "tags")
+
+
+@dataclass
+class ModelGeometry:
+    """What matching and export need of a catalogue model: arrays, not rows."""
+
+    id: int
+    name: str
+    size: np.ndarray
+    sections: cosco.Sections
+    mesh_vertices: np.ndarray
+    mesh_faces: np.ndarray
+    points: np.ndarray
+
+
+def _atomic_copy(src: Path, dst: Path) -> bool:
+    """Copy ``src`` to ``dst`` through a temporary file and a rename. Returns False if ``dst`` already existed."""
+    if dst.exists():
+        return False
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=dst.parent, prefix=".tmp-")
+    os.close(fd)
+    try:
+        shutil.copyfile(src, tmp)
+        os.replace(tmp, dst)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return True
+
+
+def _atomic_npz(dst: Path, **arrays) -> bool:
+    if dst.exists():
+        return False
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=dst.parent, prefix=".tmp-", suffix=".npz")
+    os.close(fd)
+    try:
+        np.savez_compressed(tmp, **arrays)
+        os.replace(tmp, dst)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return True
+
+
+class Catalogue:
+    """A catalogue folder. ``Catalogue(path)`` opens (and upgrades) it; reads of a missing catalogue see it empty."""
+
+    def __init__(self, folder, create: bool = True):
+        self.folder = Path(folder)
+        self._engine = None
+        if create or (self.folder / DB_NAME).exists():
+            self._engine = open_engine(self.folder, create=create)
+
+    @property
+    def exists(self) -> bool:
+        return self._engine is not None
+
+    def session(self) -> Session:
+        if self._engine is None:
+            self._engine = open_engine(self.folder, create=True)
+        return Session(self._engine, expire_on_commit=False)
+
+    # ---- reading -------------------------------------------------------------------------------------------
+    def count(self) -> int:
+        if not self.exists:
+            return 0
+        with self.session() as s:
+            return int(s.scalar(select(func.count(RefModel.id))))
+
+    def list(self, near=None, tol: float = 0.2, body_class: str | None = None) -> list[RefModel]:
+        """All models, or those whose L, W and H are each within ``tol`` (m) of ``near`` (one indexed query)."""
+        if not self.exists:
+            return []
+        q = select(RefModel)
+        conds = []
+        if near is not None:
+            length, width, height = (float(x) for x in near)
+            conds += [RefModel.length.between(length - tol, length + tol),
+                      RefModel.width.between(width - tol, width + tol),
+                      RefModel.height.between(height - tol, height + tol)]
+        if body_class:
+            conds.append(RefModel.body_class == body_class)
+        if conds:
+            q = q.where(and_(*conds))
+        with self.session() as s:
+            return list(s.scalars(q.order_by(RefModel.id)))
+
+    def get(self, ref) -> RefModel:
+        """A model by id or unique name."""
+        if not self.exists:
+            raise ModelNotFoundError(f"no model '{ref}': the catalogue in {self.folder} is empty")
+        with self.session() as s:
+            row = None
+            if str(ref).isdigit():
+                row = s.get(RefModel, int(ref))
+            if row is None:
+                row = s.scalar(select(RefModel).where(RefModel.name == str(ref)))
+            if row is None:
+                raise ModelNotFoundError(f"no model '{ref}' in {self.folder}; see `twinreg list-models`")
+            return row
+
+    def geometry(self, row: RefModel) -> ModelGeometry:
+        """Arrays of one model (sections, sampled points, normalised mesh)."""
+        mesh = np.load(self.folder / row.mesh_file)
+        return ModelGeometry(
+            id=row.id, name=row.name, size=np.array([row.length, row.width, row.height]),
+            sections=cosco.Sections(unpack(row.section_longitudinal), unpack(row.section_transverse),
+                                    row.section_res),
+            mesh_vertices=mesh["vertices"].astype(np.float64), mesh_faces=mesh["faces"].astype(np.int64),
+            points=unpack(row.points),
+        )
+
+    # ---- writing -------------------------------------------------------------------------------------------
+    def _free_name(self, s: Session, wanted: str | None, path: Path) -> str:
+        if wanted:
+            if s.scalar(select(RefModel.id).where(RefModel.name == wanted)) is not None:
+                raise DuplicateModelError(f"{path}: the name '{wanted}' is taken; pass another --name")
+            return wanted
+        candidates = [path.stem, f"{path.parent.name}_{path.stem}"]
+        for base in candidates:
+            if s.scalar(select(RefModel.id).where(RefModel.name == base)) is None:
+                return base
+        k = 2
+        while s.scalar(select(RefModel.id).where(RefModel.name == f"{candidates[-1]}-{k}")) is not None:
+            k += 1
+        return f"{candidates[-1]}-{k}"
+
+    def add_prepared(self, prep: PreparedModel, name=None, make=None, model=None, body_class=None,
+                     tags=()) -> RefModel:
+        """Store a prepared model: one transaction, files written to temporary names and renamed."""
+        sha = prep.sha256
+        ext = prep.path.suffix.lower()
+        stored = Path("files") / sha[:2] / f"{sha}{ext}"
+        mesh_file = Path("meshes") / f"{sha}.npz"
+        with writer_lock(self.folder):
+            with self.session() as s:
+                existing = s.scalar(select(RefModel).where(RefModel.sha256 == sha))
+                if existing is not None:
+                    raise DuplicateModelError(f"{prep.path}: same content as model {existing.id} "
+                                              f"'{existing.name}' already in the catalogue")
+                final_name = self._free_name(s, name, prep.path)
+                created = []
+                try:
+                    if _atomic_copy(prep.path, self.folder / stored):
+                        created.append(self.folder / stored)
+                    if _atomic_npz(self.folder / mesh_file, vertices=prep.mesh.vertices.astype(np.float32),
+                                   faces=prep.mesh.faces.astype(np.int32), glass=prep.mesh.glass):
+                        created.append(self.folder / mesh_file)
+                    shape = prep.shape
+                    row = RefModel(
+                        name=final_name, make=make, model=model, body_class=body_class,
+                        tags_json=json.dumps(sorted(set(tags))), sha256=sha, source_name=prep.path.name,
+                        stored_file=str(stored), mesh_file=str(mesh_file), n_faces=len(prep.mesh.faces),
+                        unit=prep.mesh.unit, unit_scale=prep.mesh.scale, unit_source=prep.mesh.unit_source,
+                        up_axis=prep.mesh.up, front_axis=prep.mesh.front, notes="; ".join(prep.mesh.notes),
+                        length=shape.size.length, width=shape.size.width, height=shape.size.height,
+                        mesh_length=float(prep.mesh_size[0]), mesh_width=float(prep.mesh_size[1]),
+                        mesh_height=float(prep.mesh_size[2]),
+                        sym_found=shape.symmetry.found, sym_pcr=shape.symmetry.pcr,
+                        sym_rmse=float(shape.symmetry.rmse), sym_heading=shape.heading,
+                        sample_spacing=prep.spacing, n_points=len(prep.points), points=pack(prep.points),
+                        section_longitudinal=pack(shape.sections.longitudinal),
+                        section_transverse=pack(shape.sections.transverse), section_res=shape.sections.res,
+                        glass_fraction=prep.glass_fraction,
+                        params_json=json.dumps({"sample_spacing": prep.spacing}),
+                    )
+                    s.add(row)
+                    s.commit()
+                except IntegrityError as exc:
+                    s.rollback()
+                    for f in created:
+                        f.unlink(missing_ok=True)
+                    raise DuplicateModelError(f"{prep.path}: already in the catalogue ({exc.orig})") from exc
+                except BaseException:
+                    s.rollback()
+                    for f in created:
+                        f.unlink(missing_ok=True)
+                    raise
+                return row
+
+    def add(self, path, name=None, make=None, model=None, body_class=None, tags=(), unit="auto", up="auto",
+            front="auto") -> RefModel:
+        """Load, normalise, measure and store one mesh file. See :func:`prepare_model`."""
+        path = Path(path)
+        if self.exists:  # refuse a duplicate before the costly part
+            with self.session() as s:
+                sha = None
+                try:
+                    from .prepare import file_sha256
+                    sha = file_sha256(path) if path.is_file() else None
+                except OSError:
+                    sha = None
+                if sha:
+                    existing = s.scalar(select(RefModel).where(RefModel.sha256 == sha))
+                    if existing is not None:
+                        raise DuplicateModelError(f"{path}: same content as model {existing.id} "
+                                                  f"'{existing.name}' already in the catalogue")
+        prep = prepare_model(path, unit=unit, up=up, front=front)
+        return self.add_prepared(prep, name=name, make=make, model=model, body_class=body_class, tags=tags)
+
+    def update(self, ref, **fields) -> RefModel:
+        """Change editable fields (name, make, model, body_class, tags)."""
+        row = self.get(ref)
+        with writer_lock(self.folder), self.session() as s:
+            row = s.get(RefModel, row.id)
+            for key, value in fields.items():
+                if value is None:
+                    continue
+                if key not in EDITABLE:
+                    raise CatalogueError(f"'{key}' cannot be edited; editable: {', '.join(EDITABLE)}")
+                if key == "tags":
+                    row.tags_json = json.dumps(sorted(set(value)))
+                else:
+                    setattr(row, key, value)
+            try:
+                s.commit()
+            except IntegrityError as exc:
+                s.rollback()
+                raise DuplicateModelError(f"the name '{fields.get('name')}' is taken; choose another") from exc
+            return row
+
+    def remove(self, ref) -> RefModel:
+        """Delete a model row, then its files (the row goes first: a crash leaves orphan files, never a row
+        pointing to nothing)."""
+        row = self.get(ref)
+        with writer_lock(self.folder), self.session() as s:
+            victim = s.get(RefModel, row.id)
+            s.delete(victim)
+            s.commit()
+        for rel in (row.stored_file, row.mesh_file):
+            (self.folder / rel).unlink(missing_ok=True)
+        return row

@@ -1,0 +1,56 @@
+"""Shared pieces of the thin CLI: error handling, JSON output, the console on stderr."""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import sys
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+
+from ..errors import TwinregError
+
+err_console = Console(stderr=True)
+out_console = Console()
+
+LibraryOpt = Annotated[
+    Optional[str],
+    typer.Option("--library", help="Catalogue folder (default: $TWINREG_LIBRARY or ./library).", show_default=False),
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout.")]
+
+
+def fail(message: str, code: int = 1):
+    err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
+    raise typer.Exit(code)
+
+
+def handled(fn):
+    """Turn twinreg errors (and anything unexpected) into one ``error: ...`` line and exit status 1."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except TwinregError as exc:
+            fail(str(exc))
+        except (typer.Exit, typer.Abort, KeyboardInterrupt):
+            raise
+        except Exception as exc:  # pragma: no cover - a bug; keep the one-line promise unless debugging
+            if os.environ.get("TWINREG_DEBUG"):
+                raise
+            fail(f"unexpected {type(exc).__name__}: {exc} (set TWINREG_DEBUG=1 for a traceback)")
+
+    return wrapper
+
+
+def print_json(doc) -> None:
+    sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+    sys.stdout.flush()
+
+
+def info(message: str) -> None:
+    err_console.print(message, markup=False, highlight=False, soft_wrap=True)

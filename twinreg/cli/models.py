@@ -1,0 +1,195 @@
+"""Catalogue commands: add-model, import-models, list-models, show-model, update-model, remove-model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, List, Optional
+
+import typer
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from ..catalogue.db import library_path
+from ..catalogue.repository import Catalogue
+from ..errors import TwinregError
+from ..io.meshes import MESH_SUFFIXES
+from ._common import JsonOpt, LibraryOpt, err_console, fail, handled, info, out_console, print_json
+
+app = typer.Typer()
+
+UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|in|ft (auto: the file's unit, else inferred).")]
+UpOpt = Annotated[str, typer.Option("--up", help="auto|+x|-x|+y|-y|+z|-z: the file's up axis.")]
+FrontOpt = Annotated[str, typer.Option(
+    "--front", help="auto|+x|-x|+y|-y: the car's front, in the file's axes once up is Z.")]
+
+
+def _summary(row) -> str:
+    return (f"added model {row.id} '{row.name}': {row.length:.2f} x {row.width:.2f} x {row.height:.2f} m, "
+            f"symmetry {'found' if row.sym_found else 'not found'} (PCR {row.sym_pcr:.2f}), {row.n_points} points; "
+            f"{row.notes}")
+
+
+@app.command("add-model")
+@handled
+def add_model(
+    mesh: Annotated[Path, typer.Argument(help="Mesh file: OBJ, PLY, STL, OFF, GLB/glTF or DAE.")],
+    name: Annotated[Optional[str], typer.Option(help="Unique name (default: the file name).")] = None,
+    make: Annotated[Optional[str], typer.Option(help="Manufacturer.")] = None,
+    model: Annotated[Optional[str], typer.Option(help="Model name.")] = None,
+    body_class: Annotated[Optional[str], typer.Option("--body-class", help="e.g. hatchback, sedan, SUV.")] = None,
+    unit: UnitOpt = "auto",
+    up: UpOpt = "auto",
+    front: FrontOpt = "auto",
+    tag: Annotated[Optional[List[str]], typer.Option("--tag", help="A tag (repeatable).")] = None,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Load, normalise, sample the visible surface, detect symmetry, cut cross-sections, measure size, store."""
+    cat = Catalogue(library_path(library))
+    with err_console.status(f"measuring {mesh.name}"):
+        row = cat.add(mesh, name=name, make=make, model=model, body_class=body_class, tags=tag or (), unit=unit,
+                      up=up, front=front)
+    if json_:
+        print_json(row.to_dict())
+    else:
+        info(_summary(row))
+
+
+@app.command("import-models")
+@handled
+def import_models(
+    folder: Annotated[Path, typer.Argument(help="Folder searched recursively for mesh files.")],
+    unit: UnitOpt = "auto",
+    up: UpOpt = "auto",
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Add every mesh in a folder; a bad file is reported and skipped, the rest go in."""
+    if not folder.is_dir():
+        fail(f"{folder}: not a folder")
+    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+    if not files:
+        fail(f"{folder}: no mesh files ({', '.join(sorted(MESH_SUFFIXES))})")
+    cat = Catalogue(library_path(library))
+    added, skipped = [], []
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                  TimeElapsedColumn(), console=err_console) as bar:
+        task = bar.add_task("importing", total=len(files))
+        for path in files:
+            bar.update(task, description=f"importing {path.name}")
+            try:
+                added.append(cat.add(path, unit=unit, up=up))
+            except TwinregError as exc:
+                skipped.append({"file": str(path), "error": str(exc)})
+                bar.console.print(f"skipped: {exc}", markup=False, highlight=False)
+            bar.advance(task)
+    if json_:
+        print_json({"added": [r.to_dict() for r in added], "skipped": skipped})
+    else:
+        info(f"{len(added)} added, {len(skipped)} skipped")
+    if not added and skipped:
+        raise typer.Exit(1)
+
+
+def _table(rows) -> Table:
+    t = Table(title=None, header_style="bold")
+    for col, just in (("id", "right"), ("name", "left"), ("make", "left"), ("model", "left"), ("class", "left"),
+                      ("L m", "right"), ("W m", "right"), ("H m", "right"), ("sym", "center"), ("PCR", "right"),
+                      ("points", "right")):
+        t.add_column(col, justify=just)
+    for r in rows:
+        t.add_row(str(r.id), r.name, r.make or "", (r.model or "")[:30], r.body_class or "", f"{r.length:.2f}",
+                  f"{r.width:.2f}", f"{r.height:.2f}", "yes" if r.sym_found else "no", f"{r.sym_pcr:.2f}",
+                  str(r.n_points))
+    return t
+
+
+@app.command("list-models")
+@handled
+def list_models(
+    near: Annotated[Optional[tuple[float, float, float]], typer.Option(
+        "--near", help="L W H (m): only models within --tol of this size.")] = None,
+    tol: Annotated[float, typer.Option(help="Size tolerance (m) on each of L, W, H.")] = 0.2,
+    body_class: Annotated[Optional[str], typer.Option("--body-class")] = None,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """List (or size-query) the catalogue."""
+    rows = Catalogue(library_path(library), create=False).list(near=near, tol=tol, body_class=body_class)
+    if json_:
+        print_json([r.to_dict() for r in rows])
+    elif rows:
+        out_console.print(_table(rows))
+    else:
+        info("no models")
+
+
+@app.command("show-model")
+@handled
+def show_model(
+    ref: Annotated[str, typer.Argument(help="Model id or unique name.")],
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="Draw the cross-sections to this PNG.")] = None,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Show one model; --plot draws its cross-sections."""
+    cat = Catalogue(library_path(library), create=False)
+    row = cat.get(ref)
+    doc = row.to_dict()
+    if plot is not None:
+        from ..plots import plot_model
+
+        plot_model(cat.geometry(row), row.to_dict(), plot)
+        doc["plot"] = str(plot)
+    if json_:
+        geo = cat.geometry(row)
+        doc["sections"] = {"longitudinal": geo.sections.longitudinal.round(3).tolist(),
+                           "transverse": geo.sections.transverse.round(3).tolist()}
+        print_json(doc)
+    else:
+        for key in ("id", "name", "make", "model", "body_class", "tags", "size", "mesh_size", "symmetry",
+                    "n_points", "sample_spacing_m", "unit", "unit_source", "up", "front", "n_faces", "glass_fraction",
+                    "sha256", "source_name", "notes", "created_at", "plot"):
+            if key in doc:
+                out_console.print(f"[bold]{key}[/bold]: {doc[key]}", highlight=False)
+
+
+@app.command("update-model")
+@handled
+def update_model(
+    ref: Annotated[str, typer.Argument(help="Model id or unique name.")],
+    name: Annotated[Optional[str], typer.Option()] = None,
+    make: Annotated[Optional[str], typer.Option()] = None,
+    model: Annotated[Optional[str], typer.Option()] = None,
+    body_class: Annotated[Optional[str], typer.Option("--body-class")] = None,
+    tag: Annotated[Optional[List[str]], typer.Option("--tag", help="Replace the tags (repeatable).")] = None,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Edit a model's name, make, model, body class or tags."""
+    row = Catalogue(library_path(library), create=False).update(
+        ref, name=name, make=make, model=model, body_class=body_class, tags=tag)
+    if json_:
+        print_json(row.to_dict())
+    else:
+        info(f"updated model {row.id} '{row.name}'")
+
+
+@app.command("remove-model")
+@handled
+def remove_model(
+    ref: Annotated[str, typer.Argument(help="Model id or unique name.")],
+    yes: Annotated[bool, typer.Option("--yes", help="Do not ask for confirmation.")] = False,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Remove a model and its stored files."""
+    cat = Catalogue(library_path(library), create=False)
+    row = cat.get(ref)
+    if not yes and not typer.confirm(f"remove model {row.id} '{row.name}'?", err=True):
+        raise typer.Exit(1)
+    row = cat.remove(row.id)
+    if json_:
+        print_json({"removed": row.to_dict()})
+    else:
+        info(f"removed model {row.id} '{row.name}'")

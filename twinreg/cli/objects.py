@@ -1,0 +1,84 @@
+"""Object commands: inspect (one object) and cluster (a set of objects)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.progress import Progress
+
+import cosco
+
+from ..errors import SceneReadError
+from ..objects import inspect_file, objects_from_folder, shape_json
+from ._common import JsonOpt, err_console, handled, info, print_json
+
+app = typer.Typer()
+
+UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|ft|us-ft|in (auto: metres or the LAS CRS unit).")]
+
+
+@app.command("inspect")
+@handled
+def inspect(
+    obj: Annotated[Path, typer.Argument(metavar="OBJECT", help="One object's points: PLY, PCD, LAS, LAZ, XYZ, BIN.")],
+    unit: UnitOpt = "auto",
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="Draw the sections to this PNG.")] = None,
+    json_: JsonOpt = False,
+):
+    """Symmetry, heading, size and cross-sections of ONE object's points."""
+    shape, points = inspect_file(obj, unit=unit)
+    doc = shape_json(shape)
+    if plot is not None:
+        from ..plots import plot_sections
+
+        plot_sections(shape.sections, f"{obj.name}: {shape.size.length:.2f} x {shape.size.width:.2f} x "
+                      f"{shape.size.height:.2f} m", plot, points=shape.frame.to_local(points))
+        doc["plot"] = str(plot)
+    if json_:
+        print_json(doc)
+    else:
+        s, y = doc["size"], doc["symmetry"]
+        info(f"{obj.name}: {doc['n_points']} points, symmetry {'found' if y['found'] else 'not found'} "
+             f"(PCR {y['pcr']:.2f}), heading {doc['heading_rad']:.3f} rad, size {s['length']:.2f} x {s['width']:.2f}"
+             f" x {s['height']:.2f} m, centre ({doc['centroid'][0]:.2f}, {doc['centroid'][1]:.2f})")
+
+
+@app.command("cluster")
+@handled
+def cluster_cmd(
+    scene: Annotated[Path, typer.Argument(help="A folder of object files (one object per file).")],
+    threshold: Annotated[float, typer.Option(help="Dendrogram cut (m); the paper used 0.065.")] = 0.065,
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="Folder for heatmap.png and dendrogram.png.")] = None,
+    unit: UnitOpt = "auto",
+    json_: JsonOpt = False,
+):
+    """Dissimilarity matrix and hierarchical clustering of objects."""
+    if not scene.is_dir():
+        raise SceneReadError(f"{scene}: pass a folder of object files (scene detection arrives with `detect`)")
+    n_files = sum(1 for _ in scene.iterdir())
+    with Progress(console=err_console) as bar:
+        t = bar.add_task("sections", total=n_files)
+        objs = objects_from_folder(scene, unit=unit, progress=lambda k: bar.advance(t, k))
+        n = len(objs.shapes)
+        t2 = bar.add_task("dissimilarity", total=n * (n - 1) // 2)
+        matrix = cosco.dissimilarity_matrix([s.sections for s in objs.shapes],
+                                            progress=lambda k: bar.advance(t2, k))
+    result = cosco.cluster(matrix, threshold=threshold)
+    doc = {"objects": [{"id": name, "cluster": int(c), "size": s.size.as_dict(),
+                        "symmetry": {"found": s.symmetry.found, "pcr": round(s.symmetry.pcr, 4)}}
+                       for name, c, s in zip(objs.names, result.labels, objs.shapes)],
+           "n_clusters": result.n_clusters, "threshold_m": threshold,
+           "dissimilarity": [[round(float(v), 5) for v in row] for row in matrix]}
+    if plot is not None:
+        from ..plots import plot_dendrogram, plot_heatmap
+
+        doc["plots"] = [str(plot_heatmap(matrix, objs.names, plot / "heatmap.png")),
+                        str(plot_dendrogram(result.linkage, objs.names, threshold, plot / "dendrogram.png"))]
+    if json_:
+        print_json(doc)
+    else:
+        info(f"{n} objects, {result.n_clusters} clusters at {threshold * 100:.1f} cm")
+        for o in doc["objects"]:
+            info(f"  {o['id']}: cluster {o['cluster']}")

@@ -1,0 +1,42 @@
+"""The one error hierarchy of twinreg. Messages say what was wrong and what to do; the CLI prints them on one
+line as ``error: ...`` and exits with status 1."""
+
+
+class TwinregError(Exception):
+    """Root of every error twinreg reports to a user."""
+
+
+class MeshLoadError(TwinregError):
+    """A mesh file could not be read, or holds no usable geometry."""
+
+
+class UnitError(TwinregError):
+    """The unit of a file is unknown or gives an implausible size."""
+
+
+class AxisError(TwinregError):
+    """An axis option is invalid for this file."""
+
+
+class DuplicateModelError(TwinregError):
+    """The same content (or name) is already in the catalogue."""
+
+
+class ModelNotFoundError(TwinregError):
+    """No catalogue model matches the reference."""
+
+
+class CatalogueError(TwinregError):
+    """The catalogue folder or database cannot be used."""
+
+
+class SceneReadError(TwinregError):
+    """A scene or object point file could not be read."""
+
+
+class GeorefError(TwinregError):
+    """Georeferencing options are missing or out of range."""
+
+
+class ExportError(TwinregError):
+    """Output files could not be written."""
