@@ -45,7 +45,15 @@ class CoscoParams:
     section_res : float
         Voxel size (m) of the section voxelisation (paper: 10 cm).
     size_quantile : float
-        Share of points ignored at each end when reading length, width and height (robust to stray returns).
+        Share of points ignored at each end when reading the length (robust to a stray return).
+    profile_bin : float
+        Slice length (m) along the axis of the width profile (and twice it for the roof line of the height).
+    width_quantile : float
+        Quantile of the half-width profile read as the body width: high enough to take the widest body slices,
+        low enough to leave out mirrors (which span a few slices only).
+    top_cell, cell_top_quantile, top_quantile : float
+        Footprint cell (m), the quantile of z read as a cell's top, and the quantile of the cell tops read as the
+        object's top (so one or two cells of antenna do not count).
 
     Dissimilarity (paper 3.3, Eq. 1-2):
 
@@ -83,6 +91,11 @@ class CoscoParams:
     section_eps_max: float = 0.40
     section_res: float = 0.10
     size_quantile: float = 0.0005
+    profile_bin: float = 0.10
+    width_quantile: float = 0.90
+    top_cell: float = 0.20
+    cell_top_quantile: float = 1.0
+    top_quantile: float = 0.97
 
     tz_max: float = 0.40
     tz_step: float = 0.02

@@ -156,24 +156,59 @@ def cut_sections(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
     return Sections(voxelise_2d(lon[:, [0, 2]], res), voxelise_2d(tra_vz, res), res)
 
 
-def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: CoscoParams = DEFAULT) -> Size:
-    """Length, width and height (m) of an object in its frame.
+def _grouped(bins: np.ndarray, values: np.ndarray, fn) -> np.ndarray:
+    """``fn`` of ``values`` within each bin (bins: int labels), vectorised by sorting; returns one value per bin."""
+    order = np.lexsort((values, bins))
+    b, v = bins[order], values[order]
+    starts = np.flatnonzero(np.r_[True, b[1:] != b[:-1]])
+    ends = np.r_[starts[1:], len(b)]
+    return fn(v, starts, ends)
 
-    Length is the robust extent along u; width is twice the robust largest ``|v|`` for a symmetric object (read
-    from its better-seen side) and the v extent otherwise, mirrors included; height is the robust top of the
-    longitudinal slab above the ground level (paper: "height read from the longitudinal section").
+
+def _quantile_of_groups(q: float):
+    def fn(v, starts, ends):
+        return v[starts + np.floor(q * (ends - 1 - starts)).astype(np.int64)]
+
+    return fn
+
+
+def _max_of_groups(v, starts, ends):
+    return v[ends - 1]
+
+
+def _min_of_groups(v, starts, ends):
+    return v[starts]
+
+
+def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: CoscoParams = DEFAULT) -> Size:
+    """Length, width and height (m) of an object in its frame, measured the same way on models and scans.
+
+    - length: robust extent along u;
+    - width: the body width without mirrors: the half-width profile along u (largest ``|v|`` per
+      ``params.profile_bin`` slice, both sides for a symmetric object, so the better-seen side counts) read at its
+      ``params.width_quantile`` quantile, so mirrors and stray points (a few slices) do not count while a side that
+      was seen in most slices does; sparse airborne scans rarely see mirrors, so this is what both can agree on;
+    - height: the top of the footprint cells (``params.top_cell`` squares): each cell's top is its
+      ``params.cell_top_quantile`` quantile of z (noise averages out), and the height is the
+      ``params.top_quantile`` quantile of the cell tops, so a whip antenna or a shark fin (one or two cells) does
+      not count while a roof rack does.
     """
     uvz = frame.to_local(as_points(points))
     q = params.size_quantile
     lo, hi = _robust_range(uvz[:, 0], q)
+    slices = np.floor(uvz[:, 0] / params.profile_bin).astype(np.int64)
     if symmetric:
-        width = 2.0 * float(np.quantile(np.abs(uvz[:, 1]), 1 - q))
+        half = _grouped(slices, np.abs(uvz[:, 1]), _max_of_groups)
+        width = 2.0 * float(np.quantile(half, params.width_quantile))
     else:
-        vlo, vhi = _robust_range(uvz[:, 1], q)
-        width = vhi - vlo
-    # the top is read on the longitudinal section (the roof line), so a whip antenna on a wing does not count
-    top = float(np.quantile(uvz[_slab(uvz[:, 1], 0.0, params), 2], 1 - q))
-    return Size(length=hi - lo, width=width, height=max(top, 0.0))
+        spread = (_grouped(slices, uvz[:, 1], _max_of_groups) - _grouped(slices, uvz[:, 1], _min_of_groups))
+        width = float(np.quantile(spread, params.width_quantile))
+    cu = np.floor(uvz[:, 0] / params.top_cell).astype(np.int64)
+    cv = np.floor(uvz[:, 1] / params.top_cell).astype(np.int64)
+    cells = (cu - cu.min()) * (cv.max() - cv.min() + 1) + (cv - cv.min())
+    tops = _grouped(cells, uvz[:, 2], _quantile_of_groups(params.cell_top_quantile))
+    height = float(np.quantile(tops, params.top_quantile))
+    return Size(length=hi - lo, width=width, height=max(height, 0.0))
 
 
 def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | None = None,
