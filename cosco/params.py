@@ -29,6 +29,9 @@ class CoscoParams:
         Iterations of the derivative-free optimiser (Nelder-Mead) per start (the paper's k).
     sym_starts : int
         How many of the best distinct starting planes the optimiser refines.
+    sym_side_share : float
+        A side of the plane holding at least this share of the points may carry the PCR alone (a car whose far
+        side an airborne strip barely saw).
     sym_max_points : int
         The voxel is enlarged until at most this many down-sampled points remain (the paper's octree depth).
     sym_refine_steps : int
@@ -84,6 +87,7 @@ class CoscoParams:
     sym_iterations: int = 40
     sym_starts: int = 2
     sym_max_points: int = 600
+    sym_side_share: float = 0.15
     sym_refine_steps: int = 4
 
     section_eps: float = 0.10

@@ -81,9 +81,10 @@ def _median_spacing(tree: cKDTree, pts: np.ndarray) -> float:
 class _Objective:
     """Mirror-correspondence scores of planes against one down-sampled object."""
 
-    def __init__(self, pts: np.ndarray, tol: float):
+    def __init__(self, pts: np.ndarray, tol: float, tree: cKDTree | None = None, side_share: float = 0.15):
         self.pts = pts
-        self.tree = cKDTree(pts)
+        self.side_share = side_share
+        self.tree = cKDTree(pts) if tree is None else tree
         self.tol = tol
 
     def distances(self, phi: float, rho: float) -> np.ndarray:
@@ -96,10 +97,22 @@ class _Objective:
         return float(np.mean(np.exp(-0.5 * (d / self.tol) ** 2)))
 
     def hard(self, phi: float, rho: float) -> tuple[float, float]:
-        """(PCR, RMSE of the corresponding distances)."""
+        """(PCR, RMSE of the corresponding distances).
+
+        The PCR is the larger of the whole object's and each side's (for a side holding at least ``side_share`` of
+        the points, and only as far as the other side's mirror images land within 2.5 tolerances of a point): when
+        a scan saw one side of a car poorly, the poorly seen side still finds its mirror images on the well-seen
+        side and the well-seen side's images land among the sparse points, while an asymmetric object fails.
+        """
         d = self.distances(phi, rho)
         ok = d <= self.tol
         pcr = float(ok.mean())
+        loose = d <= 2.5 * self.tol
+        side = self.pts[:, :2] @ np.array([np.cos(phi), np.sin(phi)]) > rho
+        for mask in (side, ~side):
+            if mask.mean() >= self.side_share:
+                # this side's mirror images land on points, and the other side's land near points (sparse ones)
+                pcr = max(pcr, min(float(ok[mask].mean()), float(loose[~mask].mean())))
         rmse = float(np.sqrt(np.mean(d[ok] ** 2))) if ok.any() else float("inf")
         return pcr, rmse
 
@@ -162,15 +175,22 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     """
     pts = as_points(points, min_points=10)
     offset = pts.mean(0)
-    local = pts - offset
-    voxel = params.sym_voxel
-    down, _ = voxel_downsample(local, voxel)
+    # work in the footprint's principal frame, so that voxel grids turn with the object (rotation invariance)
+    xy = pts[:, :2] - offset[:2]
+    _, vecs = np.linalg.eigh(xy.T @ xy)
+    frame_angle = float(np.arctan2(vecs[1, -1], vecs[0, -1]))
+    c, s = np.cos(frame_angle), np.sin(frame_angle)
+    local = np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1], pts[:, 2] - offset[2]])
+    # the reference set: the object at the base voxel size (equalised density); the tolerance follows its spacing
+    ref, _ = voxel_downsample(local, params.sym_voxel)
+    ref_tree = cKDTree(ref)
+    tol = max(params.sym_tol, params.sym_tol_spacing * _median_spacing(ref_tree, ref))
+    # the probes: a coarser down-sampling when the object is large (speed), mirrored against the reference
+    voxel, down = params.sym_voxel, ref
     while len(down) > params.sym_max_points:
         voxel *= 1.3
         down, _ = voxel_downsample(local, voxel)
-    spacing = _median_spacing(cKDTree(down), down)
-    tol = max(params.sym_tol, params.sym_tol_spacing * spacing)
-    obj = _Objective(down, tol)
+    obj = _Objective(down, tol, ref_tree, params.sym_side_share)
 
     starts = _start_angles(down[:, :2])
     rect_centre = min_area_rectangle(down[:, :2]).centre
@@ -206,7 +226,7 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     _, phi, rho = best
     phi, rho = _refine_pairs(local, cKDTree(local), phi, rho, tol, params.sym_refine_steps)
     pcr, rmse = obj.hard(phi, rho)
-    phi, rho = _canonical(phi, rho)
+    phi, rho = _canonical(phi + frame_angle, rho)
     rho_scene = rho + float(offset[:2] @ np.array([np.cos(phi), np.sin(phi)]))
     return Symmetry(
         found=bool(pcr >= params.pcr_threshold),
