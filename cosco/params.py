@@ -27,8 +27,9 @@ class CoscoParams:
         Point correspondence ratio (PCR) at and above which a symmetry counts as found.
     sym_iterations : int
         Iterations of the derivative-free optimiser (Nelder-Mead) per start (the paper's k).
-    sym_starts : int
-        How many of the best distinct starting planes the optimiser refines.
+    sym_long_axis_margin : float
+        The plane containing the footprint's long axis is kept unless another plane's PCR beats it by more than
+        this (a vehicle's mirror plane is longitudinal; a box-like van is nearly symmetric front to back too).
     sym_side_share : float
         A side of the plane holding at least this share of the points may carry the PCR alone (a car whose far
         side an airborne strip barely saw).
@@ -84,9 +85,9 @@ class CoscoParams:
     sym_tol: float = 0.08
     sym_tol_spacing: float = 1.2
     pcr_threshold: float = 0.60
-    sym_iterations: int = 40
-    sym_starts: int = 2
-    sym_max_points: int = 600
+    sym_iterations: int = 30
+    sym_long_axis_margin: float = 0.10
+    sym_max_points: int = 400
     sym_side_share: float = 0.15
     sym_refine_steps: int = 4
 

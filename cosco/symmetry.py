@@ -15,7 +15,7 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.spatial import cKDTree
 
-from .footprint import as_points, min_area_rectangle, voxel_downsample, wrap_axis
+from .footprint import as_points, axis_difference, min_area_rectangle, voxel_downsample, wrap_axis
 from .params import DEFAULT, CoscoParams
 
 
@@ -188,44 +188,45 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     # the probes: a coarser down-sampling when the object is large (speed), mirrored against the reference
     voxel, down = params.sym_voxel, ref
     while len(down) > params.sym_max_points:
-        voxel *= 1.3
+        # a surface's voxel count falls with the square of the voxel size
+        voxel *= max(1.1, 1.05 * np.sqrt(len(down) / params.sym_max_points))
         down, _ = voxel_downsample(local, voxel)
     obj = _Objective(down, tol, ref_tree, params.sym_side_share)
 
-    starts = _start_angles(down[:, :2])
-    rect_centre = min_area_rectangle(down[:, :2]).centre
+    rect = min_area_rectangle(down[:, :2])
     scored = []
-    for phi in starts:
-        rho = float(rect_centre @ np.array([np.cos(phi), np.sin(phi)]))
+    for phi in _start_angles(down[:, :2]):
+        rho = float(rect.centre @ np.array([np.cos(phi), np.sin(phi)]))
         scored.append((obj.soft(phi, rho), phi, rho))
     scored.sort(key=lambda t: -t[0])
 
-    best = None
-    seen: list[tuple[float, float]] = []
-    for _, phi0, rho0 in scored:
-        if any(abs(np.angle(np.exp(1j * (phi0 - p)))) < np.radians(8) and abs(rho0 - r) < 0.3 for p, r in seen):
-            continue
-        seen.append((phi0, rho0))
+    def optimise(phi0: float, rho0: float) -> tuple[float, float]:
         res = minimize(
             lambda x: -obj.soft(x[0], x[1]),
             x0=[phi0, rho0],
             method="Nelder-Mead",
-            options={
-                "maxiter": params.sym_iterations,
-                "xatol": 1e-3,
-                "fatol": 1e-4,
-                "initial_simplex": [[phi0, rho0], [phi0 + np.radians(4), rho0], [phi0, rho0 + 0.08]],
-            },
+            options={"maxiter": params.sym_iterations, "xatol": 1e-3, "fatol": 1e-4,
+                     "initial_simplex": [[phi0, rho0], [phi0 + np.radians(4), rho0], [phi0, rho0 + 0.08]]},
         )
-        cand = (-res.fun, res.x[0], res.x[1])
-        if best is None or cand[0] > best[0]:
-            best = cand
-        if len(seen) >= params.sym_starts:
-            break
+        return _refine_pairs(local, full_tree, res.x[0], res.x[1], tol, params.sym_refine_steps)
 
-    _, phi, rho = best
-    phi, rho = _refine_pairs(local, cKDTree(local), phi, rho, tol, params.sym_refine_steps)
-    pcr, rmse = obj.hard(phi, rho)
+    # the best start overall, and the best start whose plane contains the footprint's long axis (a vehicle's
+    # mirror plane does; a box-like van is nearly symmetric front to back too)
+    long_normal = rect.angle + np.pi / 2
+    along = [t for t in scored if axis_difference(t[1], long_normal) < np.radians(20)]
+    full_tree = cKDTree(local)
+    candidates = []
+    for k, (_, phi0, rho0) in enumerate([scored[0]] + along[:1]):
+        if k == 1 and axis_difference(phi0, scored[0][1]) < np.radians(8):
+            break
+        phi, rho = optimise(phi0, rho0)
+        pcr, rmse = obj.hard(phi, rho)
+        candidates.append((pcr, rmse, phi, rho, axis_difference(phi, long_normal) < np.radians(20)))
+    best = max(candidates, key=lambda c: c[0])
+    longitudinal = [c for c in candidates if c[4]]
+    if longitudinal and longitudinal[0][0] >= best[0] - params.sym_long_axis_margin:
+        best = longitudinal[0]
+    pcr, rmse, phi, rho, _ = best
     phi, rho = _canonical(phi + frame_angle, rho)
     rho_scene = rho + float(offset[:2] @ np.array([np.cos(phi), np.sin(phi)]))
     return Symmetry(
