@@ -28,29 +28,21 @@ class DistanceField:
     cell: float
     values: np.ndarray
 
-    def __call__(self, pts: np.ndarray) -> np.ndarray:
-        """Bilinear distances at (..., 2) points; outside the grid, the edge value plus the distance to the grid."""
-        g = (pts - self.origin) / self.cell
-        hi = np.array(self.values.shape, dtype=np.float64) - 1.0
-        gc = np.clip(g, 0.0, hi - 1e-9)
-        i0 = gc.astype(np.int64)
-        f = gc - i0
-        v = self.values
-        a = v[i0[..., 0], i0[..., 1]]
-        b = v[i0[..., 0] + 1, i0[..., 1]]
-        c = v[i0[..., 0], i0[..., 1] + 1]
-        d = v[i0[..., 0] + 1, i0[..., 1] + 1]
-        fx, fy = f[..., 0], f[..., 1]
-        out = (a * (1 - fx) + b * fx) * (1 - fy) + (c * (1 - fx) + d * fx) * fy
-        outside = np.linalg.norm((g - gc) * self.cell, axis=-1)
-        return out + outside
+    def nearest_shifted(self, base: np.ndarray, shifts: np.ndarray) -> np.ndarray:
+        """Distances at ``base + shift`` for (n, 2) base points and (s, 2) shifts, from the nearest grid node:
+        integer index arithmetic on the flattened grid, shape (s, n); about half a cell of error."""
+        g = np.rint((base - self.origin) / self.cell).astype(np.int64)
+        o = np.rint(shifts / self.cell).astype(np.int64)
+        i = np.clip(g[None, :, 0] + o[:, None, 0], 0, self.values.shape[0] - 1)
+        j = np.clip(g[None, :, 1] + o[:, None, 1], 0, self.values.shape[1] - 1)
+        return self.values.ravel()[i * self.values.shape[1] + j]
 
 
 def distance_field(points2d: np.ndarray, cell: float, pad: float) -> DistanceField:
     """The distance field of a 2D point set on a ``cell`` grid padded by ``pad`` metres.
 
     >>> f = distance_field(np.array([[0.0, 0.0]]), 0.01, 0.5)
-    >>> round(float(f(np.array([[0.3, 0.4]]))[0]), 3)
+    >>> round(float(f.nearest_shifted(np.array([[0.3, 0.0]]), np.array([[0.0, 0.4]]))[0, 0]), 3)
     0.5
     """
     pts = np.asarray(points2d, dtype=np.float64)
@@ -65,17 +57,26 @@ def distance_field(points2d: np.ndarray, cell: float, pad: float) -> DistanceFie
     return DistanceField(origin=origin, cell=cell, values=dist.astype(np.float32))
 
 
+def _nonempty(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
+    return a if len(a) else np.zeros((1, 2))
+
+
 class SectionPair:
-    """Sections of one object with their distance fields, built once and reused across comparisons."""
+    """One object's sections ready for matching: the coarse contour points are the probes; the fine sets give
+    the distance fields (fast search) and KD-trees (exact final score). Build once, compare many times."""
 
     def __init__(self, sections: Sections, params: CoscoParams = DEFAULT):
-        self.lon = np.asarray(sections.longitudinal, dtype=np.float64)
-        self.tra = np.asarray(sections.transverse, dtype=np.float64)
+        self.probes = {"lon": _nonempty(sections.longitudinal), "tra": _nonempty(sections.transverse)}
+        fine_lon, fine_tra = sections.fine
+        fine = {"lon": _nonempty(fine_lon), "tra": _nonempty(fine_tra)}
         pad = max(params.tz_max, params.du_max) + 0.5
-        self.lon_field = distance_field(self.lon, params.field_cell, pad)
-        self.tra_field = distance_field(self.tra, params.field_cell, pad)
-        self.trees = {"lon": cKDTree(self.lon if len(self.lon) else np.zeros((1, 2))),
-                      "tra": cKDTree(self.tra if len(self.tra) else np.zeros((1, 2)))}
+        self.fields = {k: distance_field(v, params.field_cell, pad) for k, v in fine.items()}
+        self.trees = {k: cKDTree(v) for k, v in fine.items()}
+        self.n = len(self.probes["lon"]) + len(self.probes["tra"])
+        # the contour's own noise: its probes against its own fine set (0 for a noise-free, densely seen object)
+        self.floor_sq = sum(float((np.minimum(self.trees[k].query(self.probes[k])[0], params.dist_cap) ** 2).sum())
+                            for k in ("lon", "tra"))
 
 
 @dataclass(frozen=True)
@@ -89,66 +90,60 @@ class Registration:
     du: float
 
 
-def _moved(b: SectionPair, rz_index: int, du: np.ndarray, tz: np.ndarray):
-    """B's sections moved into A's section planes for each (du, tz): returns two (s, n, 2) arrays and which of
-    A's sections each lands on."""
-    s = 1.0 if rz_index in (0, 1) else -1.0
-    if rz_index in (0, 2):  # B's longitudinal stays longitudinal; u -> s*u + du
-        lon = np.stack([s * b.lon[:, 0], b.lon[:, 1]], axis=-1)
-        tra = np.stack([s * b.tra[:, 0], b.tra[:, 1]], axis=-1)
-        lon = lon[None] + np.stack([du, tz], axis=-1)[:, None, :]
-        tra = tra[None] + np.stack([np.zeros_like(tz), tz], axis=-1)[:, None, :]
-        return lon, "lon", tra, "tra"
-    # quarter turns: B's longitudinal becomes A's transverse and vice versa
-    lon = np.stack([s * b.lon[:, 0], b.lon[:, 1]], axis=-1)
-    tra = np.stack([-s * b.tra[:, 0], b.tra[:, 1]], axis=-1)
-    lon = lon[None] + np.stack([np.zeros_like(tz), tz], axis=-1)[:, None, :]
-    tra = tra[None] + np.stack([du, tz], axis=-1)[:, None, :]
-    return lon, "tra", tra, "lon"
+def _moves(src: SectionPair, r: int, du: np.ndarray, tz: np.ndarray, inverse: bool):
+    """Where ``src``'s section probes land for each candidate shift, as (base (n, 2), shifts (s, 2), key of the
+    target section): the probes of candidate k are ``base + shifts[k]``. Forward: B into A's frame (rotate by rz,
+    then shift by (du, tz)). Inverse: A into B's frame."""
+    cr, sr = [(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)][r]
+    lon, tra = src.probes["lon"], src.probes["tra"]
+    zero = np.zeros_like(tz)
+    if not inverse:
+        if sr == 0.0:
+            return [(lon * [cr, 1.0], np.stack([du, tz], -1), "lon"), (tra * [cr, 1.0], np.stack([zero, tz], -1), "tra")]
+        return [(lon * [sr, 1.0], np.stack([zero, tz], -1), "tra"), (tra * [-sr, 1.0], np.stack([du, tz], -1), "lon")]
+    if sr == 0.0:
+        return [(lon * [cr, 1.0], np.stack([-cr * du, -tz], -1), "lon"),
+                (tra * [cr, 1.0], np.stack([zero, -tz], -1), "tra")]
+    return [(lon * [-sr, 1.0], np.stack([sr * du, -tz], -1), "tra"), (tra * [sr, 1.0], np.stack([zero, -tz], -1), "lon")]
 
 
-def _inverse_moved(a: SectionPair, rz_index: int, du: np.ndarray, tz: np.ndarray):
-    """A's sections moved into B's frame (the inverse transform), for the reverse direction of the chamfer."""
-    inverse = {0: 0, 1: 3, 2: 2, 3: 1}[rz_index]
-    if rz_index in (0, 2):
-        s = 1.0 if rz_index == 0 else -1.0
-        # u_b = s * (u_a - du)
-        lon = np.stack([s * (a.lon[None, :, 0] - du[:, None]), a.lon[None, :, 1] - tz[:, None]], axis=-1)
-        tra = np.stack([np.broadcast_to(s * a.tra[None, :, 0], (len(tz), len(a.tra))),
-                        a.tra[None, :, 1] - tz[:, None]], axis=-1)
-        return lon, "lon", tra, "tra"
-    s = 1.0 if inverse in (0, 1) else -1.0
-    lon = np.stack([s * (a.lon[None, :, 0] - du[:, None]), a.lon[None, :, 1] - tz[:, None]], axis=-1)
-    tra = np.stack([np.broadcast_to(-s * a.tra[None, :, 0], (len(tz), len(a.tra))),
-                    a.tra[None, :, 1] - tz[:, None]], axis=-1)
-    return lon, "tra", tra, "lon"
+def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndarray, cap: float,
+             exact: bool = False) -> np.ndarray:
+    """Sum of squared distances, capped at ``cap`` (m), both directions, for each candidate (du, tz): shape (s,).
 
-
-def _sq_sums(a: SectionPair, b: SectionPair, rz_index: int, du: np.ndarray, tz: np.ndarray) -> np.ndarray:
-    """Sum of squared chamfer distances, both directions, for each candidate (du, tz): shape (s,).
-
-    Looks up the distance fields (fast, about 1 cm of quantisation)."""
-    fields_a = {"lon": a.lon_field, "tra": a.tra_field}
-    fields_b = {"lon": b.lon_field, "tra": b.tra_field}
+    Distance fields by default (bilinear; ``fast``: nearest node with integer index arithmetic), KD-trees with
+    ``exact``. The cap keeps a part one scan saw and the other did not (a bumper, a low sill) from swamping the
+    score."""
     total = np.zeros(len(tz))
-    p1, k1, p2, k2 = _moved(b, rz_index, du, tz)
-    total += (fields_a[k1](p1) ** 2).sum(1) + (fields_a[k2](p2) ** 2).sum(1)
-    q1, j1, q2, j2 = _inverse_moved(a, rz_index, du, tz)
-    total += (fields_b[j1](q1) ** 2).sum(1) + (fields_b[j2](q2) ** 2).sum(1)
+    for src, dst, inverse in ((b, a, False), (a, b, True)):
+        for base, shifts, key in _moves(src, r, du, tz, inverse):
+            if exact:
+                pts = base[None, :, :] + shifts[:, None, :]
+                d, _ = dst.trees[key].query(pts.reshape(-1, 2))
+                d = d.reshape(pts.shape[:2])
+            else:
+                d = dst.fields[key].nearest_shifted(base, shifts)
+            total += (np.minimum(d, cap).astype(np.float64) ** 2).sum(1)
     return total
 
 
-def _exact_sq_sum(a: SectionPair, b: SectionPair, rz_index: int, du: float, tz: float) -> float:
-    """The same sum at one candidate with exact nearest-neighbour distances (KD-trees)."""
-    du_, tz_ = np.array([du]), np.array([tz])
-    total = 0.0
-    for moved, target in ((_moved(b, rz_index, du_, tz_), a), (_inverse_moved(a, rz_index, du_, tz_), b)):
-        p1, k1, p2, k2 = moved
-        for pts, key in ((p1[0], k1), (p2[0], k2)):
-            if len(pts):
-                d, _ = target.trees[key].query(pts)
-                total += float((d ** 2).sum())
-    return total
+def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params: CoscoParams):
+    """Below the field's cell: coordinate descent on the exact (KD-tree) score. Returns (score, tz, du)."""
+
+    def score(t, d):
+        return float(_sq_sums(a, b, r, np.array([d]), np.array([t]), params.dist_cap, exact=True)[0])
+
+    best = score(tz, du)
+    step = params.field_cell / 2
+    while step >= params.field_cell / 8:
+        for dt, dd in ((step, 0.0), (-step, 0.0), (0.0, step), (0.0, -step)):
+            if dd and params.du_max <= 0:
+                continue
+            val = score(tz + dt, du + dd)
+            if val < best:
+                best, tz, du = val, tz + dt, du + dd
+        step /= 2
+    return best, tz, du
 
 
 def _grid(center: float, half: float, step: float) -> np.ndarray:
@@ -157,32 +152,44 @@ def _grid(center: float, half: float, step: float) -> np.ndarray:
 
 
 def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFAULT,
-                      rotations: tuple[int, ...] = (0, 1, 2, 3)) -> Registration:
-    """Minimal symmetric RMSE of B's sections against A's over rz, tz and du (Eq. 1-2 of the paper).
+                      rotations: tuple[int, ...] = (0, 1, 2, 3), polish: bool = False) -> Registration:
+    """Minimal symmetric RMSE of B's sections against A's over rz, tz and du (Eq. 1-2 of the paper), in excess of
+    the two contours' own noise (each section's probes against its own fine set), so an object is at 0 from
+    itself.
 
-    The shift search is a coarse grid followed by two finer grids around the best cell, all vectorised.
+    A coarse grid of (du, tz) for every rotation, then a grid at the field's cell around the best candidate of
+    the best one or two rotations (distance-field look-ups), then the exact score by KD-trees. ``polish`` adds
+    a coordinate descent on the exact score below the field's cell (shifts to a few mm instead of a cell).
     """
-    n_total = len(a.lon) + len(a.tra) + len(b.lon) + len(b.tra)
-    best = (np.inf, 0, 0.0, 0.0)
+    n_total = a.n + b.n
+    dus0 = _grid(0.0, params.du_max, params.du_step * 2) if params.du_max > 0 else np.array([0.0])
+    tzs0 = _grid(0.0, params.tz_max, params.tz_step * 2)
+    T, D = np.meshgrid(tzs0, dus0, indexing="ij")
+    coarse = []
     for r in rotations:
-        tz_c, du_c = 0.0, 0.0
-        tz_half, du_half = params.tz_max, params.du_max
-        tz_step, du_step = params.tz_step * 2, params.du_step
-        for _ in range(3):
-            tzs = _grid(tz_c, tz_half, tz_step)
-            dus = _grid(du_c, du_half, du_step) if params.du_max > 0 else np.array([0.0])
-            T, D = np.meshgrid(tzs, dus, indexing="ij")
-            sq = _sq_sums(a, b, r, D.ravel(), T.ravel())
-            k = int(np.argmin(sq))
-            tz_c, du_c = float(T.ravel()[k]), float(D.ravel()[k])
-            tz_half, du_half = tz_step, du_step
-            tz_step, du_step = tz_step / 4, du_step / 4
-        exact = _exact_sq_sum(a, b, r, du_c, tz_c)
+        sq = _sq_sums(a, b, r, D.ravel(), T.ravel(), params.dist_cap)
+        k = int(np.argmin(sq))
+        coarse.append((float(sq[k]), r, float(T.ravel()[k]), float(D.ravel()[k])))
+    coarse.sort()
+    best = (np.inf, 0, 0.0, 0.0)
+    # refine the best rotation, and the runner-up when its coarse score is close, at one field cell
+    cell = params.field_cell
+    for score, r, tz_c, du_c in [c for c in coarse[:2] if c[0] <= 1.25 * coarse[0][0]]:
+        tzs = _grid(tz_c, params.tz_step * 2, cell)
+        dus = _grid(du_c, params.du_step * 2, cell) if params.du_max > 0 else np.array([0.0])
+        T2, D2 = np.meshgrid(tzs, dus, indexing="ij")
+        sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.dist_cap)
+        k = int(np.argmin(sq))
+        tz_c, du_c = float(T2.ravel()[k]), float(D2.ravel()[k])
+        if polish:
+            exact, tz_c, du_c = _polish(a, b, r, tz_c, du_c, params)
+        else:
+            exact = float(_sq_sums(a, b, r, np.array([du_c]), np.array([tz_c]), params.dist_cap, exact=True)[0])
         if exact < best[0]:
             best = (exact, r, tz_c, du_c)
     val, r, tz, du = best
-    rmse = float(np.sqrt(val / max(n_total, 1)))
-    return Registration(rmse=rmse, rz=ROTATIONS[r], tz=tz, du=du)
+    excess = max(val - a.floor_sq - b.floor_sq, 0.0)
+    return Registration(rmse=float(np.sqrt(excess / max(n_total, 1))), rz=ROTATIONS[r], tz=tz, du=du)
 
 
 def dissimilarity(a: Sections, b: Sections, params: CoscoParams = DEFAULT) -> float:
@@ -193,8 +200,11 @@ def dissimilarity(a: Sections, b: Sections, params: CoscoParams = DEFAULT) -> fl
     >>> tra = np.array([[v, 1.2] for v in np.linspace(-0.9, 0.9, 19)])
     >>> s = Sections(lon, tra, 0.1)
     >>> moved = Sections(lon * [-1, 1] + [0, 0.13], tra + [0, 0.13], 0.1)
-    >>> round(dissimilarity(s, moved), 3)
-    0.0
+    >>> round(dissimilarity(s, moved), 2)
+    0.01
+    >>> reg = register_sections(SectionPair(s), SectionPair(moved), polish=True)
+    >>> round(reg.rmse, 4), round(reg.rz, 4), round(reg.tz, 3)
+    (0.0, 3.1416, -0.13)
     """
     return register_sections(SectionPair(a, params), SectionPair(b, params), params).rmse
 

@@ -58,11 +58,21 @@ class Size:
 
 @dataclass(frozen=True)
 class Sections:
-    """Voxelised sections: ``longitudinal`` (m, 2) as (u, z), ``transverse`` (k, 2) as (v, z); metres, frame coords."""
+    """Voxelised sections in frame coordinates (metres): ``longitudinal`` (m, 2) as (u, z) and ``transverse``
+    (k, 2) as (v, z), one contour-like point per ``res`` cell; ``*_fine`` the same at the distance-field cell
+    (denser, what other sections are matched against; None falls back to the coarse sets)."""
 
     longitudinal: np.ndarray
     transverse: np.ndarray
     res: float
+    longitudinal_fine: np.ndarray | None = None
+    transverse_fine: np.ndarray | None = None
+
+    @property
+    def fine(self) -> tuple[np.ndarray, np.ndarray]:
+        lon = self.longitudinal if self.longitudinal_fine is None else self.longitudinal_fine
+        tra = self.transverse if self.transverse_fine is None else self.transverse_fine
+        return lon, tra
 
 
 @dataclass(frozen=True)
@@ -85,19 +95,26 @@ class ObjectShape:
         return self.frame.heading
 
 
-def voxelise_2d(points2d: np.ndarray, res: float) -> np.ndarray:
-    """Centres of the occupied ``res`` cells of a 2D point set, anchored at (0, 0).
+def voxelise_2d(points2d: np.ndarray, res: float, centroids: bool = True) -> np.ndarray:
+    """The occupied ``res`` cells of a 2D point set (grid anchored at (0, 0)): the mean of each cell's points
+    (contour-like points on the surface) or, with ``centroids=False``, the cell centres.
 
-    points2d : (n, 2) metres. Returns (m, 2) metres, sorted.
+    points2d : (n, 2) metres. Returns (m, 2) metres, sorted by cell.
 
-    >>> voxelise_2d(np.array([[0.01, 0.02], [0.04, 0.03], [0.26, 0.0]]), 0.1).tolist()
-    [[0.05, 0.05], [0.25, 0.05]]
+    >>> pts = np.array([[0.01, 0.02], [0.03, 0.04], [0.26, 0.0]])
+    >>> voxelise_2d(pts, 0.1).round(3).tolist(), voxelise_2d(pts, 0.1, centroids=False).tolist()
+    ([[0.02, 0.03], [0.26, 0.0]], [[0.05, 0.05], [0.25, 0.05]])
     """
     pts = np.asarray(points2d, dtype=np.float64)
     if len(pts) == 0:
         return np.zeros((0, 2))
-    cells = np.unique(np.floor(pts / res).astype(np.int64), axis=0)
-    return np.round((cells + 0.5) * res, 9)
+    cells, inverse, counts = np.unique(np.floor(pts / res).astype(np.int64), axis=0, return_inverse=True,
+                                       return_counts=True)
+    if not centroids:
+        return np.round((cells + 0.5) * res, 9)
+    sums = np.zeros((len(cells), 2))
+    np.add.at(sums, inverse.reshape(-1), pts)
+    return sums / counts[:, None]
 
 
 def _slab(coord: np.ndarray, centre: float, params: CoscoParams) -> np.ndarray:
@@ -152,8 +169,9 @@ def cut_sections(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
     tra_vz = tra[:, [1, 2]]
     if symmetric:
         tra_vz = np.vstack([tra_vz, tra_vz * [-1.0, 1.0]])
-    res = params.section_res
-    return Sections(voxelise_2d(lon[:, [0, 2]], res), voxelise_2d(tra_vz, res), res)
+    res, fine = params.section_res, params.field_cell
+    return Sections(voxelise_2d(lon[:, [0, 2]], res), voxelise_2d(tra_vz, res), res,
+                    voxelise_2d(lon[:, [0, 2]], fine), voxelise_2d(tra_vz, fine))
 
 
 def _grouped(bins: np.ndarray, values: np.ndarray, fn) -> np.ndarray:

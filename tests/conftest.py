@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -70,3 +71,17 @@ def scanned_cars(prepared_cars):
         scan = scan_meshes([(local, prep.mesh.faces)], noise=0.02, seed=k)
         out[slug] = (scan.points + [x, y, 0.0], x, y, heading)
     return out
+
+
+@functools.lru_cache(maxsize=None)
+def toy_car(seed: int = 0) -> np.ndarray:
+    """A scanned toy car made of two boxes (body and cabin), symmetric about the plane y = 0 (no shared data)."""
+    import trimesh
+
+    from twinreg.simulate import scan_meshes
+
+    body = trimesh.creation.box([4.4, 1.8, 0.8], trimesh.transformations.translation_matrix([0, 0, 0.6]))
+    cabin = trimesh.creation.box([2.2, 1.5, 0.6], trimesh.transformations.translation_matrix([-0.3, 0, 1.3]))
+    pts = scan_meshes([(m.vertices, m.faces) for m in (body, cabin)], noise=0.02, seed=seed).points
+    pts.setflags(write=False)
+    return pts

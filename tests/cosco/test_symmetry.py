@@ -4,7 +4,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cosco import axis_difference, detect_symmetry, min_area_rectangle
-from tests.conftest import load_xyz
+from tests.conftest import load_xyz, toy_car
 
 
 def test_dales_cars_symmetry_and_heading(dales):
@@ -62,18 +62,7 @@ def test_asymmetric_object_not_found():
         assert not sym.found, sym
 
 
-def _toy_car(seed: int = 0) -> np.ndarray:
-    """A scanned toy car made of two boxes (body and cabin), symmetric about the plane y = 0."""
-    import trimesh
-
-    from twinreg.simulate import scan_meshes
-
-    body = trimesh.creation.box([4.4, 1.8, 0.8], trimesh.transformations.translation_matrix([0, 0, 0.6]))
-    cabin = trimesh.creation.box([2.2, 1.5, 0.6], trimesh.transformations.translation_matrix([-0.3, 0, 1.3]))
-    return scan_meshes([(m.vertices, m.faces) for m in (body, cabin)], noise=0.02, seed=seed).points
-
-
-TOY = _toy_car()
+TOY = toy_car()
 
 
 def test_symmetric_toy_car_found_with_exact_plane():

@@ -1,0 +1,69 @@
+import numpy as np
+import pytest
+
+from cosco import SectionPair, describe_object, dissimilarity_matrix, register_sections
+
+
+def _turned(points: np.ndarray, quarter_turns: int, dz: float) -> np.ndarray:
+    a = quarter_turns * np.pi / 2
+    c, s = np.cos(a), np.sin(a)
+    centre = points.mean(0)
+    p = (points - centre) @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]) + centre
+    return p + [0.0, 0.0, dz]
+
+
+@pytest.mark.parametrize("slug", ["toyota_prius", "nissan_patrol", "generic_pickup_gazebo"])
+def test_object_against_itself_turned_and_lifted_is_near_zero(scanned_cars, slug):
+    pts = scanned_cars[slug][0]
+    ref = SectionPair(describe_object(pts).sections)
+    for k in range(4):
+        for dz in (0.0, 0.37):
+            other = SectionPair(describe_object(_turned(pts, k, dz)).sections)
+            assert register_sections(ref, other).rmse < 0.01, (k, dz)
+
+
+def test_every_scan_is_nearest_to_its_own_model(scanned_cars, prepared_cars):
+    """A second, independent scan of each car (other seed, pose and height) picks its own model out of 16, and
+    different models differ by more than the scan-to-scan noise."""
+    from twinreg.simulate import pose_matrix, scan_meshes, transform
+
+    names = sorted(scanned_cars)
+    first = [describe_object(scanned_cars[n][0]).sections for n in names]
+    rng = np.random.default_rng(99)
+    second = []
+    for k, n in enumerate(names):
+        mesh = prepared_cars[n].mesh
+        local = transform(mesh.vertices, pose_matrix(0.0, 0.0, rng.uniform(0, 2 * np.pi)))
+        pts = scan_meshes([(local, mesh.faces)], noise=0.02, seed=500 + k).points + [40.0, -70.0, 1.5]
+        second.append(describe_object(pts).sections)
+    m = dissimilarity_matrix(first + second)
+    n = len(names)
+    cross = m[:n, n:]
+    assert (np.argmin(cross, axis=1) == np.arange(n)).all()
+    same = np.diag(cross)
+    different = cross[~np.eye(n, dtype=bool)]
+    assert np.median(different) > 2.0 * np.median(same)
+    assert np.median(same) < 0.04
+
+
+def test_matrix_is_symmetric_with_zero_diagonal(scanned_cars):
+    shapes = [describe_object(scanned_cars[n][0]).sections for n in sorted(scanned_cars)[:5]]
+    m = dissimilarity_matrix(shapes)
+    assert m.shape == (5, 5)
+    assert np.allclose(m, m.T) and np.allclose(np.diag(m), 0)
+    assert (m[~np.eye(5, dtype=bool)] > 0).all()
+
+
+def test_registration_recovers_a_flip_and_a_shift(scanned_cars):
+    pts = scanned_cars["lincoln_mkz_2017"][0]
+    shape = describe_object(pts)
+    s = shape.sections
+    from cosco import Sections
+
+    flipped = Sections(s.longitudinal * [-1, 1] + [0.08, -0.21], s.transverse * [-1, 1] + [0, -0.21], s.res,
+                       s.longitudinal_fine * [-1, 1] + [0.08, -0.21], s.transverse_fine * [-1, 1] + [0, -0.21])
+    reg = register_sections(SectionPair(s), SectionPair(flipped), polish=True)
+    assert reg.rz == pytest.approx(np.pi)
+    assert reg.tz == pytest.approx(0.21, abs=0.006)
+    assert reg.du == pytest.approx(0.08, abs=0.015)  # a long flat roof pins the axial shift less than tz
+    assert reg.rmse < 0.005
