@@ -102,7 +102,9 @@ def plot_dendrogram(linkage: np.ndarray, labels: list[str], threshold: float, pa
     plt = _plt()
     fig, ax = plt.subplots(figsize=(max(5, 0.5 * len(labels) + 2), 4))
     if len(labels) >= 2:
-        dendrogram(np.asarray(linkage) * 100.0, labels=labels, color_threshold=threshold * 100.0, ax=ax)
+        z = np.array(linkage, dtype=np.float64)
+        z[:, 2] *= 100.0  # heights in cm; the other columns are indices and counts
+        dendrogram(z, labels=labels, color_threshold=threshold * 100.0, ax=ax)
         ax.axhline(threshold * 100.0, color="grey", ls="--", lw=1)
     ax.set_ylabel("dissimilarity (cm)")
     ax.set_title(f"hierarchical clustering (cut at {threshold * 100:.1f} cm)")

@@ -1,0 +1,226 @@
+"""The catalogue: every shared car goes in and is measured right; bad input changes nothing; concurrency and
+migrations keep it whole."""
+
+import os
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import CARS, manifest_rows, need
+from twinreg.catalogue.normalise import surface_samples
+from twinreg.catalogue.repository import Catalogue
+from twinreg.errors import DuplicateModelError, MeshLoadError, TwinregError, UnitError
+
+UNIT_SCALE = {"m": 1.0, "cm": 0.01, "in": 0.0254}
+
+
+def true_extents(row: dict) -> tuple[float, float, float, float]:
+    """Length, width (with mirrors), height and robust body top from trimesh's own loading, the MANIFEST's unit
+    and up axis, independent of twinreg's loader."""
+    import trimesh
+
+    scene = trimesh.load(str(row["path"]), force="scene")
+    mesh = scene.to_mesh() if hasattr(scene, "to_mesh") else scene.dump(concatenate=True)
+    v = np.asarray(mesh.vertices) * UNIT_SCALE[row["unit"]]
+    up = 1 if row["up"] == "+y" else 2
+    ext = np.ptp(v, axis=0)
+    horiz = [a for a in range(3) if a != up]
+    length_axis = max(horiz, key=lambda a: ext[a])
+    width_axis = min(horiz, key=lambda a: ext[a])
+    samples = surface_samples(v, np.asarray(mesh.faces), 40000)
+    body_top = np.quantile(samples[:, up], 0.999) - v[:, up].min()
+    return ext[length_axis], ext[width_axis], ext[up], body_top
+
+
+def folder_state(folder: Path):
+    files = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file() and p.name != ".lock"
+                   and not p.name.endswith(("-wal", "-shm")))
+    rows = 0
+    if (folder / "catalogue.sqlite").exists():
+        with sqlite3.connect(folder / "catalogue.sqlite") as con:
+            rows = con.execute("select count(*) from ref_models").fetchone()[0]
+    return files, rows
+
+
+@pytest.fixture(scope="module")
+def full_catalogue(tmp_path_factory):
+    """Every shared car added with no flags at all (unit and axes auto)."""
+    cat = Catalogue(tmp_path_factory.mktemp("lib"))
+    rows = {}
+    for r in manifest_rows():
+        rows[r["slug"]] = cat.add(r["path"], make=r["make"], body_class=r["body_class"])
+    return cat, rows
+
+
+def test_every_shared_car_goes_in_with_no_flags_and_is_measured(full_catalogue):
+    cat, added = full_catalogue
+    assert cat.count() == 16
+    for r in manifest_rows():
+        row = added[r["slug"]]
+        length, width, height, body_top = true_extents(r)
+        assert abs(row.length - length) <= 0.10, (r["slug"], row.length, length)
+        # the width is the body without mirrors; a few bodies are wider than their mirrors' reach
+        assert row.width <= width + 0.10, (r["slug"], row.width, width)
+        assert abs(row.height - height) <= 0.15 or abs(row.height - body_top) <= 0.15, (r["slug"], row.height)
+        assert row.sym_found and row.sym_pcr > 0.9
+        assert abs(np.sin(row.sym_heading)) < np.sin(np.radians(0.5))  # the mirror plane is the XZ plane
+
+
+def test_every_shared_car_goes_in_with_the_manifest_facts(tmp_path, cars):
+    cat = Catalogue(tmp_path / "lib")
+    for r in cars:
+        row = cat.add(r["path"], unit=r["unit"], up=r["up"])
+        length, _, height, body_top = true_extents(r)
+        assert abs(row.length - length) <= 0.10
+        assert abs(row.height - height) <= 0.15 or abs(row.height - body_top) <= 0.15
+        assert row.unit == r["unit"] and row.up_axis == r["up"]
+    assert cat.count() == 16
+
+
+def test_body_width_matches_the_mesh_below_the_beltline(full_catalogue):
+    """The stored width is the body's: the extent of the mesh's lower half (below the mirrors), within 0.10 m."""
+    cat, added = full_catalogue
+    for slug, row in added.items():
+        geo = cat.geometry(row)
+        s = surface_samples(geo.mesh_vertices, geo.mesh_faces, 40000)
+        low = s[s[:, 2] < 0.5 * row.mesh_height]
+        body = np.quantile(low[:, 1], 0.999) - np.quantile(low[:, 1], 0.001)
+        assert abs(row.width - body) <= 0.10, (slug, row.width, body)
+
+
+def test_size_query_is_one_indexed_query(full_catalogue):
+    cat, added = full_catalogue
+    prius = added["toyota_prius"]
+    near = cat.list(near=(prius.length, prius.width, prius.height), tol=0.2)
+    assert prius.id in [m.id for m in near]
+    for m in near:
+        assert abs(m.length - prius.length) <= 0.2 and abs(m.width - prius.width) <= 0.2
+    with sqlite3.connect(cat.folder / "catalogue.sqlite") as con:
+        plan = " ".join(str(r) for r in con.execute(
+            "explain query plan select * from ref_models where length between ? and ? and width between ? and ? "
+            "and height between ? and ?", (4, 5, 1, 2, 1, 2)))
+    assert "USING INDEX" in plan
+
+
+def test_duplicate_content_is_refused_naming_the_entry(full_catalogue):
+    cat, added = full_catalogue
+    with pytest.raises(DuplicateModelError, match="Hybrid"):
+        cat.add(CARS / "toyota_prius" / "Hybrid.obj")
+
+
+BAD_OBJ_NAN = "v 0 0 0\nv nan 1 0\nv 1 1 0\nf 1 2 3\n"
+
+
+@pytest.mark.parametrize("kind", ["missing", "empty", "garbage", "nan", "no-faces", "implausible", "duplicate",
+                                  "unsupported", "bad-unit"])
+def test_bad_input_leaves_catalogue_unchanged(full_catalogue, tmp_path, kind):
+    cat, _ = full_catalogue
+    before = folder_state(cat.folder)
+    path, kwargs = tmp_path / "x.obj", {}
+    if kind == "empty":
+        path.write_text("")
+    elif kind == "garbage":
+        path = tmp_path / "x.dae"
+        path.write_bytes(b"\x00\x01not xml at all" * 50)
+    elif kind == "nan":
+        path.write_text(BAD_OBJ_NAN)
+    elif kind == "no-faces":
+        path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    elif kind == "implausible":
+        path = CARS / "generic_hatchback_gazebo" / "hatchback.obj"
+        kwargs = {"unit": "m"}
+        cat.remove("hatchback")  # make room: the same file is in the catalogue
+        before = folder_state(cat.folder)
+    elif kind == "duplicate":
+        path = CARS / "uaz_469" / "uaz469_chassis.obj"
+    elif kind == "unsupported":
+        path = tmp_path / "x.fbx"
+        path.write_text("fbx")
+    elif kind == "bad-unit":
+        path = CARS / "jeep_cherokee_xj_1997" / "JeepCherokee.obj"
+        kwargs = {"unit": "furlong"}
+    with pytest.raises(TwinregError) as info:
+        cat.add(path, **kwargs)
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message
+    assert folder_state(cat.folder) == before
+    if kind == "implausible":
+        assert isinstance(info.value, UnitError) and "--unit in" in message
+        cat.add(path)  # and it goes back in with the right unit
+
+
+def test_cli_reports_bad_input_on_one_line(tmp_path):
+    missing = tmp_path / "nope.obj"
+    proc = subprocess.run([sys.executable, "-m", "twinreg", "add-model", str(missing), "--library",
+                           str(tmp_path / "lib")], capture_output=True, text=True)
+    assert proc.returncode == 1
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "nope.obj" in lines[0]
+    assert "Traceback" not in proc.stderr
+
+
+def test_two_concurrent_add_model_processes(tmp_path):
+    lib = tmp_path / "lib"
+    env = {**os.environ, "TWINREG_LIBRARY": str(lib)}
+    a = need(CARS / "uaz_469" / "uaz469_chassis.obj")
+    b = CARS / "vw_type2_microbus" / "van_chassis.obj"
+    cmd = [sys.executable, "-m", "twinreg", "add-model"]
+    procs = [subprocess.Popen(cmd + [str(p)], env=env, stderr=subprocess.PIPE, text=True) for p in (a, b)]
+    assert [p.wait(timeout=300) for p in procs] == [0, 0], [p.stderr.read() for p in procs]
+    # the same file twice at once: one goes in, the other fails cleanly
+    c = CARS / "jeep_cherokee_xj_1997" / "JeepCherokee.obj"
+    procs = [subprocess.Popen(cmd + [str(c)], env=env, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    codes = sorted(p.wait(timeout=300) for p in procs)
+    errors = [p.stderr.read() for p in procs]
+    assert codes == [0, 1], errors
+    assert any("same content" in e or "already in the catalogue" in e for e in errors)
+    with sqlite3.connect(lib / "catalogue.sqlite") as con:
+        assert con.execute("pragma integrity_check").fetchone()[0] == "ok"
+        assert con.execute("select count(*) from ref_models").fetchone()[0] == 3
+    files, _ = folder_state(lib)
+    assert len([f for f in files if f.startswith("files/")]) == 3
+    assert not [f for f in files if ".tmp-" in f]
+
+
+def test_catalogue_at_the_initial_revision_is_upgraded(tmp_path):
+    from twinreg.catalogue.db import current_revision, head_revision, make_engine, upgrade
+
+    lib = tmp_path / "old"
+    lib.mkdir()
+    engine = make_engine(lib / "catalogue.sqlite")
+    upgrade(engine, "0001_initial")
+    assert current_revision(engine) == "0001_initial"
+    cols = ("name, tags_json, sha256, source_name, stored_file, mesh_file, n_faces, unit, unit_scale, unit_source, "
+            "up_axis, front_axis, notes, length, width, height, mesh_length, mesh_width, mesh_height, sym_found, "
+            "sym_pcr, sym_rmse, sym_heading, sample_spacing, n_points, points, section_longitudinal, "
+            "section_transverse, section_res, created_at, updated_at")
+    with engine.begin() as con:
+        con.exec_driver_sql(
+            f"insert into ref_models ({cols}) values ('old_car', '[]', 'abc', 'old.obj', 'files/ab/abc.obj', "
+            "'meshes/abc.npz', 12, 'm', 1.0, 'file', '+z', '+x', '', 4.5, 1.8, 1.5, 4.5, 1.9, 1.5, 1, 0.95, 0.02, "
+            "0.0, 0.05, 0, x'', x'', x'', 0.1, '2024-01-01', '2024-01-01')")
+    engine.dispose()
+    cat = Catalogue(lib)  # opening upgrades
+    assert current_revision(cat._engine) == head_revision()
+    rows = cat.list()
+    assert [r.name for r in rows] == ["old_car"] and rows[0].glass_fraction == 0.0
+    assert [r.name for r in cat.list(near=(4.5, 1.8, 1.5))] == ["old_car"]
+
+
+def test_update_and_remove(tmp_path):
+    cat = Catalogue(tmp_path / "lib")
+    row = cat.add(need(CARS / "vw_beetle_type1" / "Beetle.glb"), make="VW")
+    assert row.up_axis == "+y" and row.glass_fraction > 0
+    cat.update(row.id, name="beetle", body_class="supermini", tags=["classic", "rear-engine"])
+    got = cat.get("beetle")
+    assert got.body_class == "supermini" and got.tags == ["classic", "rear-engine"]
+    stored = cat.folder / got.stored_file
+    assert stored.exists()
+    cat.remove("beetle")
+    assert cat.count() == 0 and not stored.exists()
+    with pytest.raises(TwinregError):
+        cat.get("beetle")
