@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.cluster.hierarchy import fcluster, linkage
-from scipy.spatial.distance import squareform
 
 from .params import DEFAULT, CoscoParams
 
@@ -43,6 +41,9 @@ def cluster(matrix, params: CoscoParams = DEFAULT, threshold: float | None = Non
     >>> cluster(d).labels.tolist()
     [1, 1, 2]
     """
+    from scipy.cluster.hierarchy import fcluster, linkage  # imported here: 0.25 s that most commands never need
+    from scipy.spatial.distance import squareform
+
     m = check_matrix(matrix)
     t = params.cluster_threshold if threshold is None else float(threshold)
     n = len(m)

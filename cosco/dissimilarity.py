@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from .params import DEFAULT, CoscoParams
@@ -45,6 +44,8 @@ def distance_field(points2d: np.ndarray, cell: float, pad: float) -> DistanceFie
     >>> round(float(f.nearest_shifted(np.array([[0.3, 0.0]]), np.array([[0.0, 0.4]]))[0, 0]), 3)
     0.5
     """
+    from scipy import ndimage  # imported here: 0.5 s that commands without matching never need
+
     pts = np.asarray(points2d, dtype=np.float64)
     if len(pts) == 0:
         pts = np.zeros((1, 2))
