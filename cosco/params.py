@@ -72,6 +72,37 @@ class CoscoParams:
         a low sill) costs a bounded amount; measured on scans of the 16 shared cars, the cap lets every scan pick
         its own model (no cap: 14 of 16).
 
+    Ground (paper 3.1, "background removal"; a progressive morphological filter instead of one RANSAC plane):
+
+    ground_cell : float
+        Grid cell (m) of the lowest-point surface.
+    ground_windows : tuple of float
+        Opening window sizes (m), growing; the largest must exceed the largest object to lift off the ground.
+    ground_dh0, ground_slope, ground_dh_max : float
+        Height threshold (m) at a window step: ``dh0 + slope * growth`` capped at ``dh_max``.
+    ground_dh_final : float
+        Strict threshold (m) against the widest opening (ramps pass, car edges do not).
+    ground_tol : float
+        Points this close to the ground surface (m) are ground (a kerb is 0.15 m).
+
+    Objects (paper 3.1; patches are voxels of ``seg_voxel``, the paper's 15 cm seeds):
+
+    seg_voxel : float
+        Patch voxel edge (m); patches connect through their 26 neighbours. Raised to the point spacing on sparse
+        scans.
+    seg_column, seg_gap : float
+        Columns (m) in which only the lowest run of points above ground is kept: a point above a vertical gap
+        larger than ``seg_gap`` (m) is an overhang (tree canopy, wires) and does not join the object below.
+    seg_max_height : float
+        Points higher than this above ground (m) are not part of car-class objects.
+    seg_core_height : float
+        Objects grow from points at least this high above ground (m); lower points (kerbs, islands, wheels) join
+        the object whose core lies within two patches of them, so they cannot bridge two cars.
+    seg_min_points : int
+        Smaller connected groups are noise.
+    car_length, car_width, car_height, car_area : (min, max)
+        The size filter of the target class (m, m, m, m^2 of footprint); the paper kept 1-20 m^2 of surface.
+
     Clustering (paper 3.3):
 
     cluster_threshold : float
@@ -112,6 +143,25 @@ class CoscoParams:
     du_step: float = 0.05
     field_cell: float = 0.02
     dist_cap: float = 0.10
+
+    ground_cell: float = 0.5
+    ground_windows: tuple = (1.0, 2.0, 4.0, 8.0, 14.0)
+    ground_dh0: float = 0.15
+    ground_slope: float = 0.10
+    ground_dh_max: float = 2.5
+    ground_dh_final: float = 0.30
+    ground_tol: float = 0.15
+
+    seg_voxel: float = 0.15
+    seg_column: float = 0.25
+    seg_gap: float = 0.6
+    seg_max_height: float = 4.0
+    seg_core_height: float = 0.5
+    seg_min_points: int = 30
+    car_length: tuple = (2.5, 7.5)
+    car_width: tuple = (1.0, 3.0)
+    car_height: tuple = (0.9, 3.3)
+    car_area: tuple = (1.0, 20.0)
 
     cluster_threshold: float = 0.065
     linkage: str = "average"

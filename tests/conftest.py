@@ -85,3 +85,41 @@ def toy_car(seed: int = 0) -> np.ndarray:
     pts = scan_meshes([(m.vertices, m.faces) for m in (body, cabin)], noise=0.02, seed=seed).points
     pts.setflags(write=False)
     return pts
+
+
+KITTI = SHARED_DATA / "kitti_object" / "training"
+
+
+def kitti_boxes(frame: str) -> list[dict]:
+    """KITTI label_2 boxes of a frame as functions of velodyne points: each dict has ``type``, ``inside``
+    (callable: (n, 3) velodyne points -> (n,) bool) and ``centre`` (3,) in the velodyne frame."""
+    calib = {}
+    for line in open(need(KITTI) / "calib" / f"{frame}.txt"):
+        if ":" in line:
+            key, vals = line.split(":", 1)
+            calib[key.strip()] = np.array([float(v) for v in vals.split()])
+    r0 = np.eye(4)
+    r0[:3, :3] = calib["R0_rect"].reshape(3, 3)
+    tr = np.eye(4)
+    tr[:3, :4] = calib["Tr_velo_to_cam"].reshape(3, 4)
+    velo_to_rect = r0 @ tr
+    rect_to_velo = np.linalg.inv(velo_to_rect)
+    boxes = []
+    for line in open(KITTI / "label_2" / f"{frame}.txt"):
+        f = line.split()
+        if f[0] == "DontCare":
+            continue
+        h, w, l_, x, y, z, ry = (float(v) for v in f[8:15])
+        c, s = np.cos(ry), np.sin(ry)
+        rot = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+        bottom = np.array([x, y, z])
+
+        def inside(pts, bottom=bottom, rot=rot, h=h, w=w, l_=l_):
+            cam = (velo_to_rect @ np.c_[pts, np.ones(len(pts))].T).T[:, :3]
+            loc = (cam - bottom) @ rot  # = rot.T @ (cam - bottom) per row
+            return (np.abs(loc[:, 0]) <= l_ / 2) & (np.abs(loc[:, 2]) <= w / 2) & (loc[:, 1] <= 0) & (loc[:, 1] >= -h)
+
+        centre_rect = bottom + [0.0, -h / 2, 0.0]
+        centre = (rect_to_velo @ np.r_[centre_rect, 1.0])[:3]
+        boxes.append({"type": f[0], "inside": inside, "centre": centre})
+    return boxes

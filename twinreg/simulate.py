@@ -79,3 +79,111 @@ def scan_meshes(meshes, passes=DEFAULT_PASSES, noise: float = 0.02, seed: int = 
         pts.append(hit)
         labels.append(owner[fid])
     return Scan(np.vstack(pts), np.concatenate(labels))
+
+
+@dataclass
+class PlacedCar:
+    """Ground truth of one simulated car: model index, footprint centre (m), heading of its front (rad)."""
+
+    model: int
+    x: float
+    y: float
+    heading: float
+
+
+@dataclass
+class CarPark:
+    """A simulated scene: ``points`` (n, 3) local metres, ``labels`` (n,): car index, or -1 ground, or
+    -2 - k for distractor k; the cars' truth and the distractors' names."""
+
+    points: np.ndarray
+    labels: np.ndarray
+    cars: list
+    distractors: list
+
+
+def _box(size, centre, yaw=0.0):
+    import trimesh
+
+    m = trimesh.creation.box(size)
+    m.apply_transform(trimesh.transformations.euler_matrix(0, 0, yaw))
+    m.apply_translation(centre)
+    return m.vertices, m.faces
+
+
+def ground_height(x, y, slope: float = 0.02, ramp_x: float = -12.0, ramp_slope: float = 0.08):
+    """The simulated ground: a 2 % slope along x and a steeper ramp (8 %) beyond ``ramp_x``."""
+    x = np.asarray(x, dtype=np.float64)
+    z = slope * x
+    return z + np.where(x < ramp_x, (ramp_x - x) * ramp_slope, 0.0) + 0.0 * np.asarray(y)
+
+
+def _ground_mesh(xmin, xmax, ymin, ymax, step=1.0):
+    xs = np.arange(xmin, xmax + step, step)
+    ys = np.arange(ymin, ymax + step, step)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    v = np.column_stack([gx.ravel(), gy.ravel(), ground_height(gx.ravel(), gy.ravel())])
+    nx, ny = len(xs), len(ys)
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
+    a = (i * ny + j).ravel()
+    f = np.vstack([np.column_stack([a, a + ny, a + 1]), np.column_stack([a + 1, a + ny, a + ny + 1])])
+    return v, f
+
+
+def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DEFAULT_PASSES,
+             noise: float = 0.02, distractors: bool = True) -> CarPark:
+    """Cars in two facing rows with ``gaps`` (m) between neighbours, on a sloped ground with a ramp, a kerb, a
+    wall, a tree whose canopy overhangs a car, and a lamp pole; scanned by airborne passes.
+
+    models : list of ``(vertices, faces)`` normalised cars (metres, Z up, front +X, footprint centred, z_min 0).
+    """
+    rng = np.random.default_rng(seed)
+    meshes, labels_of_mesh, cars = [], [], []
+    per_row = int(np.ceil(n_cars / 2))
+    for k in range(n_cars):
+        row = k // per_row
+        m = (k * 7 + 3) % len(models) if len(models) > 1 else 0
+        v, f = models[m]
+        length = np.ptp(v[:, 0])
+        width = np.ptp(v[:, 1])
+        if k % per_row == 0:
+            cursor = -8.0
+        gap = rng.uniform(*gaps)
+        y = cursor + width / 2
+        cursor = y + width / 2 + gap
+        x = (3.4 if row == 0 else -3.4) + rng.uniform(-0.3, 0.3) - (0.0 if row == 0 else 0.0)
+        # parked nose-in, some reversed in, a little off square
+        heading = (np.pi if row == 0 else 0.0) + (np.pi if rng.random() < 0.3 else 0.0) + rng.normal(0, 0.05)
+        z = float(ground_height(x, y))
+        meshes.append((transform(v, pose_matrix(x, y, heading, z)), f))
+        labels_of_mesh.append(k)
+        cars.append(PlacedCar(m, float(x), float(y), float(np.mod(heading, 2 * np.pi))))
+    names = []
+    ymin = -10.0
+    ymax = cursor + 3.0
+    if distractors:
+        extra = [
+            ("wall", _box([0.3, 14.0, 2.4], [8.2, (ymin + ymax) / 2, float(ground_height(8.2, 0)) + 1.2])),
+            ("kerb", _box([0.3, ymax - ymin - 2, 0.15], [-6.4, (ymin + ymax) / 2,
+                                                         float(ground_height(-6.4, 0)) + 0.075])),
+            ("pole", _box([0.2, 0.2, 6.0], [0.0, ymax - 1.5, float(ground_height(0, 0)) + 3.0])),
+        ]
+        # a tree by the first car of row 0: trunk beside it, canopy (from 2.3 m) overhanging its roof
+        tx, ty = cars[0].x + 0.8, cars[0].y - 2.2
+        gz = float(ground_height(tx, ty))
+        import trimesh
+
+        canopy = trimesh.creation.icosphere(subdivisions=2, radius=2.2)
+        canopy.apply_scale([1.0, 1.0, 0.6])
+        canopy.apply_translation([tx, ty + 0.8, gz + 2.3 + 1.32])
+        extra.append(("tree trunk", _box([0.35, 0.35, 3.0], [tx, ty, gz + 1.5])))
+        extra.append(("tree canopy", (canopy.vertices, canopy.faces)))
+        for k, (name, mesh) in enumerate(extra):
+            meshes.append(mesh)
+            labels_of_mesh.append(-2 - k)
+            names.append(name)
+    meshes.append(_ground_mesh(-16.0, 10.0, ymin, ymax))
+    labels_of_mesh.append(-1)
+    scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed)
+    labels = np.asarray(labels_of_mesh)[scan.labels]
+    return CarPark(scan.points, labels, cars, names)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from . import models, objects
+from . import models, objects, scenes
 
 app = typer.Typer(
     name="twinreg",
@@ -15,6 +15,7 @@ app = typer.Typer(
 )
 app.add_typer(models.app)
 app.add_typer(objects.app)
+app.add_typer(scenes.app)
 
 
 def main() -> None:

@@ -1,0 +1,142 @@
+"""Scene detection as users run it: read a scan, remove the ground, find objects, report and export them."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cosco.ground import Ground, remove_ground
+from cosco.params import DEFAULT, CoscoParams
+from cosco.segment import Segmentation, segment_objects
+
+from .errors import SceneReadError
+from .io.points import PointSet, read_points
+
+
+@dataclass
+class Detection:
+    """A detected scene. ``points`` are the file's (float64, metres); the algorithms ran on ``points - offset``."""
+
+    scene: PointSet
+    is_ground: np.ndarray
+    hag: np.ndarray
+    ground: Ground
+    segmentation: Segmentation
+    timing_s: dict = field(default_factory=dict)
+
+    @property
+    def objects(self):
+        """The target-class objects (e.g. cars), in id order."""
+        return [o for o in self.segmentation.objects if o.target]
+
+    def ids(self, all_objects: bool = False) -> list[tuple[str, object]]:
+        objs = self.segmentation.objects if all_objects else self.objects
+        return [(f"obj{k + 1}", o) for k, o in enumerate(objs)]
+
+
+def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None) -> Detection:
+    """Ground removal and connectivity-based object detection on a read scene."""
+    t0 = time.perf_counter()
+    local = scene.local
+    is_ground, hag, ground = remove_ground(local, params)
+    t1 = time.perf_counter()
+    if progress:
+        progress("ground")
+    seg = segment_objects(local, hag, params, is_ground=is_ground)
+    t2 = time.perf_counter()
+    if progress:
+        progress("objects")
+    ground = Ground(origin=ground.origin + scene.offset[:2], cell=ground.cell, z=ground.z + scene.offset[2])
+    return Detection(scene, is_ground, hag, ground, seg, {"ground": t1 - t0, "objects": t2 - t1})
+
+
+def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None) -> Detection:
+    t = time.perf_counter()
+    scene = read_points(path, unit=unit)
+    if len(scene.points) < 100:
+        raise SceneReadError(f"{path}: only {len(scene.points)} points; a scene needs at least 100")
+    read_s = time.perf_counter() - t
+    if progress:
+        progress("read")
+    det = detect_points(scene, params, progress)
+    det.timing_s = {"read": read_s, **det.timing_s}
+    return det
+
+
+def detection_json(det: Detection, all_objects: bool = False) -> dict:
+    """The contract's ``detect`` JSON (plus sizes, the unit, the offset and timings)."""
+    pts = det.scene.points
+    objs = []
+    for oid, o in det.ids(all_objects):
+        p = pts[o.indices]
+        objs.append({
+            "id": oid, "n_points": int(o.n_points), "centroid": [float(v) for v in p.mean(0)],
+            "bbox_min": [float(v) for v in p.min(0)], "bbox_max": [float(v) for v in p.max(0)],
+            "footprint": {"length": round(o.length, 3), "width": round(o.width, 3), "height": round(o.height, 3),
+                          "area_m2": round(o.area, 2)},
+            "target_class": bool(o.target),
+        })
+    return {
+        "scene": det.scene.path.name, "n_points": int(len(pts)), "n_ground": int(det.is_ground.sum()),
+        "unit": det.scene.unit, "crs": det.scene.crs, "offset": [float(v) for v in det.scene.offset],
+        "n_dropped_nonfinite": det.scene.n_dropped, "n_patches": det.segmentation.n_patches,
+        "n_components": det.segmentation.n_components, "objects": objs,
+        "timing_s": {k: round(v, 4) for k, v in det.timing_s.items()},
+    }
+
+
+def write_detection(det: Detection, out: Path, all_objects: bool = False) -> list[Path]:
+    """One PLY per object (float64 coordinates) and a numbered top view, into ``out`` (replaced as a whole)."""
+    from .io.ply import write_ply
+    from .outdir import staged_folder
+
+    written = []
+    with staged_folder(out) as stage:
+        for oid, o in det.ids(all_objects):
+            write_ply(stage / f"{oid}.ply", det.scene.points[o.indices],
+                      comments=[f"twinreg object {oid} of {det.scene.path.name}", f"unit m (file unit {det.scene.unit})"])
+            written.append(out / f"{oid}.ply")
+        plot_detection(det, stage / "topview.png", all_objects)
+        written.append(out / "topview.png")
+    return written
+
+
+def plot_detection(det: Detection, path, all_objects: bool = False, title: str | None = None):
+    """Top view: ground in grey, other points by height, target objects outlined and numbered."""
+    from cosco.footprint import min_area_rectangle
+
+    from .plots import _plt, save_figure
+
+    plt = _plt()
+    local = det.scene.local
+    ext = np.ptp(local[:, :2], axis=0)
+    scale = 12.0 / max(ext.max(), 1.0)
+    fig, ax = plt.subplots(figsize=(max(4.0, ext[0] * scale + 1.5), max(3.0, ext[1] * scale + 1.0)))
+    rng = np.random.default_rng(0)
+    g = np.flatnonzero(det.is_ground)
+    if len(g) > 200_000:
+        g = rng.choice(g, 200_000, replace=False)
+    ax.scatter(local[g, 0], local[g, 1], s=0.2, c="0.85", rasterized=True)
+    ng = np.flatnonzero(~det.is_ground)
+    if len(ng) > 300_000:
+        ng = rng.choice(ng, 300_000, replace=False)
+    sc = ax.scatter(local[ng, 0], local[ng, 1], s=0.4, c=np.clip(det.hag[ng], 0, 6), cmap="viridis",
+                    rasterized=True)
+    for oid, o in det.ids(all_objects):
+        p = local[o.indices, :2]
+        rect = min_area_rectangle(p)
+        c = rect.corners()
+        color = "red" if o.target else "orange"
+        ax.plot(*np.vstack([c, c[:1]]).T, color=color, lw=0.9)
+        ax.text(rect.centre[0], rect.centre[1], oid[3:], color=color, fontsize=6, ha="center", va="center",
+                weight="bold")
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"x - {det.scene.offset[0]:.0f} (m)")
+    ax.set_ylabel(f"y - {det.scene.offset[1]:.0f} (m)")
+    n = len(det.objects)
+    ax.set_title(title or f"{det.scene.path.name}: {n} car-sized objects (red)")
+    fig.colorbar(sc, ax=ax, shrink=0.6, label="height above ground (m)")
+    return save_figure(fig, path)

@@ -1,0 +1,49 @@
+"""A small binary PLY writer with float64 vertices (projected coordinates keep their millimetres), optional
+faces and per-vertex colours, header comments, written to a temporary file and renamed."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
+    """Write ``vertices`` (n, 3) float64, ``faces`` (m, 3) int, ``colors`` (n, 3) uint8 to a binary PLY."""
+    path = Path(path)
+    v = np.ascontiguousarray(vertices, dtype="<f8")
+    fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+    if colors is not None:
+        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    rec = np.empty(len(v), dtype=fields)
+    rec["x"], rec["y"], rec["z"] = v[:, 0], v[:, 1], v[:, 2]
+    if colors is not None:
+        c = np.asarray(colors, dtype=np.uint8).reshape(-1, 3)
+        rec["red"], rec["green"], rec["blue"] = c[:, 0], c[:, 1], c[:, 2]
+    header = ["ply", "format binary_little_endian 1.0"]
+    header += [f"comment {line}" for line in comments]
+    header += [f"element vertex {len(v)}", "property double x", "property double y", "property double z"]
+    if colors is not None:
+        header += ["property uchar red", "property uchar green", "property uchar blue"]
+    if faces is not None:
+        header += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
+    header += ["end_header"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".ply")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(("\n".join(header) + "\n").encode("ascii"))
+            fh.write(rec.tobytes())
+            if faces is not None:
+                f = np.asarray(faces, dtype="<i4").reshape(-1, 3)
+                frec = np.empty(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+                frec["n"] = 3
+                frec["i"] = f
+                fh.write(frec.tobytes())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path

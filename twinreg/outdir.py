@@ -1,0 +1,42 @@
+"""Output folders that are replaced only as a whole: everything is written into a staging folder beside the
+target, which then takes the target's place (the old one is removed only after the swap)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from .errors import ExportError
+
+
+@contextlib.contextmanager
+def staged_folder(target):
+    """Yield a staging folder; on success it replaces ``target`` atomically, on failure it is deleted and
+    ``target`` is left as it was."""
+    target = Path(target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.tmp-"))
+    except OSError as exc:
+        raise ExportError(f"{target}: cannot write here ({exc.strerror}); choose another --out") from exc
+    try:
+        yield stage
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    old = None
+    try:
+        if target.exists():
+            old = target.parent / f".{target.name}.old-{os.getpid()}"
+            os.replace(target, old)
+        os.replace(stage, target)
+    except OSError as exc:
+        shutil.rmtree(stage, ignore_errors=True)
+        if old is not None and not target.exists():
+            os.replace(old, target)
+        raise ExportError(f"{target}: cannot replace the folder ({exc.strerror})") from exc
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
