@@ -113,7 +113,7 @@ def plot_detection(det: Detection, path, all_objects: bool = False, title: str |
     plt = _plt()
     local = det.scene.local
     ext = np.ptp(local[:, :2], axis=0)
-    scale = 12.0 / max(ext.max(), 1.0)
+    scale = 16.0 / max(ext.max(), 1.0)
     fig, ax = plt.subplots(figsize=(max(4.0, ext[0] * scale + 1.5), max(3.0, ext[1] * scale + 1.0)))
     rng = np.random.default_rng(0)
     g = np.flatnonzero(det.is_ground)

@@ -12,6 +12,18 @@ from pathlib import Path
 from .errors import ExportError
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def publish(tmp, dst) -> None:
+    """Give a temporary file (made private by mkstemp) the usual permissions, then rename it into place."""
+    os.chmod(tmp, 0o666 & ~_umask())
+    os.replace(tmp, dst)
+
+
 @contextlib.contextmanager
 def staged_folder(target):
     """Yield a staging folder; on success it replaces ``target`` atomically, on failure it is deleted and
@@ -20,6 +32,7 @@ def staged_folder(target):
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         stage = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.tmp-"))
+        os.chmod(stage, 0o777 & ~_umask())
     except OSError as exc:
         raise ExportError(f"{target}: cannot write here ({exc.strerror}); choose another --out") from exc
     try:

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .outdir import publish
+
 
 def _plt():
     import matplotlib
@@ -27,7 +29,7 @@ def save_figure(fig, path) -> Path:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        os.replace(tmp, path)
+        publish(tmp, path)
     finally:
         _plt().close(fig)
         if os.path.exists(tmp):

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from ..outdir import publish
 from sqlalchemy import and_, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -56,7 +58,7 @@ def _atomic_copy(src: Path, dst: Path) -> bool:
     os.close(fd)
     try:
         shutil.copyfile(src, tmp)
-        os.replace(tmp, dst)
+        publish(tmp, dst)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -71,7 +73,7 @@ def _atomic_npz(dst: Path, **arrays) -> bool:
     os.close(fd)
     try:
         np.savez_compressed(tmp, **arrays)
-        os.replace(tmp, dst)
+        publish(tmp, dst)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

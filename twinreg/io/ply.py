@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outdir import publish
+
 
 def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
     """Write ``vertices`` (n, 3) float64, ``faces`` (m, 3) int, ``colors`` (n, 3) uint8 to a binary PLY."""
@@ -42,7 +44,7 @@ def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
                 frec["n"] = 3
                 frec["i"] = f
                 fh.write(frec.tobytes())
-        os.replace(tmp, path)
+        publish(tmp, path)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
