@@ -109,14 +109,15 @@ def _moves(src: SectionPair, r: int, du: np.ndarray, tz: np.ndarray, inverse: bo
 
 
 def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndarray, cap: float,
-             exact: bool = False) -> np.ndarray:
-    """Sum of squared distances, capped at ``cap`` (m), both directions, for each candidate (du, tz): shape (s,).
+             exact: bool = False, one_way: bool = False) -> np.ndarray:
+    """Sum of squared distances, capped at ``cap`` (m), for each candidate (du, tz): shape (s,). Both directions,
+    or with ``one_way`` only A's probes against B's sections.
 
-    Distance fields by default (bilinear; ``fast``: nearest node with integer index arithmetic), KD-trees with
-    ``exact``. The cap keeps a part one scan saw and the other did not (a bumper, a low sill) from swamping the
-    score."""
+    Distance fields (nearest node, integer index arithmetic) by default, KD-trees with ``exact``. The cap keeps
+    a part one scan saw and the other did not (a bumper, a low sill) from swamping the score."""
     total = np.zeros(len(tz))
-    for src, dst, inverse in ((b, a, False), (a, b, True)):
+    directions = ((a, b, True),) if one_way else ((b, a, False), (a, b, True))
+    for src, dst, inverse in directions:
         for base, shifts, key in _moves(src, r, du, tz, inverse):
             if exact:
                 pts = base[None, :, :] + shifts[:, None, :]
@@ -128,11 +129,13 @@ def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndar
     return total
 
 
-def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params: CoscoParams):
+def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params: CoscoParams,
+            one_way: bool = False):
     """Below the field's cell: coordinate descent on the exact (KD-tree) score. Returns (score, tz, du)."""
 
     def score(t, d):
-        return float(_sq_sums(a, b, r, np.array([d]), np.array([t]), params.dist_cap, exact=True)[0])
+        return float(_sq_sums(a, b, r, np.array([d]), np.array([t]), params.dist_cap, exact=True,
+                              one_way=one_way)[0])
 
     best = score(tz, du)
     step = params.field_cell / 2
@@ -153,7 +156,8 @@ def _grid(center: float, half: float, step: float) -> np.ndarray:
 
 
 def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFAULT,
-                      rotations: tuple[int, ...] = (0, 1, 2, 3), polish: bool = False) -> Registration:
+                      rotations: tuple[int, ...] = (0, 1, 2, 3), polish: bool = False,
+                      one_way: bool = False) -> Registration:
     """Minimal symmetric RMSE of B's sections against A's over rz, tz and du (Eq. 1-2 of the paper), in excess of
     the two contours' own noise (each section's probes against its own fine set), so an object is at 0 from
     itself.
@@ -161,14 +165,16 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
     A coarse grid of (du, tz) for every rotation, then a grid at the field's cell around the best candidate of
     the best one or two rotations (distance-field look-ups), then the exact score by KD-trees. ``polish`` adds
     a coordinate descent on the exact score below the field's cell (shifts to a few mm instead of a cell).
+    ``one_way`` scores only A's sections against B's (an object's partial scan against a complete model, as the
+    paper's Eq. 1 writes it); the default is symmetric (object against object).
     """
-    n_total = a.n + b.n
+    n_total = a.n if one_way else a.n + b.n
     dus0 = _grid(0.0, params.du_max, params.du_step * 2) if params.du_max > 0 else np.array([0.0])
     tzs0 = _grid(0.0, params.tz_max, params.tz_step * 2)
     T, D = np.meshgrid(tzs0, dus0, indexing="ij")
     coarse = []
     for r in rotations:
-        sq = _sq_sums(a, b, r, D.ravel(), T.ravel(), params.dist_cap)
+        sq = _sq_sums(a, b, r, D.ravel(), T.ravel(), params.dist_cap, one_way=one_way)
         k = int(np.argmin(sq))
         coarse.append((float(sq[k]), r, float(T.ravel()[k]), float(D.ravel()[k])))
     coarse.sort()
@@ -179,17 +185,18 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
         tzs = _grid(tz_c, params.tz_step * 2, cell)
         dus = _grid(du_c, params.du_step * 2, cell) if params.du_max > 0 else np.array([0.0])
         T2, D2 = np.meshgrid(tzs, dus, indexing="ij")
-        sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.dist_cap)
+        sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.dist_cap, one_way=one_way)
         k = int(np.argmin(sq))
         tz_c, du_c = float(T2.ravel()[k]), float(D2.ravel()[k])
         if polish:
-            exact, tz_c, du_c = _polish(a, b, r, tz_c, du_c, params)
+            exact, tz_c, du_c = _polish(a, b, r, tz_c, du_c, params, one_way)
         else:
-            exact = float(_sq_sums(a, b, r, np.array([du_c]), np.array([tz_c]), params.dist_cap, exact=True)[0])
+            exact = float(_sq_sums(a, b, r, np.array([du_c]), np.array([tz_c]), params.dist_cap, exact=True,
+                                   one_way=one_way)[0])
         if exact < best[0]:
             best = (exact, r, tz_c, du_c)
     val, r, tz, du = best
-    excess = max(val - a.floor_sq - b.floor_sq, 0.0)
+    excess = max(val - a.floor_sq - (0.0 if one_way else b.floor_sq), 0.0)
     return Registration(rmse=float(np.sqrt(excess / max(n_total, 1))), rz=ROTATIONS[r], tz=tz, du=du)
 
 

@@ -21,14 +21,14 @@ def _plt():
     return plt
 
 
-def save_figure(fig, path) -> Path:
+def save_figure(fig, path, tight: bool = True, dpi: int = 110) -> Path:
     """Write a figure to ``path`` atomically; the figure is closed."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix or ".png")
     os.close(fd)
     try:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight" if tight else None)
         publish(tmp, path)
     finally:
         _plt().close(fig)

@@ -2,7 +2,8 @@
 
 An airborne pass is modelled as a grid of parallel rays tilted a little off nadir (oblique strips); several passes
 from different azimuths with different densities give the uneven coverage of real surveys, where the side facing a
-strip is dense and the far side sparse. Gaussian range noise is added along each ray.
+strip is dense and the far side sparse. Gaussian range noise is added along each ray. Glass (faces flagged by the
+mesh loader) gives no return but still blocks the ray (specular drop-out), as the catalogue's sampling assumes.
 """
 
 from __future__ import annotations
@@ -55,18 +56,22 @@ class Scan:
 def scan_meshes(meshes, passes=DEFAULT_PASSES, noise: float = 0.02, seed: int = 0, margin: float = 1.0) -> Scan:
     """Airborne scan of several placed meshes.
 
-    meshes : list of ``(vertices (n, 3), faces (m, 3))`` already in the scene frame (metres, Z up; keep the
-    coordinates local: open3d casts in float32). Returns a :class:`Scan`.
+    meshes : list of ``(vertices (n, 3), faces (m, 3))`` or ``(vertices, faces, glass (m,) bool)`` already in the
+    scene frame (metres, Z up; keep the coordinates local: open3d casts in float32). Returns a :class:`Scan`.
     """
     rng = np.random.default_rng(seed)
-    verts, faces, owner = [], [], []
+    verts, faces, owner, glass = [], [], [], []
     offset = 0
-    for k, (v, f) in enumerate(meshes):
+    for k, mesh in enumerate(meshes):
+        v, f = mesh[0], mesh[1]
         verts.append(np.asarray(v, dtype=np.float64))
         faces.append(np.asarray(f, dtype=np.int64) + offset)
         owner.append(np.full(len(f), k))
+        glass.append(np.asarray(mesh[2], dtype=bool) if len(mesh) > 2 and mesh[2] is not None
+                     else np.zeros(len(f), dtype=bool))
         offset += len(v)
     v_all, f_all, owner = np.vstack(verts), np.vstack(faces), np.concatenate(owner)
+    glass = np.concatenate(glass)
     lo, hi = v_all.min(0) - margin, v_all.max(0) + margin
     centre = (lo + hi) / 2
     radius = float(np.linalg.norm(hi - lo) / 2)
@@ -75,6 +80,8 @@ def scan_meshes(meshes, passes=DEFAULT_PASSES, noise: float = 0.02, seed: int = 
         d = direction(p.azimuth, p.elevation)
         o, dirs = grid_rays(centre, radius, d, p.spacing, jitter=0.5, rng=rng)
         hit, fid, _ = cast(v_all - centre, f_all, o - centre, dirs)
+        keep = ~glass[fid]
+        hit, fid = hit[keep], fid[keep]
         hit = hit + centre + d[None, :] * rng.normal(0.0, noise, (len(hit), 1))
         pts.append(hit)
         labels.append(owner[fid])
@@ -135,7 +142,8 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
     """Cars in two facing rows with ``gaps`` (m) between neighbours, on a sloped ground with a ramp, a kerb, a
     wall, a tree whose canopy overhangs a car, and a lamp pole; scanned by airborne passes.
 
-    models : list of ``(vertices, faces)`` normalised cars (metres, Z up, front +X, footprint centred, z_min 0).
+    models : list of ``(vertices, faces[, glass])`` normalised cars (metres, Z up, front +X, footprint centred,
+    z_min 0).
     """
     rng = np.random.default_rng(seed)
     meshes, labels_of_mesh, cars = [], [], []
@@ -143,7 +151,8 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
     for k in range(n_cars):
         row = k // per_row
         m = (k * 7 + 3) % len(models) if len(models) > 1 else 0
-        v, f = models[m]
+        v, f = models[m][0], models[m][1]
+        glass = models[m][2] if len(models[m]) > 2 else None
         length = np.ptp(v[:, 0])
         width = np.ptp(v[:, 1])
         if k % per_row == 0:
@@ -155,7 +164,7 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
         # parked nose-in, some reversed in, a little off square
         heading = (np.pi if row == 0 else 0.0) + (np.pi if rng.random() < 0.3 else 0.0) + rng.normal(0, 0.05)
         z = float(ground_height(x, y))
-        meshes.append((transform(v, pose_matrix(x, y, heading, z)), f))
+        meshes.append((transform(v, pose_matrix(x, y, heading, z)), f, glass))
         labels_of_mesh.append(k)
         cars.append(PlacedCar(m, float(x), float(y), float(np.mod(heading, 2 * np.pi))))
     names = []

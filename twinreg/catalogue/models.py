@@ -85,6 +85,11 @@ class RefModel(Base):
     section_longitudinal: Mapped[bytes] = mapped_column(LargeBinary)
     section_transverse: Mapped[bytes] = mapped_column(LargeBinary)
     section_res: Mapped[float] = mapped_column(Float)
+    section_longitudinal_fine: Mapped[bytes | None] = mapped_column(LargeBinary, nullable=True)
+    section_transverse_fine: Mapped[bytes | None] = mapped_column(LargeBinary, nullable=True)
+    frame_x: Mapped[float | None] = mapped_column(Float, nullable=True)
+    frame_y: Mapped[float | None] = mapped_column(Float, nullable=True)
+    frame_heading: Mapped[float | None] = mapped_column(Float, nullable=True)
     glass_fraction: Mapped[float] = mapped_column(Float, default=0.0, server_default="0")
     params_json: Mapped[str] = mapped_column(Text, default="{}", server_default="{}")
 

@@ -47,6 +47,7 @@ class ModelGeometry:
     mesh_vertices: np.ndarray
     mesh_faces: np.ndarray
     points: np.ndarray
+    mesh_glass: np.ndarray | None = None
 
 
 def _atomic_copy(src: Path, dst: Path) -> bool:
@@ -137,16 +138,40 @@ class Catalogue:
                 raise ModelNotFoundError(f"no model '{ref}' in {self.folder}; see `twinreg list-models`")
             return row
 
-    def geometry(self, row: RefModel) -> ModelGeometry:
-        """Arrays of one model (sections, sampled points, normalised mesh)."""
-        mesh = np.load(self.folder / row.mesh_file)
+    def geometry(self, row: RefModel, with_mesh: bool = True) -> ModelGeometry:
+        """Arrays of one model (sections, sampled points and, unless ``with_mesh`` is False, the normalised
+        mesh)."""
+        if with_mesh:
+            mesh = np.load(self.folder / row.mesh_file)
+        else:
+            mesh = {"vertices": np.zeros((0, 3)), "faces": np.zeros((0, 3), dtype=np.int64)}
         return ModelGeometry(
             id=row.id, name=row.name, size=np.array([row.length, row.width, row.height]),
-            sections=cosco.Sections(unpack(row.section_longitudinal), unpack(row.section_transverse),
-                                    row.section_res),
+            sections=cosco.Sections(
+                unpack(row.section_longitudinal), unpack(row.section_transverse), row.section_res,
+                unpack(row.section_longitudinal_fine) if row.section_longitudinal_fine else None,
+                unpack(row.section_transverse_fine) if row.section_transverse_fine else None),
             mesh_vertices=mesh["vertices"].astype(np.float64), mesh_faces=mesh["faces"].astype(np.int64),
             points=unpack(row.points),
+            mesh_glass=mesh["glass"].astype(bool) if with_mesh and "glass" in mesh.files else None,
         )
+
+    def ge_mesh(self, row: RefModel) -> tuple[np.ndarray, np.ndarray]:
+        """The model's mesh decimated to Google Earth's limit, cached beside the full mesh
+        (``meshes/<sha>.ge.npz``, written atomically the first time a twin uses the model)."""
+        from ..export.collada import GE_MAX_TRIANGLES, decimate
+
+        path = self.folder / "meshes" / f"{row.sha256}.ge.npz"
+        if path.exists():
+            d = np.load(path)
+            return d["vertices"].astype(np.float64), d["faces"].astype(np.int64)
+        geo = self.geometry(row)
+        v, f = decimate(geo.mesh_vertices, geo.mesh_faces, GE_MAX_TRIANGLES)
+        try:
+            _atomic_npz(path, vertices=v.astype(np.float32), faces=f.astype(np.int32))
+        except OSError:
+            pass  # a read-only catalogue still builds twins, only slower
+        return v, f
 
     # ---- writing -------------------------------------------------------------------------------------------
     def _free_name(self, s: Session, wanted: str | None, path: Path) -> str:
@@ -200,6 +225,10 @@ class Catalogue:
                         section_longitudinal=pack(shape.sections.longitudinal),
                         section_transverse=pack(shape.sections.transverse), section_res=shape.sections.res,
                         glass_fraction=prep.glass_fraction,
+                        section_longitudinal_fine=pack(shape.sections.fine[0]),
+                        section_transverse_fine=pack(shape.sections.fine[1]),
+                        frame_x=float(shape.frame.origin_xy[0]), frame_y=float(shape.frame.origin_xy[1]),
+                        frame_heading=float(shape.frame.heading),
                         params_json=json.dumps({"sample_spacing": prep.spacing}),
                     )
                     s.add(row)
@@ -265,6 +294,6 @@ class Catalogue:
             victim = s.get(RefModel, row.id)
             s.delete(victim)
             s.commit()
-        for rel in (row.stored_file, row.mesh_file):
+        for rel in (row.stored_file, row.mesh_file, f"meshes/{row.sha256}.ge.npz"):
             (self.folder / rel).unlink(missing_ok=True)
         return row

@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 import typer
 
 from ..detect import detect_file, detection_json, write_detection
-from ._common import JsonOpt, err_console, handled, info, print_json
+from ._common import JsonOpt, LibraryOpt, err_console, handled, info, print_json
 
 app = typer.Typer()
 
@@ -42,3 +42,46 @@ def detect(
             info(f"  {o['id']}: {o['n_points']} points, {f['length']:.2f} x {f['width']:.2f} x {f['height']:.2f} m")
         if out is not None:
             info(f"written to {out}")
+
+
+@app.command("build-twin")
+@handled
+def build_twin_cmd(
+    scene: Annotated[Path, typer.Argument(help="Scene points: PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin.")],
+    lat: Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")] = None,
+    lon: Annotated[Optional[float], typer.Option(help="WGS84 longitude of the anchor point.")] = None,
+    alt: Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")] = 0.0,
+    anchor: Annotated[Optional[tuple[float, float]], typer.Option(
+        help="Scene X Y at --lat/--lon (default 0 0).")] = None,
+    crs: Annotated[Optional[str], typer.Option(help="The scene's projected CRS, e.g. EPSG:2157.")] = None,
+    unit: UnitOpt = "auto",
+    tol: Annotated[float, typer.Option(help="Size tolerance (m) of the catalogue prefilter.")] = 0.2,
+    threshold: Annotated[Optional[float], typer.Option(help="Cluster threshold (m); default 0.065.")] = None,
+    out: Annotated[Optional[Path], typer.Option(help="Output folder (default exports/<scene name>).")] = None,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """The whole pipeline: detect, sections, cluster, prefilter, register, export PLY/KMZ/JSON/report."""
+    from ..catalogue.db import library_path
+    from ..catalogue.repository import Catalogue
+    from ..georef import georef_from_options
+    from ..pipeline import build_twin
+
+    georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs)
+    cat = Catalogue(library_path(library), create=False)
+    out = out or Path("exports") / scene.stem
+    with err_console.status("building the twin") as status:
+        twin = build_twin(scene, cat, georef, out, unit=unit, tol=tol, threshold=threshold,
+                          progress=lambda msg: status.update(f"{scene.name}: {msg}"))
+    if json_:
+        print_json(twin)
+    else:
+        matched = sum(1 for o in twin["objects"] if o["match"])
+        info(f"{scene.name}: {len(twin['objects'])} objects, {matched} matched, "
+             f"{twin['clustering']['n_clusters']} clusters, {twin['matching']['n_trials']} registration trials, "
+             f"{twin['timing_s']['total']:.2f} s")
+        for o in twin["objects"]:
+            m = o["match"]
+            what = f"{m['name']} ({m['rmse_m'] * 100:.1f} cm)" if m else f"no match: {o.get('reason', '')}"
+            info(f"  {o['id']}: {what}, bearing {o['bearing_deg']:.1f} deg")
+        info(f"written: {out / 'twin.json'}, {out / 'twin.ply'}, {out / 'twin.kmz'}, {out / 'report.html'}")

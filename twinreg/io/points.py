@@ -85,6 +85,55 @@ def _read_las(path: Path):
     return pts, crs, unit_factor
 
 
+_PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
+              "float": "f4", "double": "f8", "int8": "i1", "uint8": "u1", "int16": "i2", "uint16": "u2",
+              "int32": "i4", "uint32": "u4", "float32": "f4", "float64": "f8"}
+
+
+def _read_ply(path: Path) -> np.ndarray | None:
+    """x, y, z of a PLY's vertex element with numpy (binary or ASCII); None for a layout it does not handle
+    (list properties before the vertices), which then goes to open3d."""
+    with open(path, "rb") as fh:
+        if fh.readline().strip() != b"ply":
+            raise SceneReadError(f"{path}: not a PLY file (no 'ply' magic)")
+        fmt, elements, current = None, [], None
+        while True:
+            line = fh.readline()
+            if not line:
+                raise SceneReadError(f"{path}: PLY header has no end_header (truncated?)")
+            words = line.decode("ascii", "replace").split()
+            if not words:
+                continue
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] == "element":
+                current = [words[1], int(words[2]), []]
+                elements.append(current)
+            elif words[0] == "property" and current is not None:
+                if words[1] == "list":
+                    current[2].append((words[-1], None))
+                else:
+                    current[2].append((words[2], _PLY_TYPES.get(words[1])))
+            elif words[0] == "end_header":
+                break
+        if not elements or elements[0][0] != "vertex" or any(t is None for _, t in elements[0][2]):
+            return None
+        _, count, props = elements[0]
+        names = [n for n, _ in props]
+        if not {"x", "y", "z"} <= set(names):
+            raise SceneReadError(f"{path}: PLY vertices have no x, y, z properties")
+        if fmt == "ascii":
+            data = np.loadtxt(fh, max_rows=count, ndmin=2, usecols=[names.index(c) for c in "xyz"])
+            return data.astype(np.float64)
+        endian = "<" if fmt == "binary_little_endian" else ">"
+        dtype = np.dtype([(n, endian + t) for n, t in props])
+        raw = fh.read(count * dtype.itemsize)
+        if len(raw) < count * dtype.itemsize:
+            raise SceneReadError(f"{path}: PLY holds fewer vertices than its header says (truncated?)")
+        rec = np.frombuffer(raw, dtype=dtype, count=count)
+        return np.column_stack([rec["x"], rec["y"], rec["z"]]).astype(np.float64)
+
+
 def _read_o3d(path: Path) -> np.ndarray:
     import open3d as o3d
 
@@ -122,7 +171,11 @@ def read_points(path, unit: str = "auto") -> PointSet:
         pts, crs, file_unit = _read_las(path)
     elif suffix == ".bin":
         pts = _read_kitti(path)
-    elif suffix in (".ply", ".pcd"):
+    elif suffix == ".ply":
+        pts = _read_ply(path)
+        if pts is None:
+            pts = _read_o3d(path)
+    elif suffix == ".pcd":
         pts = _read_o3d(path)
     else:
         pts = _read_text(path)

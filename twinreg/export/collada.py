@@ -1,0 +1,90 @@
+"""COLLADA for Google Earth: one mesh per file, Z up, metres, at most 21,845 triangles (decimated with pymeshlab's
+quadric edge collapse when larger)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+#: Google Earth's limit of triangles per mesh
+GE_MAX_TRIANGLES = 21_845
+
+
+def decimate(vertices: np.ndarray, faces: np.ndarray, max_faces: int = GE_MAX_TRIANGLES):
+    """At most ``max_faces`` triangles: pymeshlab's quadric edge collapse (normals and boundaries preserved),
+    after a vertex-clustering pass for meshes over three times the limit (173k faces: 1.6 s instead of 4.3 s)."""
+    if len(faces) <= max_faces:
+        return vertices, faces
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64),
+                               face_matrix=np.asarray(faces, dtype=np.int32)))
+    ms.meshing_remove_duplicate_vertices()
+    # very large meshes: a fast vertex-clustering pass first (edge collapse time grows with the input)
+    percent = 0.2
+    while ms.current_mesh().face_number() > 3 * max_faces and percent < 2.0:
+        trial = pymeshlab.MeshSet()
+        trial.add_mesh(ms.current_mesh())
+        trial.meshing_decimation_clustering(threshold=pymeshlab.PercentageValue(percent))
+        if trial.current_mesh().face_number() <= 3 * max_faces:
+            ms = trial
+            break
+        percent *= 1.5
+    target = int(max_faces * 0.97)
+    for _ in range(4):
+        ms.meshing_decimation_quadric_edge_collapse(targetfacenum=target, preservenormal=True, preserveboundary=True,
+                                                    planarquadric=True, autoclean=True)
+        if ms.current_mesh().face_number() <= max_faces:
+            break
+        target = int(target * 0.9)
+    m = ms.current_mesh()
+    return m.vertex_matrix().astype(np.float64), m.face_matrix().astype(np.int64)
+
+
+def _vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    vn = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(vn, f[:, k], fn)
+    n = np.linalg.norm(vn, axis=1, keepdims=True)
+    return vn / np.where(n > 0, n, 1.0)
+
+
+def _floats(a: np.ndarray, fmt: str) -> str:
+    flat = np.asarray(a).ravel()
+    if fmt == "%d":
+        return " ".join(map(str, flat.tolist()))
+    return " ".join([fmt] * len(flat)) % tuple(flat.tolist())
+
+
+def write_collada(path, vertices: np.ndarray, faces: np.ndarray, color=(0.6, 0.6, 0.65), name: str = "model"):
+    """Write one triangle mesh (metres, Z up) as COLLADA 1.4.1 with ``<unit meter="1"/>`` and per-vertex normals.
+
+    The XML is written directly (pycollada's writer takes seconds for a 20k-triangle mesh); the tests read every
+    file back with pycollada.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    n = _vertex_normals(v, f)
+    r, g, b = (float(c) for c in color[:3])
+    nm = escape(name)
+    xml = f"""<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+<asset><contributor><authoring_tool>twinreg</authoring_tool></contributor><unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>
+<library_effects><effect id="effect0"><profile_COMMON><technique sid="common"><lambert><diffuse><color>{r:.4f} {g:.4f} {b:.4f} 1</color></diffuse></lambert></technique></profile_COMMON></effect></library_effects>
+<library_materials><material id="material0" name="{nm}-material"><instance_effect url="#effect0"/></material></library_materials>
+<library_geometries><geometry id="geometry0" name="{nm}"><mesh>
+<source id="verts"><float_array id="verts-array" count="{v.size}">{_floats(v, "%.4f")}</float_array><technique_common><accessor source="#verts-array" count="{len(v)}" stride="3"><param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/></accessor></technique_common></source>
+<source id="normals"><float_array id="normals-array" count="{n.size}">{_floats(n, "%.4f")}</float_array><technique_common><accessor source="#normals-array" count="{len(n)}" stride="3"><param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/></accessor></technique_common></source>
+<vertices id="verts-vertices"><input semantic="POSITION" source="#verts"/><input semantic="NORMAL" source="#normals"/></vertices>
+<triangles count="{len(f)}" material="materialref"><input semantic="VERTEX" source="#verts-vertices" offset="0"/><p>{_floats(f, "%d")}</p></triangles>
+</mesh></geometry></library_geometries>
+<library_visual_scenes><visual_scene id="scene"><node id="node0" name="{nm}"><instance_geometry url="#geometry0"><bind_material><technique_common><instance_material symbol="materialref" target="#material0"/></technique_common></bind_material></instance_geometry></node></visual_scene></library_visual_scenes>
+<scene><instance_visual_scene url="#scene"/></scene>
+</COLLADA>
+"""
+    Path(path).write_text(xml, encoding="utf-8")
+    return Path(path)

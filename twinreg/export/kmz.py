@@ -1,0 +1,71 @@
+"""twin.kmz: ``doc.kml`` with one Placemark per object (a Model at its WGS84 position, heading clockwise from north,
+clamped to the ground) and one COLLADA file per distinct model (plus a box per unmatched object)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+from ..outdir import publish
+from .collada import decimate, write_collada
+
+# COLLADA files are authored with the car's front along +Y (north), so a KML heading is the front's bearing
+FRONT_TO_NORTH = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def box_mesh(length: float, width: float, height: float):
+    """An axis-aligned box (front +X), footprint centred, bottom at z = 0."""
+    x, y = length / 2, width / 2
+    v = np.array([[sx * x, sy * y, z] for z in (0.0, height) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5],
+                  [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    return v, f
+
+
+def _data(name: str, value) -> str:
+    return f'<Data name="{escape(name)}"><value>{escape(str(value))}</value></Data>'
+
+
+def placemark(obj: dict, href: str) -> str:
+    """One Placemark: obj has id, lon, lat, alt, bearing and the ExtendedData fields."""
+    ext = "".join(_data(k, v) for k, v in obj["data"].items())
+    return (f"<Placemark><name>{escape(obj['id'])}</name><description>{escape(obj['description'])}</description>"
+            f"<ExtendedData>{ext}</ExtendedData>"
+            f"<Model id=\"model_{escape(obj['id'])}\"><altitudeMode>clampToGround</altitudeMode>"
+            f"<Location><longitude>{obj['lon']:.9f}</longitude><latitude>{obj['lat']:.9f}</latitude>"
+            f"<altitude>{obj['alt']:.3f}</altitude></Location>"
+            f"<Orientation><heading>{obj['bearing']:.3f}</heading><tilt>0</tilt><roll>0</roll></Orientation>"
+            f"<Scale><x>1</x><y>1</y><z>1</z></Scale><Link><href>{escape(href)}</href></Link></Model></Placemark>")
+
+
+def write_kmz(path, name: str, objects: list[dict], meshes: dict) -> Path:
+    """Write the KMZ. ``objects``: dicts with id, lon, lat, alt, bearing, description, data, mesh (a key of
+    ``meshes``). ``meshes``: key -> (vertices, faces, rgb) in model coordinates (metres, Z up, front +X)."""
+    path = Path(path)
+    with tempfile.TemporaryDirectory() as tmpdir:
+        files = {}
+        for key, (v, f, rgb) in meshes.items():
+            v2, f2 = decimate(v, f)
+            rel = f"models/{key}.dae"
+            write_collada(Path(tmpdir) / f"{key}.dae", np.asarray(v2) @ FRONT_TO_NORTH.T, f2, rgb, key)
+            files[rel] = Path(tmpdir) / f"{key}.dae"
+        marks = "".join(placemark(o, f"models/{o['mesh']}.dae") for o in objects)
+        kml = ('<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2">'
+               f"<Document><name>{escape(name)}</name><open>1</open>{marks}</Document></kml>\n")
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".kmz")
+        os.close(fd)
+        try:
+            with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+                z.writestr("doc.kml", kml)  # the first entry, as Google Earth expects
+                for rel, src in files.items():
+                    z.write(src, rel)
+            publish(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    return path

@@ -1,0 +1,105 @@
+"""report.html and its PNGs: the top view with placed models, the dissimilarity heat map, the dendrogram and each
+object's sections against its best model's."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import numpy as np
+
+from ..plots import _plt, plot_dendrogram, plot_heatmap, save_figure
+
+
+def _height_image(scene_local: np.ndarray, heights: np.ndarray, cell: float):
+    lo = scene_local[:, :2].min(0)
+    ij = np.floor((scene_local[:, :2] - lo) / cell).astype(np.int64)
+    shape = tuple(ij.max(0) + 1)
+    img = np.full(shape, np.nan)
+    flat = np.full(shape[0] * shape[1], -np.inf)
+    np.maximum.at(flat, ij[:, 0] * shape[1] + ij[:, 1], heights)
+    img = flat.reshape(shape)
+    img[~np.isfinite(img)] = np.nan
+    return img, lo
+
+
+def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: list[dict], path, title: str,
+                  hag: np.ndarray | None = None):
+    """Top view: the scan as a height-above-ground image (a raster, fast at any size) with each placed model's
+    footprint, front arrow and label."""
+    plt = _plt()
+    ext = np.ptp(scene_local[:, :2], axis=0)
+    scale = 14.0 / max(ext.max(), 1.0)
+    fig, ax = plt.subplots(figsize=(max(4, ext[0] * scale + 1), max(3, ext[1] * scale + 1)))
+    heights = np.where(is_ground, 0.0, hag if hag is not None else 1.0)
+    cell = max(0.1, float(ext.max()) / 1500)
+    img, lo = _height_image(scene_local, heights, cell)
+    ax.imshow(np.clip(img.T, 0, 3), origin="lower", cmap="Greys", vmin=-0.5, vmax=3.0,
+              extent=[lo[0], lo[0] + img.shape[0] * cell, lo[1], lo[1] + img.shape[1] * cell],
+              interpolation="nearest")
+    for fp in footprints:
+        c = np.asarray(fp["corners"])
+        ax.fill(c[:, 0], c[:, 1], color=fp["color"], alpha=0.45, lw=0)
+        ax.plot(*np.vstack([c, c[:1]]).T, color=fp["color"], lw=1)
+        ax.annotate("", xy=fp["front"], xytext=fp["centre"], arrowprops=dict(arrowstyle="->", lw=0.8))
+        ax.text(fp["centre"][0], fp["centre"][1], fp["label"], fontsize=5, ha="center", va="center")
+    ax.set_aspect("equal")
+    ax.set_title(title)
+    fig.subplots_adjust(left=0.05, right=0.98, bottom=0.05, top=0.94)
+    return save_figure(fig, path, tight=False, dpi=100)
+
+
+def plot_object_sections(items: list[dict], path):
+    """Each object's sections (blue squares) with its registered best model's (orange dots), stacked in two
+    panels: longitudinal (left) and transverse (right), one row of 2.5 m per object."""
+    plt = _plt()
+    n = max(1, len(items))
+    fig, (ax_l, ax_t) = plt.subplots(1, 2, figsize=(10, 1.0 + 0.9 * n), gridspec_kw={"width_ratios": [2.4, 1.0]})
+    step = 2.5
+    for k, it in enumerate(items):
+        dz = -k * step
+        for ax, key in ((ax_l, "lon"), (ax_t, "tra")):
+            a = it["object"][key]
+            if len(a):
+                ax.scatter(a[:, 0], a[:, 1] + dz, s=4, marker="s", color="tab:blue", linewidths=0)
+            b = it.get("model", {}).get(key)
+            if b is not None and len(b):
+                ax.scatter(b[:, 0], b[:, 1] + dz, s=2, color="tab:orange", linewidths=0)
+        ax_l.text(-3.6, dz + 2.0, it["title"], fontsize=6, va="top")
+    for ax, xl in ((ax_l, "u along heading (m)"), (ax_t, "v across (m)")):
+        ax.set_aspect("equal")
+        ax.set_yticks([])
+        ax.set_xlabel(xl)
+    ax_l.set_xlim(-3.7, 3.2)
+    ax_l.set_title("longitudinal sections (blue: object, orange: registered model)", fontsize=8)
+    ax_t.set_title("transverse sections", fontsize=8)
+    return save_figure(fig, path)
+
+
+def write_report(folder: Path, twin: dict, matrix: np.ndarray, linkage: np.ndarray, threshold: float,
+                 top_png_args: dict, section_items: list[dict]) -> list[Path]:
+    folder = Path(folder)
+    names = [o["id"] for o in twin["objects"]]
+    files = [plot_twin_top(path=folder / "topview.png", **top_png_args)]
+    if len(names) >= 2:
+        files.append(plot_heatmap(matrix, names, folder / "heatmap.png"))
+        files.append(plot_dendrogram(linkage, names, threshold, folder / "dendrogram.png"))
+    files.append(plot_object_sections(section_items, folder / "sections.png"))
+    rows = []
+    for o in twin["objects"]:
+        m = o["match"]
+        rows.append("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in (
+            o["id"], o["n_points"], f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}",
+            o["cluster"], m["name"] if m else "no match: " + o.get("reason", ""),
+            f"{m['rmse_m'] * 100:.1f} cm" if m else "", f"{o['bearing_deg']:.1f}",
+            (m.get("runner_up") or {}).get("name", "") if m else "")) + "</tr>")
+    pics = "".join(f'<h2>{html.escape(p.stem)}</h2><img src="{p.name}" style="max-width:100%">' for p in files)
+    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {html.escape(twin['scene'])}"
+            "</title><style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 8px;border-bottom:1px solid #ddd}"
+            "</style></head><body>"
+            f"<h1>Digital twin of {html.escape(twin['scene'])}</h1><p>{len(twin['objects'])} objects, "
+            f"{sum(1 for o in twin['objects'] if o['match'])} matched; total {twin['timing_s']['total']:.2f} s.</p>"
+            "<table><tr><th>object</th><th>points</th><th>size (m)</th><th>cluster</th><th>model</th><th>RMSE</th>"
+            "<th>bearing (deg)</th><th>runner-up</th></tr>" + "".join(rows) + "</table>" + pics + "</body></html>")
+    (folder / "report.html").write_text(page, encoding="utf-8")
+    return files + [folder / "report.html"]
