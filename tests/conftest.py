@@ -123,3 +123,24 @@ def kitti_boxes(frame: str) -> list[dict]:
         centre = (rect_to_velo @ np.r_[centre_rect, 1.0])[:3]
         boxes.append({"type": f[0], "inside": inside, "centre": centre})
     return boxes
+
+
+@pytest.fixture(scope="session")
+def catalogue16(tmp_path_factory, cars):
+    """A catalogue of all 16 shared cars (named by their MANIFEST slug), added with no flags."""
+    from twinreg.catalogue.repository import Catalogue
+
+    cat = Catalogue(tmp_path_factory.mktemp("catalogue16"))
+    for r in cars:
+        cat.add(r["path"], name=r["slug"], make=r["make"], body_class=r["body_class"])
+    return cat
+
+
+def catalogue_models(cat, names):
+    """(vertices, faces, glass) of catalogue models, for simulated scenes."""
+    rows = {r.name: r for r in cat.list()}
+    out = []
+    for n in names:
+        g = cat.geometry(rows[n])
+        out.append((g.mesh_vertices, g.mesh_faces, g.mesh_glass))
+    return out

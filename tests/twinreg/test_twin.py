@@ -1,0 +1,168 @@
+"""build-twin end to end on a simulated car park of the shared cars, and the KMZ read back."""
+
+import io
+import json
+import zipfile
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from tests.conftest import catalogue_models
+from twinreg.cli import app
+from twinreg.io.ply import write_ply
+from twinreg.simulate import car_park
+
+KML = "{http://www.opengis.net/kml/2.2}"
+DUBLIN = ("--lat", "53.351160", "--lon", "-6.261601")
+
+
+@pytest.fixture(scope="module")
+def park(catalogue16, tmp_path_factory):
+    """12 cars of 12 different shared models, 0.4-1.0 m apart, oblique passes, 2 cm noise, distractors; the scene
+    is shifted to Irish Grid-sized coordinates to exercise float64 precision."""
+    names = sorted(r.name for r in catalogue16.list())
+    models = catalogue_models(catalogue16, names)
+    scene = car_park(models, n_cars=12, seed=23, gaps=(0.4, 1.0))
+    offset = np.array([715_800.0, 734_600.0, 20.0])
+    path = tmp_path_factory.mktemp("park") / "park.ply"
+    write_ply(path, scene.points + offset)
+    return {"scene": scene, "names": names, "path": path, "offset": offset}
+
+
+@pytest.fixture(scope="module")
+def twin(park, catalogue16, tmp_path_factory):
+    out = tmp_path_factory.mktemp("twin") / "out"
+    res = CliRunner().invoke(app, ["build-twin", str(park["path"]), *DUBLIN, "--anchor",
+                                   str(park["offset"][0]), str(park["offset"][1]), "--library",
+                                   str(catalogue16.folder), "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc == json.loads((out / "twin.json").read_text())
+    return doc, out
+
+
+def _truth(park, obj):
+    c = np.array(obj["centroid"][:2]) - park["offset"][:2]
+    d = [np.hypot(*(c - [car.x, car.y])) for car in park["scene"].cars]
+    k = int(np.argmin(d))
+    return park["scene"].cars[k], d[k]
+
+
+def test_every_car_matched_to_its_own_model_in_place(park, twin):
+    doc, _ = twin
+    objs = doc["objects"]
+    assert len(objs) == 12
+    right = 0
+    seen = set()
+    for o in objs:
+        car, dist = _truth(park, o)
+        seen.add(id(car))
+        assert o["match"] is not None
+        right += o["match"]["name"] == park["names"][car.model]
+        assert dist < 0.15, (o["id"], dist)
+        err = np.degrees(np.angle(np.exp(1j * (o["heading_rad"] - car.heading))))
+        assert abs(err) < 3.0, (o["id"], err)
+    assert right >= 11
+    assert len(seen) == 12  # every car once, no distractor in the list
+    assert doc["matching"]["n_trials"] < doc["matching"]["n_pairs_without_prefilter"]
+    assert doc["matching"]["registration_ms_per_trial"] < 30
+
+
+def test_kmz_reads_back(park, twin):
+    import collada
+
+    doc, out = twin
+    z = zipfile.ZipFile(out / "twin.kmz")
+    assert z.namelist()[0] == "doc.kml"
+    root = ET.fromstring(z.read("doc.kml"))
+    marks = root.findall(f".//{KML}Placemark")
+    assert len(marks) == len(doc["objects"])
+    names = set(z.namelist())
+    for pm, obj in zip(marks, doc["objects"]):
+        model = pm.find(f"{KML}Model")
+        assert model.find(f"{KML}altitudeMode").text == "clampToGround"
+        href = model.find(f"{KML}Link/{KML}href").text
+        assert href in names
+        dae = collada.Collada(io.BytesIO(z.read(href)))
+        assert dae.assetInfo.upaxis == "Z_UP" and dae.assetInfo.unitmeter == 1.0
+        n_tri = sum(len(p) for g in dae.geometries for p in g.primitives)
+        assert 0 < n_tri <= 21845
+        lat = float(model.find(f"{KML}Location/{KML}latitude").text)
+        lon = float(model.find(f"{KML}Location/{KML}longitude").text)
+        assert abs(lat - obj["lat"]) < 1e-7 and abs(lon - obj["lon"]) < 1e-7
+        # the scene's +X is east at the anchor: heading (clockwise from north) = 90 - the scene angle
+        car, _ = _truth(park, obj)
+        heading = float(model.find(f"{KML}Orientation/{KML}heading").text)
+        expect = (90.0 - np.degrees(car.heading)) % 360
+        assert abs((heading - expect + 180) % 360 - 180) < 3.0
+        data = {d.get("name"): d.find(f"{KML}value").text for d in pm.findall(f".//{KML}Data")}
+        assert data["model"] == obj["match"]["name"]
+    # the anchor is at the Dublin car park
+    lats = [o["lat"] for o in doc["objects"]]
+    assert 53.3509 < min(lats) and max(lats) < 53.3515
+
+
+def test_car_facing_east_has_heading_90(catalogue16, tmp_path):
+    """One car, front towards +X (east): KML heading 90; the same car facing north: heading 0."""
+    from twinreg.simulate import pose_matrix, scan_meshes, transform, _ground_mesh
+
+    v, f, g = catalogue_models(catalogue16, ["generic_sedan_chrono"])[0]
+    for scene_heading, expect in ((0.0, 90.0), (np.pi / 2, 0.0)):
+        scan = scan_meshes([(transform(v, pose_matrix(0, 0, scene_heading)), f, g), _ground_mesh(-8, 8, -8, 8)],
+                           seed=1)
+        path = tmp_path / f"one_{expect:.0f}.ply"
+        write_ply(path, scan.points)
+        out = tmp_path / f"twin_{expect:.0f}"
+        res = CliRunner().invoke(app, ["build-twin", str(path), *DUBLIN, "--library", str(catalogue16.folder),
+                                       "--out", str(out), "--json"])
+        assert res.exit_code == 0, res.output
+        root = ET.fromstring(zipfile.ZipFile(out / "twin.kmz").read("doc.kml"))
+        heading = float(root.find(f".//{KML}Orientation/{KML}heading").text)
+        assert abs((heading - expect + 180) % 360 - 180) < 2.0, heading
+
+
+def test_twin_ply_carries_offset_and_georef(twin):
+    from twinreg.io.points import read_points
+
+    doc, out = twin
+    header = (out / "twin.ply").read_bytes().split(b"end_header")[0].decode()
+    assert "comment offset" in header and "anchor_latlon 53.35116 -6.261601" in header
+    offset = np.array([float(x) for x in header.split("comment offset ")[1].split()[:3]])
+    pts = read_points(out / "twin.ply").points + offset
+    centre = np.array([o["centroid"] for o in doc["objects"]])
+    assert np.abs(pts[:, :2].mean(0) - centre[:, :2].mean(0)).max() < 1.0
+    assert (out / "report.html").exists() and (out / "sections.png").stat().st_size > 10_000
+
+
+def test_bad_inputs_leave_nothing_half_written(tmp_path, park, catalogue16):
+    runner = CliRunner()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("previous twin")
+
+    def run(*args):
+        return runner.invoke(app, ["build-twin", *map(str, args)])
+
+    empty = tmp_path / "emptylib"
+    res = run(park["path"], *DUBLIN, "--library", empty, "--out", out)
+    assert res.exit_code == 1 and "error:" in res.output
+    res = run(park["path"], "--lat", "95", "--lon", "0", "--library", catalogue16.folder, "--out", out)
+    assert res.exit_code == 1 and "--lat 95" in res.output
+    flat = tmp_path / "flat.xyz"
+    g = np.random.default_rng(0).uniform(-10, 10, (5000, 3)) * [1, 1, 0]
+    np.savetxt(flat, g)
+    res = run(flat, *DUBLIN, "--library", catalogue16.folder, "--out", out)
+    assert res.exit_code == 1 and "no car-sized objects" in res.output
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    res = run(park["path"], *DUBLIN, "--library", catalogue16.folder, "--out", blocker / "sub")
+    assert res.exit_code == 1 and "error:" in res.output
+    assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]
+    assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
+    # a good run replaces the folder as a whole
+    res = run(park["path"], *DUBLIN, "--library", catalogue16.folder, "--out", out)
+    assert res.exit_code == 0, res.output
+    assert not (out / "keep.txt").exists() and (out / "twin.kmz").exists()
+    assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name or ".old-" in p.name]
