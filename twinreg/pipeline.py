@@ -16,7 +16,7 @@ from .catalogue.repository import Catalogue
 from .detect import detect_file
 from .errors import CatalogueError, SceneReadError
 from .export.kmz import box_mesh, write_kmz
-from .export.report import write_report
+from .export.report import plot_taxonomy, write_report
 from .export.twin_ply import cluster_color, write_twin_ply
 from .georef import Georef
 from .matching import match_objects
@@ -39,16 +39,27 @@ def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration
 
 
 def _warm_up() -> bool:
+    import io
+
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot  # noqa: F401  (the slow part of the first picture)
+    import matplotlib.pyplot as plt  # the slow part of the first picture: the import and the font set-up
 
+    fig, ax = plt.subplots(figsize=(1, 1))
+    ax.text(0.5, 0.5, "warm")
+    fig.savefig(io.BytesIO(), format="png")
+    plt.close(fig)
     return True
 
 
 def _start_painter():
-    """A helper process that imports matplotlib now and draws the report later (None if one cannot start)."""
+    """A helper process that imports matplotlib now and draws the report later (None if one cannot start, or
+    with TWINREG_NO_HELPER=1)."""
+    import os
+
+    if os.environ.get("TWINREG_NO_HELPER"):
+        return None
     try:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
@@ -69,6 +80,16 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef, out, unit: str 
         raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
                              "`twinreg add-model MESH` or `twinreg import-models DIR`")
     painter = _start_painter()
+    try:
+        return _build(scene_path, catalogue, georef, out, unit, tol, params, progress, threshold, painter, t_start,
+                      timing)
+    finally:
+        if painter:
+            painter.shutdown(wait=True, cancel_futures=True)
+
+
+def _build(scene_path, catalogue, georef, out, unit, tol, params, progress, threshold, painter, t_start,
+           timing) -> dict:
     scene_path = Path(scene_path)
     _say(progress, "reading and detecting")
     det = detect_file(scene_path, unit=unit, params=params)
@@ -97,9 +118,23 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef, out, unit: str 
     clusters = cosco.cluster(matrix, params, threshold=threshold)
     timing["clustering"] = time.perf_counter() - t
 
+    with staged_folder(Path(out)) as stage:
+        names = [f"obj{k + 1}" for k in range(len(targets))]
+        taxonomy = painter.submit(plot_taxonomy, stage, names, matrix, clusters.linkage, clusters.threshold) \
+            if painter else None
+        twin = _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, matrix, clusters,
+                                 tol, params, progress, timing, t_start, painter, taxonomy)
+    return twin
+
+
+def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, matrix, clusters, tol, params,
+                      progress, timing, t_start, painter, taxonomy) -> dict:
+    local = det.scene.local
+    offset = det.scene.offset
     _say(progress, "prefilter and registration")
     results, stats = match_objects(shapes, catalogue, tol=tol, labels=clusters.labels, params=params)
     timing["prefilter"] = stats["prefilter_s"]
+    timing["model_prep"] = stats["model_prep_s"]
     timing["registration"] = stats["registration_s"]
 
     _say(progress, "export")
@@ -193,27 +228,23 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef, out, unit: str 
                                                         3)},
         "timing_s": {},
     }
-    out = Path(out)
-    with staged_folder(out) as stage:
-        report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}}, matrix,
-                       clusters.linkage, clusters.threshold,
-                       {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,
-                        "title": f"{scene_path.name}: {len(objects)} objects"}, section_items)
-        # the pictures are drawn by the helper process (already warm) while this one writes the PLY and KMZ
-        report = painter.submit(write_report, *report_args) if painter else None
-        write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
-        write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
-        try:
-            if report is None:
-                raise RuntimeError("no helper process")
-            report.result()
-        except Exception:  # the helper is a speed-up only: draw here if it is unavailable
-            write_report(*report_args)
-        finally:
-            if painter:
-                painter.shutdown(wait=False)
-        timing["export"] = time.perf_counter() - t
-        timing["total"] = time.perf_counter() - t_start
-        twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
-        (stage / "twin.json").write_text(json.dumps(twin, indent=2), encoding="utf-8")
+    report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
+                   {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,
+                    "title": f"{scene_path.name}: {len(objects)} objects"}, section_items)
+    # the pictures are drawn by the helper process (already warm) while this one writes the PLY and KMZ
+    report = painter.submit(write_report, *report_args) if painter else None
+    write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
+    write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
+    try:
+        if report is None or taxonomy is None:
+            raise RuntimeError("no helper process")
+        taxonomy.result()
+        report.result()
+    except Exception:  # the helper is a speed-up only: draw here if it is unavailable
+        plot_taxonomy(stage, [o["id"] for o in objects], matrix, clusters.linkage, clusters.threshold)
+        write_report(*report_args)
+    timing["export"] = time.perf_counter() - t
+    timing["total"] = time.perf_counter() - t_start
+    twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
+    (stage / "twin.json").write_text(json.dumps(twin, indent=2), encoding="utf-8")
     return twin

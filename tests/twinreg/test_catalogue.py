@@ -224,3 +224,14 @@ def test_update_and_remove(tmp_path):
     assert cat.count() == 0 and not stored.exists()
     with pytest.raises(TwinregError):
         cat.get("beetle")
+
+
+def test_cheap_head_revision_agrees_with_alembic():
+    from alembic.config import Config
+    from alembic.script import ScriptDirectory
+
+    from twinreg.catalogue.db import head_revision, migrations_dir
+
+    cfg = Config()
+    cfg.set_main_option("script_location", str(migrations_dir()))
+    assert head_revision() == ScriptDirectory.from_config(cfg).get_current_head()

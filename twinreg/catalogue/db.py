@@ -82,12 +82,22 @@ def current_revision(engine: Engine) -> str | None:
 
 
 def head_revision() -> str:
-    from alembic.config import Config
-    from alembic.script import ScriptDirectory
+    """The newest revision id, read from the revision files (importing alembic costs 0.2 s on every command)."""
+    import re
 
-    cfg = Config()
-    cfg.set_main_option("script_location", str(migrations_dir()))
-    return ScriptDirectory.from_config(cfg).get_current_head()
+    revs, downs = set(), set()
+    for f in (migrations_dir() / "versions").glob("*.py"):
+        text = f.read_text(encoding="utf-8")
+        rev = re.search(r"^revision(?::\s*str)?\s*=\s*['\"]([^'\"]+)['\"]", text, re.M)
+        down = re.search(r"^down_revision(?:[^=]*)=\s*['\"]([^'\"]+)['\"]", text, re.M)
+        if rev:
+            revs.add(rev.group(1))
+        if down:
+            downs.add(down.group(1))
+    heads = revs - downs
+    if len(heads) != 1:
+        raise CatalogueError(f"the migrations have {len(heads)} heads ({', '.join(sorted(heads))}); merge them")
+    return heads.pop()
 
 
 def open_engine(folder: Path, create: bool = True) -> Engine:

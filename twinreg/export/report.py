@@ -56,16 +56,16 @@ def plot_object_sections(items: list[dict], path):
     n = max(1, len(items))
     fig, (ax_l, ax_t) = plt.subplots(1, 2, figsize=(10, 1.0 + 0.9 * n), gridspec_kw={"width_ratios": [2.4, 1.0]})
     step = 2.5
+    for ax, key in ((ax_l, "lon"), (ax_t, "tra")):
+        for who, style in (("object", dict(s=4, marker="s", color="tab:blue")),
+                           ("model", dict(s=2, color="tab:orange"))):
+            parts = [np.asarray(it.get(who, {}).get(key)) + [0.0, -k * step] for k, it in enumerate(items)
+                     if it.get(who, {}).get(key) is not None and len(it[who][key])]
+            if parts:
+                p = np.vstack(parts)
+                ax.scatter(p[:, 0], p[:, 1], linewidths=0, **style)
     for k, it in enumerate(items):
-        dz = -k * step
-        for ax, key in ((ax_l, "lon"), (ax_t, "tra")):
-            a = it["object"][key]
-            if len(a):
-                ax.scatter(a[:, 0], a[:, 1] + dz, s=4, marker="s", color="tab:blue", linewidths=0)
-            b = it.get("model", {}).get(key)
-            if b is not None and len(b):
-                ax.scatter(b[:, 0], b[:, 1] + dz, s=2, color="tab:orange", linewidths=0)
-        ax_l.text(-3.6, dz + 2.0, it["title"], fontsize=6, va="top")
+        ax_l.text(-3.6, -k * step + 2.0, it["title"], fontsize=6, va="top")
     for ax, xl in ((ax_l, "u along heading (m)"), (ax_t, "v across (m)")):
         ax.set_aspect("equal")
         ax.set_yticks([])
@@ -73,17 +73,25 @@ def plot_object_sections(items: list[dict], path):
     ax_l.set_xlim(-3.7, 3.2)
     ax_l.set_title("longitudinal sections (blue: object, orange: registered model)", fontsize=8)
     ax_t.set_title("transverse sections", fontsize=8)
-    return save_figure(fig, path)
+    fig.subplots_adjust(left=0.02, right=0.99, bottom=0.3 / (1.0 + 0.9 * n) + 0.02, top=0.97, wspace=0.05)
+    return save_figure(fig, path, tight=False, dpi=100)
 
 
-def write_report(folder: Path, twin: dict, matrix: np.ndarray, linkage: np.ndarray, threshold: float,
-                 top_png_args: dict, section_items: list[dict]) -> list[Path]:
+def plot_taxonomy(folder: Path, names: list[str], matrix: np.ndarray, linkage: np.ndarray,
+                  threshold: float) -> list[Path]:
+    """heatmap.png and dendrogram.png (known as soon as the objects are clustered)."""
     folder = Path(folder)
-    names = [o["id"] for o in twin["objects"]]
+    if len(names) < 2:
+        return []
+    return [plot_heatmap(matrix, names, folder / "heatmap.png"),
+            plot_dendrogram(linkage, names, threshold, folder / "dendrogram.png")]
+
+
+def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: list[dict]) -> list[Path]:
+    """topview.png, sections.png and report.html (which also shows heatmap.png and dendrogram.png)."""
+    folder = Path(folder)
     files = [plot_twin_top(path=folder / "topview.png", **top_png_args)]
-    if len(names) >= 2:
-        files.append(plot_heatmap(matrix, names, folder / "heatmap.png"))
-        files.append(plot_dendrogram(linkage, names, threshold, folder / "dendrogram.png"))
+    files += [folder / n for n in ("heatmap.png", "dendrogram.png") if len(twin["objects"]) >= 2]
     files.append(plot_object_sections(section_items, folder / "sections.png"))
     rows = []
     for o in twin["objects"]:
