@@ -9,7 +9,8 @@ so that slopes, kerbs and ramps of real car parks stay ground:
    the window that is wider than them; an opening leaves a planar ramp as it is, so a last strict test against the
    widest opening removes what is left of cars (bumpers, sills) and keeps ramps;
 3. the ground surface is the lowest points of the ground cells, with holes (under cars, buildings) filled by
-   normalised convolution so it bends smoothly under them;
+   normalised convolution so it bends smoothly under them; a second pass replaces each ground cell's lowest point
+   by the median of the points near the surface (the lowest of noisy points lies a few sigmas too low);
 4. every point's height above ground is its z minus the bilinear ground surface under it.
 """
 
@@ -105,6 +106,21 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     if not ground.any():
         ground = occupied
     z = _fill_smooth(np.where(ground, zmin, 0.0), ground, sigma_cells=max(1.0, 2.0 / cell))
+    # the lowest point of a cell sits a few range-noise sigmas under the true ground: a second pass takes the
+    # median of the points near that first surface in each ground cell
+    first = Ground(origin=origin.astype(np.float64), cell=cell, z=z)
+    near = np.abs(first.height(pts)) < params.ground_tol
+    near &= ground.ravel()[flat]
+    if near.any():
+        zmed = np.full(shape[0] * shape[1], np.nan)
+        order = np.lexsort((pts[near, 2], flat[near]))
+        keys, zs = flat[near][order], pts[near, 2][order]
+        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+        ends = np.r_[starts[1:], len(keys)]
+        zmed[keys[starts]] = 0.5 * (zs[(starts + ends - 1) // 2] + zs[(starts + ends) // 2])
+        zmed = zmed.reshape(shape)
+        known = np.isfinite(zmed)
+        z = _fill_smooth(np.where(known, zmed, 0.0), known, sigma_cells=max(1.0, 2.0 / cell))
     return Ground(origin=origin.astype(np.float64), cell=cell, z=z)
 
 

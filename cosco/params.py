@@ -114,6 +114,9 @@ class CoscoParams:
 
     size_tol : float
         Size prefilter tolerance (m) on each of L, W, H (paper: 0.2 m).
+    share_margin : float
+        An object of a cluster first tries the models its cluster's first object liked best; it tries all of its
+        candidates when the best of those fits it worse than that by more than this RMSE (m).
     """
 
     sym_voxel: float = 0.10
@@ -167,6 +170,7 @@ class CoscoParams:
     linkage: str = "average"
 
     size_tol: float = 0.20
+    share_margin: float = 0.01
 
     def with_(self, **changes) -> "CoscoParams":
         """A copy with some values changed.

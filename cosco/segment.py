@@ -100,6 +100,40 @@ def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int,
     return comp[inverse], n, ncomp
 
 
+def _absorb_fragments(xy: np.ndarray, comp: np.ndarray, params: CoscoParams, big: int = 100, share: float = 0.25,
+                      margin: float = 0.2) -> np.ndarray:
+    """A small component whose centre lies inside a larger, at most target-sized one's footprint rectangle (a piece
+    of a car's side that scan-line gaps cut off, a mirror) joins it; neighbours side by side keep apart (their
+    centres are outside), and nothing joins a hedge or an island (larger than the target class)."""
+    labels, counts = np.unique(comp, return_counts=True)
+    if len(labels) < 2:
+        return comp
+    order = np.argsort(comp, kind="stable")
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    members = {lab: order[s:s + c] for lab, s, c in zip(labels, starts, counts)}
+    centres = {lab: xy[idx].mean(0) for lab, idx in members.items()}
+    bigs = [lab for lab, c in zip(labels, counts) if c >= big]
+    rects = {}
+    for lab in bigs:
+        if len(members[lab]) >= 3:
+            r = min_area_rectangle(xy[members[lab]])
+            if r.length <= params.car_length[1] and r.width <= params.car_width[1]:
+                rects[lab] = r
+    out = comp.copy()
+    for lab, c in sorted(zip(labels, counts), key=lambda t: t[1]):
+        for host in sorted(rects, key=lambda h: -len(members[h])):
+            if host == lab or c > share * len(members[host]):
+                continue
+            r = rects[host]
+            d = centres[lab] - r.centre
+            u = abs(d @ [np.cos(r.angle), np.sin(r.angle)])
+            v = abs(d @ [-np.sin(r.angle), np.cos(r.angle)])
+            if u <= r.length / 2 + margin and v <= r.width / 2 + margin:
+                out[members[lab]] = host
+                break
+    return out
+
+
 def _footprint_split(xy: np.ndarray, params: CoscoParams, cell: float = 0.1) -> np.ndarray | None:
     """Labels splitting one object's footprint at its necks into parts of at least the class's smallest area,
     or None when it does not fall apart."""
@@ -184,6 +218,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
         core = np.r_[core, low[near]]
         comp = np.r_[comp, comp[nearest[near]]]
     cand = core
+    comp = _absorb_fragments(pts[cand, :2], comp, params)
     order = np.argsort(comp, kind="stable")
     bounds = np.flatnonzero(np.r_[True, comp[order][1:] != comp[order][:-1], True])
     objects = []

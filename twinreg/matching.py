@@ -3,7 +3,8 @@
 For each object, the catalogue is asked once (one indexed SQL query) for models whose length, width and height
 are all within ``tol``; each candidate's sections are registered to the object's over rz in {0, pi/2, pi, 3pi/2},
 a continuous tz and a small axial shift du; the lowest RMSE wins and the runner-up is kept for the report. Objects
-of one cluster share work: the cluster's medoid tries every candidate, its members only the medoid's best few.
+of one cluster share work: the cluster's first object tries every candidate, the others first the best few of
+its ranking, and all of their own candidates only when those fit clearly worse (by ``share_margin``).
 """
 
 from __future__ import annotations
@@ -147,6 +148,7 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, tol: fl
     t = time.perf_counter()
     for members in groups.values():
         ranked_by_medoid: list[int] = []
+        medoid_best = np.inf
         for k, i in enumerate(members):
             ids = cands[i]
             if k > 0 and share and ranked_by_medoid:
@@ -159,10 +161,18 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, tol: fl
                 if progress:
                     progress(1)
             regs.sort(key=lambda r: r[0].rmse)
+            if k > 0 and regs and regs[0][0].rmse > medoid_best + params.share_margin:
+                # this member fits the medoid's favourites clearly worse than the medoid did: not the same kind
+                # of car after all, so it tries the rest of its own candidates too
+                for mid in [m for m in cands[i] if m not in ids]:
+                    regs.append((_trial(pairs[i], cache, mid, params), mid))
+                    stats["n_trials"] += 1
+                regs.sort(key=lambda r: r[0].rmse)
             if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
                 regs[0] = (_trial(pairs[i], cache, regs[0][1], params, polish=True), regs[0][1])
             if k == 0:
                 ranked_by_medoid = [m for _, m in regs]
+                medoid_best = regs[0][0].rmse if regs else np.inf
             results[i] = _outcome(shapes[i], regs, cache, len(cands[i]))
     stats["registration_s"] = time.perf_counter() - t
     stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]

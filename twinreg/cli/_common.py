@@ -14,7 +14,7 @@ from rich.console import Console
 from ..errors import TwinregError
 
 err_console = Console(stderr=True)
-out_console = Console()
+out_console = Console(width=max(Console().width, 110))
 
 LibraryOpt = Annotated[
     Optional[str],
