@@ -28,6 +28,24 @@ def as_points(points, dim: int = 3, min_points: int = 1) -> np.ndarray:
     return arr
 
 
+def cell_keys(cells: np.ndarray) -> np.ndarray:
+    """One int64 per row of (n, d) integer cell indices, ordered like the rows (lexicographically); 1-D
+    ``np.unique`` on these is many times faster than ``np.unique(axis=0)``.
+
+    >>> cell_keys(np.array([[0, 1], [1, 0], [0, 1]])).tolist()
+    [1, 2, 1]
+    """
+    c = np.asarray(cells, dtype=np.int64)
+    if len(c) == 0:
+        return np.zeros(0, dtype=np.int64)
+    c = c - c.min(0)
+    dims = c.max(0) + 1
+    key = np.zeros(len(c), dtype=np.int64)
+    for k in range(c.shape[1]):
+        key = key * dims[k] + c[:, k]
+    return key
+
+
 def voxel_downsample(points: np.ndarray, voxel: float) -> tuple[np.ndarray, np.ndarray]:
     """Centroids of the occupied voxels and their point counts.
 
@@ -38,8 +56,8 @@ def voxel_downsample(points: np.ndarray, voxel: float) -> tuple[np.ndarray, np.n
     (2, [1, 2])
     """
     pts = np.asarray(points, dtype=np.float64)
-    keys = np.floor(pts / voxel).astype(np.int64)
-    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    _, inverse, counts = np.unique(cell_keys(np.floor(pts / voxel).astype(np.int64)), return_inverse=True,
+                                   return_counts=True)
     inverse = inverse.reshape(-1)
     sums = np.zeros((len(counts), pts.shape[1]))
     np.add.at(sums, inverse, pts)

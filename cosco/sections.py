@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points, from_frame, min_area_rectangle, to_frame
+from .footprint import as_points, cell_keys, from_frame, min_area_rectangle, to_frame
 from .params import DEFAULT, CoscoParams
 from .symmetry import Symmetry, detect_symmetry
 
@@ -108,11 +108,12 @@ def voxelise_2d(points2d: np.ndarray, res: float, centroids: bool = True) -> np.
     pts = np.asarray(points2d, dtype=np.float64)
     if len(pts) == 0:
         return np.zeros((0, 2))
-    cells, inverse, counts = np.unique(np.floor(pts / res).astype(np.int64), axis=0, return_inverse=True,
-                                       return_counts=True)
+    grid = np.floor(pts / res).astype(np.int64)
+    _, first, inverse, counts = np.unique(cell_keys(grid), return_index=True, return_inverse=True,
+                                          return_counts=True)
     if not centroids:
-        return np.round((cells + 0.5) * res, 9)
-    sums = np.zeros((len(cells), 2))
+        return np.round((grid[first] + 0.5) * res, 9)
+    sums = np.zeros((len(counts), 2))
     np.add.at(sums, inverse.reshape(-1), pts)
     return sums / counts[:, None]
 

@@ -100,8 +100,8 @@ def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int,
     return comp[inverse], n, ncomp
 
 
-def _absorb_fragments(xy: np.ndarray, comp: np.ndarray, params: CoscoParams, big: int = 100, share: float = 0.25,
-                      margin: float = 0.2) -> np.ndarray:
+def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, big: int = 100,
+                      share: float = 0.25, margin: float = 0.2) -> np.ndarray:
     """A small component whose centre lies inside a larger, at most target-sized one's footprint rectangle (a piece
     of a car's side that scan-line gaps cut off, a mirror) joins it; neighbours side by side keep apart (their
     centres are outside), and nothing joins a hedge or an island (larger than the target class)."""
@@ -112,6 +112,8 @@ def _absorb_fragments(xy: np.ndarray, comp: np.ndarray, params: CoscoParams, big
     starts = np.r_[0, np.cumsum(counts)[:-1]]
     members = {lab: order[s:s + c] for lab, s, c in zip(labels, starts, counts)}
     centres = {lab: xy[idx].mean(0) for lab, idx in members.items()}
+    lows = {lab: hag[idx].min() for lab, idx in members.items()}
+    tops = {lab: hag[idx].max() for lab, idx in members.items()}
     bigs = [lab for lab, c in zip(labels, counts) if c >= big]
     rects = {}
     for lab in bigs:
@@ -122,8 +124,8 @@ def _absorb_fragments(xy: np.ndarray, comp: np.ndarray, params: CoscoParams, big
     out = comp.copy()
     for lab, c in sorted(zip(labels, counts), key=lambda t: t[1]):
         for host in sorted(rects, key=lambda h: -len(members[h])):
-            if host == lab or c > share * len(members[host]):
-                continue
+            if host == lab or c > share * len(members[host]) or lows[lab] > tops[host]:
+                continue  # too big to be a piece, or above the host's top (a branch over a car)
             r = rects[host]
             d = centres[lab] - r.centre
             u = abs(d @ [np.cos(r.angle), np.sin(r.angle)])
@@ -218,7 +220,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
         core = np.r_[core, low[near]]
         comp = np.r_[comp, comp[nearest[near]]]
     cand = core
-    comp = _absorb_fragments(pts[cand, :2], comp, params)
+    comp = _absorb_fragments(pts[cand, :2], hag[cand], comp, params)
     order = np.argsort(comp, kind="stable")
     bounds = np.flatnonzero(np.r_[True, comp[order][1:] != comp[order][:-1], True])
     objects = []

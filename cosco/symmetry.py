@@ -129,7 +129,8 @@ def _start_angles(xy: np.ndarray) -> np.ndarray:
 
 
 def _refine_pairs(pts: np.ndarray, tree: cKDTree, phi: float, rho: float, tol: float, steps: int):
-    """Closed-form refinement: fit the plane through midpoints of mirror pairs (total least squares)."""
+    """Closed-form refinement: fit the plane through midpoints of mirror pairs (total least squares), on the
+    voxel centroids of the reference set (density-equalised, and a third of the points of a dense scan)."""
     for _ in range(steps):
         d, idx = tree.query(reflect(pts, phi, rho), k=1, distance_upper_bound=tol)
         ok = np.isfinite(d)
@@ -208,13 +209,12 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
             options={"maxiter": params.sym_iterations, "xatol": 1e-3, "fatol": 1e-4,
                      "initial_simplex": [[phi0, rho0], [phi0 + np.radians(4), rho0], [phi0, rho0 + 0.08]]},
         )
-        return _refine_pairs(local, full_tree, res.x[0], res.x[1], tol, params.sym_refine_steps)
+        return _refine_pairs(ref, ref_tree, res.x[0], res.x[1], tol, params.sym_refine_steps)
 
     # the best start overall, and the best start whose plane contains the footprint's long axis (a vehicle's
     # mirror plane does; a box-like van is nearly symmetric front to back too)
     long_normal = rect.angle + np.pi / 2
     along = [t for t in scored if axis_difference(t[1], long_normal) < np.radians(20)]
-    full_tree = cKDTree(local)
     candidates = []
     for k, (_, phi0, rho0) in enumerate([scored[0]] + along[:1]):
         if k == 1 and axis_difference(phi0, scored[0][1]) < np.radians(8):

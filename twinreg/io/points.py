@@ -50,8 +50,10 @@ def _read_text(path: Path) -> np.ndarray:
     except (ValueError, IndexError) as exc:
         # a header line (x,y,z) is common: try once more without it
         try:
-            data = np.loadtxt(path, delimiter=delimiter, comments=("#", "//"), ndmin=2, usecols=(0, 1, 2),
-                              skiprows=1)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                data = np.loadtxt(path, delimiter=delimiter, comments=("#", "//"), ndmin=2, usecols=(0, 1, 2),
+                                  skiprows=1)
         except (ValueError, IndexError):
             raise SceneReadError(f"{path}: not a text point file with x y z columns ({exc})") from exc
     return data
