@@ -13,7 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import machine  # noqa: E402
 
-SUITES = ["catalogue", "cosco", "detect", "twin"]
+SUITES = ["catalogue", "cosco", "detect", "twin", "scaling"]
 
 
 def main() -> None:

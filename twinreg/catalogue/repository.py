@@ -24,7 +24,7 @@ import numpy as np
 from ..outdir import publish
 from sqlalchemy import and_, func, select
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, defer
 
 import cosco
 
@@ -34,6 +34,9 @@ from .models import RefModel, pack, unpack
 from .prepare import PreparedModel, prepare_model
 
 EDITABLE = ("name", "make", "model", "body_class", "tags")
+# large columns, loaded only when a model's arrays are needed (a size query over thousands of rows stays light)
+BLOBS = ("points", "section_longitudinal", "section_transverse", "section_longitudinal_fine",
+         "section_transverse_fine")
 
 
 @dataclass
@@ -121,6 +124,7 @@ class Catalogue:
             conds.append(RefModel.body_class == body_class)
         if conds:
             q = q.where(and_(*conds))
+        q = q.options(*(defer(getattr(RefModel, b)) for b in BLOBS))
         with self.session() as s:
             return list(s.scalars(q.order_by(RefModel.id)))
 
@@ -141,6 +145,9 @@ class Catalogue:
     def geometry(self, row: RefModel, with_mesh: bool = True) -> ModelGeometry:
         """Arrays of one model (sections, sampled points and, unless ``with_mesh`` is False, the normalised
         mesh)."""
+        with self.session() as s:
+            blobs = s.execute(select(*(getattr(RefModel, b) for b in BLOBS)).where(RefModel.id == row.id)).one()
+        blob = dict(zip(BLOBS, blobs))
         if with_mesh:
             mesh = np.load(self.folder / row.mesh_file)
         else:
@@ -148,11 +155,11 @@ class Catalogue:
         return ModelGeometry(
             id=row.id, name=row.name, size=np.array([row.length, row.width, row.height]),
             sections=cosco.Sections(
-                unpack(row.section_longitudinal), unpack(row.section_transverse), row.section_res,
-                unpack(row.section_longitudinal_fine) if row.section_longitudinal_fine else None,
-                unpack(row.section_transverse_fine) if row.section_transverse_fine else None),
+                unpack(blob["section_longitudinal"]), unpack(blob["section_transverse"]), row.section_res,
+                unpack(blob["section_longitudinal_fine"]) if blob["section_longitudinal_fine"] else None,
+                unpack(blob["section_transverse_fine"]) if blob["section_transverse_fine"] else None),
             mesh_vertices=mesh["vertices"].astype(np.float64), mesh_faces=mesh["faces"].astype(np.int64),
-            points=unpack(row.points),
+            points=unpack(blob["points"]),
             mesh_glass=mesh["glass"].astype(bool) if with_mesh and "glass" in mesh.files else None,
         )
 
