@@ -25,6 +25,22 @@ def publish(tmp, dst) -> None:
 
 
 @contextlib.contextmanager
+def atomic_path(dst, suffix: str | None = None):
+    """Yield a temporary path beside ``dst``; when the block ends without error the file takes ``dst``'s place
+    (a reader never sees half a file), otherwise it is deleted."""
+    dst = Path(dst)
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=dst.parent, prefix=".tmp-", suffix=suffix if suffix is not None else dst.suffix)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        publish(tmp, dst)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+@contextlib.contextmanager
 def staged_folder(target):
     """Yield a staging folder; on success it replaces ``target`` atomically, on failure it is deleted and
     ``target`` is left as it was."""

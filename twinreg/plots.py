@@ -3,13 +3,11 @@ written to PNG through a temporary file and a rename)."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from .outdir import publish
+from .outdir import atomic_path
 
 
 def _plt():
@@ -24,16 +22,11 @@ def _plt():
 def save_figure(fig, path, tight: bool = True, dpi: int = 110) -> Path:
     """Write a figure to ``path`` atomically; the figure is closed."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix or ".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight" if tight else None)
-        publish(tmp, path)
+        with atomic_path(path, path.suffix or ".png") as tmp:
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight" if tight else None)
     finally:
         _plt().close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return path
 
 

@@ -13,15 +13,11 @@ names and rename them, insert the row in one transaction, and delete the new fil
 from __future__ import annotations
 
 import json
-import os
 import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from ..outdir import publish
 from sqlalchemy import and_, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
@@ -29,9 +25,10 @@ from sqlalchemy.orm import Session, defer
 import cosco
 
 from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError
+from ..outdir import atomic_path
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
-from .prepare import PreparedModel, prepare_model
+from .prepare import PreparedModel, file_sha256, prepare_model
 
 EDITABLE = ("name", "make", "model", "body_class", "tags")
 # large columns, loaded only when a model's arrays are needed (a size query over thousands of rows stays light)
@@ -57,30 +54,16 @@ def _atomic_copy(src: Path, dst: Path) -> bool:
     """Copy ``src`` to ``dst`` through a temporary file and a rename. Returns False if ``dst`` already existed."""
     if dst.exists():
         return False
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=dst.parent, prefix=".tmp-")
-    os.close(fd)
-    try:
+    with atomic_path(dst) as tmp:
         shutil.copyfile(src, tmp)
-        publish(tmp, dst)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return True
 
 
 def _atomic_npz(dst: Path, **arrays) -> bool:
     if dst.exists():
         return False
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=dst.parent, prefix=".tmp-", suffix=".npz")
-    os.close(fd)
-    try:
+    with atomic_path(dst, ".npz") as tmp:
         np.savez_compressed(tmp, **arrays)
-        publish(tmp, dst)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return True
 
 
@@ -256,19 +239,13 @@ class Catalogue:
             front="auto") -> RefModel:
         """Load, normalise, measure and store one mesh file. See :func:`prepare_model`."""
         path = Path(path)
-        if self.exists:  # refuse a duplicate before the costly part
+        if self.exists and path.is_file():  # refuse a duplicate before the costly part
+            sha = file_sha256(path)
             with self.session() as s:
-                sha = None
-                try:
-                    from .prepare import file_sha256
-                    sha = file_sha256(path) if path.is_file() else None
-                except OSError:
-                    sha = None
-                if sha:
-                    existing = s.scalar(select(RefModel).where(RefModel.sha256 == sha))
-                    if existing is not None:
-                        raise DuplicateModelError(f"{path}: same content as model {existing.id} "
-                                                  f"'{existing.name}' already in the catalogue")
+                existing = s.scalar(select(RefModel).where(RefModel.sha256 == sha))
+            if existing is not None:
+                raise DuplicateModelError(f"{path}: same content as model {existing.id} "
+                                          f"'{existing.name}' already in the catalogue")
         prep = prepare_model(path, unit=unit, up=up, front=front)
         return self.add_prepared(prep, name=name, make=make, model=model, body_class=body_class, tags=tags)
 

@@ -3,7 +3,6 @@ clamped to the ground) and one COLLADA file per distinct model (plus a box per u
 
 from __future__ import annotations
 
-import os
 import tempfile
 import zipfile
 from pathlib import Path
@@ -11,7 +10,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..outdir import publish
+from ..outdir import atomic_path
 from .collada import decimate, write_collada
 
 # COLLADA files are authored with the car's front along +Y (north), so a KML heading is the front's bearing
@@ -57,15 +56,9 @@ def write_kmz(path, name: str, objects: list[dict], meshes: dict) -> Path:
         marks = "".join(placemark(o, f"models/{o['mesh']}.dae") for o in objects)
         kml = ('<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2">'
                f"<Document><name>{escape(name)}</name><open>1</open>{marks}</Document></kml>\n")
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".kmz")
-        os.close(fd)
-        try:
-            with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as z:
-                z.writestr("doc.kml", kml)  # the first entry, as Google Earth expects
-                for rel, src in files.items():
-                    z.write(src, rel)
-            publish(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        with atomic_path(path, ".kmz") as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED,
+                                                                compresslevel=1) as z:
+            z.writestr("doc.kml", kml)  # the first entry, as Google Earth expects
+            for rel, src in files.items():
+                z.write(src, rel)
     return path

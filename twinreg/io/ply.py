@@ -3,13 +3,11 @@ faces and per-vertex colours, header comments, written to a temporary file and r
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from ..outdir import publish
+from ..outdir import atomic_path
 
 
 def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
@@ -32,20 +30,13 @@ def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
     if faces is not None:
         header += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
     header += ["end_header"]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".ply")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(("\n".join(header) + "\n").encode("ascii"))
-            fh.write(rec.tobytes())
-            if faces is not None:
-                f = np.asarray(faces, dtype="<i4").reshape(-1, 3)
-                frec = np.empty(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
-                frec["n"] = 3
-                frec["i"] = f
-                fh.write(frec.tobytes())
-        publish(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with atomic_path(path, ".ply") as tmp, open(tmp, "wb") as fh:
+        fh.write(("\n".join(header) + "\n").encode("ascii"))
+        fh.write(rec.tobytes())
+        if faces is not None:
+            f = np.asarray(faces, dtype="<i4").reshape(-1, 3)
+            frec = np.empty(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+            frec["n"] = 3
+            frec["i"] = f
+            fh.write(frec.tobytes())
     return path
