@@ -53,6 +53,20 @@ def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None)
     return Detection(scene, is_ground, hag, ground, seg, {"ground": t1 - t0, "objects": t2 - t1})
 
 
+def describe_detected(det: Detection, params: CoscoParams = DEFAULT) -> list:
+    """COSCO shapes (symmetry, sections, size) of the detected target objects, each measured from the ground
+    surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
+    import cosco
+
+    local = det.scene.local
+    shapes = []
+    for o in det.objects:
+        pts = local[o.indices]
+        ground_z = float(np.median(pts[:, 2] - det.hag[o.indices]))
+        shapes.append(cosco.describe_object(pts, params, ground_z=ground_z))
+    return shapes
+
+
 def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None) -> Detection:
     t = time.perf_counter()
     scene = read_points(path, unit=unit)

@@ -49,6 +49,17 @@ class ObjectSet:
     shapes: list[cosco.ObjectShape]
 
 
+def objects_from_scene(path, unit: str = "auto", params: CoscoParams = DEFAULT) -> ObjectSet:
+    """The car-sized objects detected in a scene file (ground removal and connectivity), named obj1, obj2, ..."""
+    from .detect import describe_detected, detect_file
+
+    det = detect_file(path, unit=unit, params=params)
+    if not det.objects:
+        raise SceneReadError(f"{path}: no car-sized objects were found; check --unit")
+    shapes = describe_detected(det, params)
+    return ObjectSet([f"obj{k + 1}" for k in range(len(shapes))], shapes)
+
+
 def objects_from_folder(folder, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None) -> ObjectSet:
     """Every point file in a folder, one object per file (e.g. DALES objects)."""
     folder = Path(folder)

@@ -13,7 +13,7 @@ import cosco
 from cosco.params import DEFAULT, CoscoParams
 
 from .catalogue.repository import Catalogue
-from .detect import detect_file
+from .detect import describe_detected, detect_file
 from .errors import CatalogueError, SceneReadError
 from .export.kmz import box_mesh, write_kmz
 from .export.report import plot_taxonomy, write_report
@@ -103,11 +103,7 @@ def _build(scene_path, catalogue, georef, out, unit, tol, params, progress, thre
 
     _say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
-    shapes = []
-    for o in targets:
-        pts = local[o.indices]
-        ground_z = float(np.median(pts[:, 2] - det.hag[o.indices]))
-        shapes.append(cosco.describe_object(pts, params, ground_z=ground_z))
+    shapes = describe_detected(det, params)
     timing["sections"] = time.perf_counter() - t
 
     _say(progress, "dissimilarity matrix")

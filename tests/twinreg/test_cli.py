@@ -96,3 +96,24 @@ def test_cluster_folder_with_plots(tmp_path, dales):
     assert m.shape == (6, 6) and np.allclose(m, m.T)
     assert (tmp_path / "plots" / "heatmap.png").stat().st_size > 5000
     assert (tmp_path / "plots" / "dendrogram.png").stat().st_size > 5000
+
+
+def test_cluster_a_scene_file(tmp_path):
+    """Objects detected in a scan cluster by model: two cars of each of three parametric models (no tree: a car
+    half hidden by a canopy has other sections and may stand alone)."""
+    from twinreg.io.ply import write_ply
+    from twinreg.parametric import LIBRARY, car_mesh
+    from twinreg.simulate import car_park
+
+    specs = [LIBRARY[0], LIBRARY[2], LIBRARY[5]]  # supermini, sedan, van
+    models = [car_mesh(s) for s in specs]
+    park = car_park(models, n_cars=6, seed=4, distractors=False)
+    write_ply(tmp_path / "park.ply", park.points)
+    res = run("cluster", tmp_path / "park.ply", "--threshold", "0.045", "--json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert len(doc["objects"]) == 6
+    by_model = {}
+    for o in doc["objects"]:
+        by_model.setdefault(o["cluster"], []).append(o["id"])
+    assert doc["n_clusters"] == 3 and sorted(len(v) for v in by_model.values()) == [2, 2, 2]

@@ -11,7 +11,7 @@ from rich.progress import Progress
 import cosco
 
 from ..errors import SceneReadError
-from ..objects import inspect_file, objects_from_folder, shape_json
+from ..objects import inspect_file, objects_from_folder, objects_from_scene, shape_json
 from ._common import JsonOpt, err_console, handled, info, print_json
 
 app = typer.Typer()
@@ -48,19 +48,23 @@ def inspect(
 @app.command("cluster")
 @handled
 def cluster_cmd(
-    scene: Annotated[Path, typer.Argument(help="A folder of object files (one object per file).")],
+    scene: Annotated[Path, typer.Argument(help="A scene file (objects are detected) or a folder of object files.")],
     threshold: Annotated[float, typer.Option(help="Dendrogram cut (m); the paper used 0.065.")] = 0.065,
     plot: Annotated[Optional[Path], typer.Option("--plot", help="Folder for heatmap.png and dendrogram.png.")] = None,
     unit: UnitOpt = "auto",
     json_: JsonOpt = False,
 ):
     """Dissimilarity matrix and hierarchical clustering of objects."""
-    if not scene.is_dir():
-        raise SceneReadError(f"{scene}: pass a folder of object files (scene detection arrives with `detect`)")
-    n_files = sum(1 for _ in scene.iterdir())
+    if not scene.exists():
+        raise SceneReadError(f"{scene}: no such file or folder")
     with Progress(console=err_console) as bar:
-        t = bar.add_task("sections", total=n_files)
-        objs = objects_from_folder(scene, unit=unit, progress=lambda k: bar.advance(t, k))
+        if scene.is_dir():
+            t = bar.add_task("sections", total=sum(1 for _ in scene.iterdir()))
+            objs = objects_from_folder(scene, unit=unit, progress=lambda k: bar.advance(t, k))
+        else:
+            t = bar.add_task("detection and sections", total=1)
+            objs = objects_from_scene(scene, unit=unit)
+            bar.advance(t)
         n = len(objs.shapes)
         t2 = bar.add_task("dissimilarity", total=n * (n - 1) // 2)
         matrix = cosco.dissimilarity_matrix([s.sections for s in objs.shapes],
