@@ -49,7 +49,7 @@ def run() -> list[Row]:
             pts = det.scene.local[o.indices]
             shapes.append(cosco.describe_object(pts, ground_z=float(np.median(pts[:, 2] - det.hag[o.indices]))))
         rng = np.random.default_rng(0)
-        for n in (16, 100, 1000):
+        for n in (10, 100, 1000):
             cat = Catalogue(tmp / f"c{n}")
             with base.session() as s_in, cat.session() as s_out:
                 src = list(s_in.scalars(select(RefModel)))

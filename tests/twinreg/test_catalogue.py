@@ -235,3 +235,23 @@ def test_cheap_head_revision_agrees_with_alembic():
     cfg = Config()
     cfg.set_main_option("script_location", str(migrations_dir()))
     assert head_revision() == ScriptDirectory.from_config(cfg).get_current_head()
+
+
+@pytest.mark.parametrize("fmt", ["ply", "stl", "off", "glb"])
+def test_other_mesh_formats_go_in(tmp_path, fmt):
+    """A parametric car exported by trimesh in each format comes back with the same size."""
+    import trimesh
+
+    from twinreg.parametric import LIBRARY, car_mesh
+
+    spec = LIBRARY[2]
+    v, f = car_mesh(spec)
+    mesh = trimesh.Trimesh(v, f, process=False)
+    if fmt == "glb":  # glTF is Y-up by specification: turn Z-up to Y-up as an exporter would
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    path = tmp_path / f"sedan.{fmt}"
+    mesh.export(path)
+    row = Catalogue(tmp_path / "lib").add(path)
+    assert row.up_axis == ("+y" if fmt == "glb" else "+z") and row.front_axis == "+x"
+    assert abs(row.length - spec.length) < 0.03 and abs(row.height - spec.height) < 0.03
+    assert abs(row.width - spec.width) < 0.03  # the body, without its mirrors
