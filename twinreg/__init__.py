@@ -1,0 +1,27 @@
+"""twinreg: a digital-twin registration workbench built on COSCO (see README.md and docs/METHOD.md).
+
+The public API (imported on first use, so the command line starts fast); the ``twinreg`` command is a thin
+layer over it.
+"""
+
+__version__ = "0.1.0"
+
+_API = {
+    "Catalogue": "twinreg.catalogue.repository",
+    "TwinregError": "twinreg.errors",
+    "build_twin": "twinreg.pipeline",
+    "detect_file": "twinreg.detect",
+    "georef_from_options": "twinreg.georef",
+    "load_mesh": "twinreg.io.meshes",
+    "read_points": "twinreg.io.points",
+}
+
+__all__ = sorted(_API) + ["__version__"]
+
+
+def __getattr__(name):
+    if name in _API:
+        import importlib
+
+        return getattr(importlib.import_module(_API[name]), name)
+    raise AttributeError(f"module 'twinreg' has no attribute {name!r}")

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MeshLoadError
+from ._files import checked_input
 
 MESH_SUFFIXES = {".obj", ".ply", ".stl", ".off", ".glb", ".gltf", ".dae"}
 
@@ -142,15 +143,8 @@ def load_mesh(path) -> LoadedMesh:
 
     Raises :class:`MeshLoadError` with a one-line message for a missing, unreadable, empty or non-finite mesh.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise MeshLoadError(f"{path}: no such file")
-    suffix = path.suffix.lower()
-    if suffix not in MESH_SUFFIXES:
-        raise MeshLoadError(f"{path}: unsupported mesh format '{suffix}'; use one of "
-                            + ", ".join(sorted(s[1:].upper() for s in MESH_SUFFIXES)))
-    if path.stat().st_size == 0:
-        raise MeshLoadError(f"{path}: the file is empty")
+    path, suffix = checked_input(path, MESH_SUFFIXES, "mesh",
+                                 "one of " + ", ".join(sorted(s[1:].upper() for s in MESH_SUFFIXES)), MeshLoadError)
     mesh = _load_collada(path) if suffix == ".dae" else _load_trimesh(path)
     if not np.isfinite(mesh.vertices).all():
         raise MeshLoadError(f"{path}: the mesh has NaN or infinite vertex coordinates; repair it "

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneReadError
+from ._files import checked_input
 
 UNIT_SCALES = {"m": 1.0, "cm": 0.01, "mm": 0.001, "ft": 0.3048, "us-ft": 1200.0 / 3937.0, "in": 0.0254}
 POINT_SUFFIXES = {".ply", ".pcd", ".las", ".laz", ".xyz", ".txt", ".csv", ".pts", ".bin"}
@@ -159,15 +160,8 @@ def read_points(path, unit: str = "auto") -> PointSet:
     unit : ``auto`` (metres, or the LAS CRS's linear unit when one is stated) or one of m, cm, mm, ft, us-ft, in.
     Raises :class:`SceneReadError` with one line naming the file for a missing, unreadable, truncated or empty file.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise SceneReadError(f"{path}: no such file")
-    suffix = path.suffix.lower()
-    if suffix not in POINT_SUFFIXES:
-        raise SceneReadError(f"{path}: unsupported point format '{suffix}'; use PLY, PCD, LAS, LAZ, XYZ/TXT or "
-                             "KITTI .bin")
-    if path.stat().st_size == 0:
-        raise SceneReadError(f"{path}: the file is empty")
+    path, suffix = checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin",
+                                 SceneReadError)
     crs, file_unit = None, None
     if suffix in (".las", ".laz"):
         pts, crs, file_unit = _read_las(path)
