@@ -16,7 +16,7 @@ from .catalogue.repository import Catalogue
 from .detect import describe_detected, detect_file
 from .errors import CatalogueError, SceneReadError
 from .export.kmz import box_mesh, write_kmz
-from .export.report import plot_taxonomy, write_report
+from .export.report import plot_taxonomy, warm_up, write_report
 from .export.twin_ply import cluster_color, write_twin_ply
 from .georef import Georef
 from .matching import match_objects
@@ -38,19 +38,16 @@ def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration
     return {"lon": lon, "tra": tra}
 
 
-def _warm_up() -> bool:
-    import io
+HELPER_TIMEOUT_S = 30.0
 
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # the slow part of the first picture: the import and the font set-up
-
-    fig, ax = plt.subplots(figsize=(1, 1))
-    ax.text(0.5, 0.5, "warm")
-    fig.savefig(io.BytesIO(), format="png")
-    plt.close(fig)
-    return True
+def _abandon(pool) -> None:
+    """Stop a helper process that failed or hangs (its pictures are then drawn in this process)."""
+    if pool is None:
+        return
+    for proc in list(getattr(pool, "_processes", {}).values()):
+        proc.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _start_painter():
@@ -64,8 +61,10 @@ def _start_painter():
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
+        # fork: the child starts at once with this process's imports (spawn costs a second interpreter's start on
+        # two cores); the child only draws with matplotlib, and a child that hangs is abandoned after a time limit
         pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"))
-        pool.submit(_warm_up)
+        pool.submit(warm_up)
         return pool
     except Exception:  # pragma: no cover - no fork on this platform
         return None
@@ -234,9 +233,10 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     try:
         if report is None or taxonomy is None:
             raise RuntimeError("no helper process")
-        taxonomy.result()
-        report.result()
-    except Exception:  # the helper is a speed-up only: draw here if it is unavailable
+        taxonomy.result(timeout=HELPER_TIMEOUT_S)
+        report.result(timeout=HELPER_TIMEOUT_S)
+    except Exception:  # the helper is a speed-up only: draw here if it is unavailable, stuck or failed
+        _abandon(painter)
         plot_taxonomy(stage, [o["id"] for o in objects], matrix, clusters.linkage, clusters.threshold)
         write_report(*report_args)
     timing["export"] = time.perf_counter() - t

@@ -166,3 +166,14 @@ def test_bad_inputs_leave_nothing_half_written(tmp_path, park, catalogue16):
     assert res.exit_code == 0, res.output
     assert not (out / "keep.txt").exists() and (out / "twin.kmz").exists()
     assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name or ".old-" in p.name]
+
+
+def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_path, monkeypatch):
+    from twinreg.georef import georef_from_options
+    from twinreg.pipeline import build_twin
+
+    monkeypatch.setenv("TWINREG_NO_HELPER", "1")
+    twin = build_twin(park["path"], catalogue16, georef_from_options(53.35116, -6.261601), tmp_path / "out")
+    assert len(twin["objects"]) == 12
+    for name in ("topview.png", "heatmap.png", "dendrogram.png", "sections.png", "report.html"):
+        assert (tmp_path / "out" / name).stat().st_size > 1000

@@ -11,6 +11,18 @@ import numpy as np
 from ..plots import _plt, plot_dendrogram, plot_heatmap, save_figure
 
 
+def warm_up() -> bool:
+    """Import matplotlib and draw a first tiny figure (font set-up): run in the helper process at the start."""
+    import io
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(1, 1))
+    ax.text(0.5, 0.5, "warm")
+    fig.savefig(io.BytesIO(), format="png")
+    plt.close(fig)
+    return True
+
+
 def _height_image(scene_local: np.ndarray, heights: np.ndarray, cell: float):
     lo = scene_local[:, :2].min(0)
     ij = np.floor((scene_local[:, :2] - lo) / cell).astype(np.int64)
