@@ -17,15 +17,13 @@ from common import Row
 
 
 def run() -> list[Row]:
-    import csv
 
-    import cosco
     from sqlalchemy import select
 
-    from common import SHARED
     from twinreg.catalogue.models import RefModel
     from twinreg.catalogue.repository import Catalogue
-    from twinreg.detect import detect_file
+    from bench_twin import _catalogue
+    from twinreg.detect import describe_detected, detect_file
     from twinreg.io.ply import write_ply
     from twinreg.matching import match_objects
     from twinreg.simulate import car_park
@@ -33,21 +31,10 @@ def run() -> list[Row]:
     rows_out = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        base = Catalogue(tmp / "base")
-        for r in csv.DictReader(open(SHARED / "cars" / "MANIFEST.csv")):
-            base.add(SHARED / "cars" / r["file"], name=r["slug"])
-        originals = sorted(base.list(), key=lambda r: r.name)
-        models = []
-        for r in originals:
-            g = base.geometry(r)
-            models.append((g.mesh_vertices, g.mesh_faces, g.mesh_glass))
-        park = car_park(models, n_cars=12, seed=5)
+        base = _catalogue(tmp / "base")
+        park = car_park(base.scan_meshes(sorted(base.list(), key=lambda r: r.name)), n_cars=12, seed=5)
         write_ply(tmp / "park.ply", park.points)
-        det = detect_file(tmp / "park.ply")
-        shapes = []
-        for o in det.objects:
-            pts = det.scene.local[o.indices]
-            shapes.append(cosco.describe_object(pts, ground_z=float(np.median(pts[:, 2] - det.hag[o.indices]))))
+        shapes = describe_detected(detect_file(tmp / "park.ply"))
         rng = np.random.default_rng(0)
         for n in (10, 100, 1000):
             cat = Catalogue(tmp / f"c{n}")

@@ -38,10 +38,7 @@ def _scene(cat, path: Path, seed: int = 5):
     from twinreg.simulate import Pass, car_park
 
     rows = sorted(cat.list(), key=lambda r: r.name)
-    models = []
-    for r in rows:
-        g = cat.geometry(r)
-        models.append((g.mesh_vertices, g.mesh_faces, g.mesh_glass))
+    models = cat.scan_meshes(rows)
     passes = (Pass(np.radians(20), np.radians(70), 0.07), Pass(np.radians(200), np.radians(65), 0.085),
               Pass(np.radians(110), np.radians(85), 0.10))
     park = car_park(models, n_cars=12, seed=seed, passes=passes)

@@ -139,8 +139,4 @@ def catalogue16(tmp_path_factory, cars):
 def catalogue_models(cat, names):
     """(vertices, faces, glass) of catalogue models, for simulated scenes."""
     rows = {r.name: r for r in cat.list()}
-    out = []
-    for n in names:
-        g = cat.geometry(rows[n])
-        out.append((g.mesh_vertices, g.mesh_faces, g.mesh_glass))
-    return out
+    return cat.scan_meshes([rows[n] for n in names])

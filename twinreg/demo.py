@@ -49,10 +49,7 @@ def run_demo(out, seed: int = 0, n_cars: int = 14, progress=None) -> dict:
         cat.add(path, name=spec.name, make="twinreg parametric", model=spec.make_model, body_class=spec.body_class)
     rows = sorted(cat.list(), key=lambda r: r.id)
     names = [r.name for r in rows]
-    meshes = []
-    for r in rows:
-        g = cat.geometry(r)
-        meshes.append((g.mesh_vertices, g.mesh_faces, g.mesh_glass))
+    meshes = cat.scan_meshes(rows)
 
     say("simulating an airborne scan of the car park")
     park = car_park(meshes, n_cars=n_cars, seed=seed, gaps=(0.4, 1.0))

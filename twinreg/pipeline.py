@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 import cosco
+from cosco.footprint import min_area_rectangle
 from cosco.params import DEFAULT, CoscoParams
 
 from .catalogue.repository import Catalogue
@@ -97,9 +98,6 @@ def _build(scene_path, catalogue, georef, out, unit, tol, params, progress, thre
     if not targets:
         raise SceneReadError(f"{scene_path}: no car-sized objects were found; check --unit (the scene's unit) and "
                              "that the scan covers parked cars")
-    local = det.scene.local
-    offset = det.scene.offset
-
     _say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes = describe_detected(det, params)
@@ -142,13 +140,13 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
         label = int(clusters.labels[k])
         rgb = cluster_color(label)
         if m is not None:
-            row = catalogue.get(m.model_id)
             if m.model_id not in cache_meshes:
                 # the twin carries each model decimated to Google Earth's 21,845 triangles (cached in the
-                # catalogue), in the PLY as in the KMZ
+                # catalogue), in the PLY as in the KMZ; one catalogue read per model, not per object
+                row = catalogue.get(m.model_id)
                 gv, gf = catalogue.ge_mesh(row)
-                cache_meshes[m.model_id] = (gv, gf, catalogue.geometry(row, with_mesh=False).sections)
-            mv, mf, msec = cache_meshes[m.model_id]
+                cache_meshes[m.model_id] = (row, gv, gf, catalogue.geometry(row, with_mesh=False).sections)
+            row, mv, mf, msec = cache_meshes[m.model_id]
             placed = mv @ m.transform[:3, :3].T + m.transform[:3, 3]
             heading = m.heading
             size = {"length": row.length, "width": row.width, "height": row.height}
@@ -202,8 +200,6 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
                                      "rmse_m": f"{match_doc['rmse_m']:.4f}" if match_doc else "",
                                      "cluster": label}})
         corners = placed[:, :2]
-        from cosco.footprint import min_area_rectangle
-
         rect = min_area_rectangle(corners)
         ctr = np.asarray(centre_local)[:2]
         footprints.append({"corners": rect.corners(), "color": rgb / 255.0, "centre": ctr,

@@ -153,7 +153,6 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
         m = (k * 7 + 3) % len(models) if len(models) > 1 else 0
         v, f = models[m][0], models[m][1]
         glass = models[m][2] if len(models[m]) > 2 else None
-        length = np.ptp(v[:, 0])
         width = np.ptp(v[:, 1])
         if k % per_row == 0:
             cursor = -8.0

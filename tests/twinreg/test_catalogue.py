@@ -13,7 +13,7 @@ import pytest
 from tests.conftest import CARS, manifest_rows, need
 from twinreg.catalogue.normalise import surface_samples
 from twinreg.catalogue.repository import Catalogue
-from twinreg.errors import DuplicateModelError, MeshLoadError, TwinregError, UnitError
+from twinreg.errors import DuplicateModelError, TwinregError, UnitError
 
 UNIT_SCALE = {"m": 1.0, "cm": 0.01, "in": 0.0254}
 

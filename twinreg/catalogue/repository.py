@@ -146,6 +146,14 @@ class Catalogue:
             mesh_glass=mesh["glass"].astype(bool) if with_mesh and "glass" in mesh.files else None,
         )
 
+    def scan_meshes(self, rows) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
+        """``(vertices, faces, glass)`` of the normalised meshes of ``rows``, as the scan simulator takes them."""
+        out = []
+        for row in rows:
+            g = self.geometry(row)
+            out.append((g.mesh_vertices, g.mesh_faces, g.mesh_glass))
+        return out
+
     def ge_mesh(self, row: RefModel) -> tuple[np.ndarray, np.ndarray]:
         """The model's mesh decimated to Google Earth's limit, cached beside the full mesh
         (``meshes/<sha>.ge.npz``, written atomically the first time a twin uses the model)."""
