@@ -28,6 +28,34 @@ def as_points(points, dim: int = 3, min_points: int = 1) -> np.ndarray:
     return arr
 
 
+def check_object(points, min_points: int = 10, min_extent: float = 0.01) -> np.ndarray:
+    """Coerce one object's points and refuse a degenerate one with ``ValueError`` saying what it is: fewer than
+    ``min_points`` distinct points, all points at one spot, on one vertical line, or collinear in plan (an extent
+    under ``min_extent`` metres across).
+
+    >>> check_object(np.zeros((5000, 3)))
+    Traceback (most recent call last):
+    ...
+    ValueError: degenerate object: all 5000 points are at one spot (needs at least 10 distinct points)
+    """
+    arr = as_points(points)
+    n_distinct = len(np.unique(arr, axis=0)) if len(arr) <= 100_000 else len(arr)
+    if n_distinct < min_points:
+        what = (f"only {len(arr)} points" if n_distinct == len(arr) else
+                f"all {len(arr)} points are at one spot" if n_distinct == 1 else
+                f"its {len(arr)} points are at only {n_distinct} distinct positions")
+        raise ValueError(f"degenerate object: {what} (needs at least {min_points} distinct points)")
+    xy = arr[:, :2]
+    if np.ptp(xy, axis=0).max() < min_extent:
+        raise ValueError(f"degenerate object: its {len(arr)} points lie on one vertical line (no footprint)")
+    centred = xy - xy.mean(0)
+    spread = np.sqrt(np.linalg.eigvalsh(centred.T @ centred / len(xy)))
+    if spread[0] * 4 < min_extent:
+        raise ValueError(f"degenerate object: its {len(arr)} points are collinear in plan (a line {spread[1] * 3.5:.2f}"
+                         " m long, no width)")
+    return arr
+
+
 def cell_keys(cells: np.ndarray) -> np.ndarray:
     """One int64 per row of (n, d) integer cell indices, ordered like the rows (lexicographically); 1-D
     ``np.unique`` on these is many times faster than ``np.unique(axis=0)``.

@@ -12,6 +12,12 @@ so that slopes, kerbs and ramps of real car parks stay ground:
    normalised convolution so it bends smoothly under them; a second pass replaces each ground cell's lowest point
    by the median of the points near the surface (the lowest of noisy points lies a few sigmas too low);
 4. every point's height above ground is its z minus the bilinear ground surface under it.
+
+Memory goes by occupied cells, not by the bounding box: the grid is cut into blocks of ``ground_block`` cells and
+only blocks holding points are processed, each as a dense window with a halo of ``ground_halo`` cells (more than
+the widest opening window and the smoothing reach), of which the block's core is kept. A scan that fits in one
+block is processed as one window, exactly as the steps above say; one stray point 30 km away adds one small block,
+not a 60,000 x 60,000 grid.
 """
 
 from __future__ import annotations
@@ -25,15 +31,14 @@ from .params import DEFAULT, CoscoParams
 
 
 @dataclass(frozen=True)
-class Ground:
-    """A ground surface on a grid: ``z[i, j]`` at ``origin + (i + 0.5, j + 0.5) * cell`` (metres)."""
+class _Grid:
+    """A dense ground surface on one window: ``z[i, j]`` at ``origin + (i + 0.5, j + 0.5) * cell``."""
 
     origin: np.ndarray
     cell: float
     z: np.ndarray
 
     def height(self, points: np.ndarray) -> np.ndarray:
-        """Height above ground (m) of (n, 3) points, bilinear under each point."""
         pts = np.asarray(points, dtype=np.float64)
         g = (pts[:, :2] - self.origin) / self.cell - 0.5
         gx = np.clip(g[:, 0], 0.0, self.z.shape[0] - 1.000001)
@@ -47,6 +52,63 @@ class Ground:
         top = z[i, j] * (1 - fx) + z[i + 1, j] * fx
         bottom = z[i, j + 1] * (1 - fx) + z[i + 1, j + 1] * fx
         return pts[:, 2] - (top * (1 - fy) + bottom * fy)
+
+
+@dataclass(frozen=True)
+class Ground:
+    """A ground surface on a sparse grid of ``cell`` squares (metres): the cell (i, j) is centred at
+    ``origin + (i + 0.5, j + 0.5) * cell``; only blocks of ``block`` x ``block`` cells holding points are stored,
+    as ``tiles[k]`` for the block of key ``keys[k]`` (``bi * n_block_cols + bj``, sorted)."""
+
+    origin: np.ndarray
+    cell: float
+    block: int
+    n_block_cols: int
+    keys: np.ndarray
+    tiles: np.ndarray
+
+    def shifted(self, dx: float, dy: float, dz: float) -> "Ground":
+        """The same surface in a frame shifted by (dx, dy, dz) metres."""
+        return Ground(self.origin + [dx, dy], self.cell, self.block, self.n_block_cols, self.keys, self.tiles + dz)
+
+    def _z(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Surface z at integer cells (NaN outside the stored blocks)."""
+        b = self.block
+        key = (i // b) * self.n_block_cols + (j // b)
+        pos = np.clip(np.searchsorted(self.keys, key), 0, len(self.keys) - 1)
+        ok = (self.keys[pos] == key) & (i >= 0) & (j >= 0)
+        out = np.full(len(i), np.nan)
+        out[ok] = self.tiles[pos[ok], i[ok] % b, j[ok] % b]
+        return out
+
+    def height(self, points: np.ndarray) -> np.ndarray:
+        """Height above ground (m) of (n, 3) points, bilinear under each point (nearest stored cell beyond the
+        edges of the stored blocks)."""
+        pts = np.asarray(points, dtype=np.float64)
+        g = (pts[:, :2] - self.origin) / self.cell - 0.5
+        i, j = np.floor(g[:, 0]).astype(np.int64), np.floor(g[:, 1]).astype(np.int64)
+        fx, fy = g[:, 0] - i, g[:, 1] - j
+        corners = np.column_stack([self._z(i, j), self._z(i + 1, j), self._z(i, j + 1), self._z(i + 1, j + 1)])
+        w = np.column_stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy])
+        known = np.isfinite(corners)
+        w = np.where(known, w, 0.0)
+        total = w.sum(1)
+        z = np.where(total > 1e-9, (np.where(known, corners, 0.0) * w).sum(1) / np.maximum(total, 1e-12), np.nan)
+        lost = ~np.isfinite(z)
+        if lost.any():  # no stored cell around the point: the nearest stored cell's value
+            z[lost] = self._nearest(g[lost])
+        return pts[:, 2] - z
+
+    def _nearest(self, g: np.ndarray) -> np.ndarray:
+        from scipy.spatial import cKDTree
+
+        b = self.block
+        bi, bj = np.divmod(self.keys, self.n_block_cols)
+        centres = np.column_stack([bi * b + b / 2, bj * b + b / 2])
+        _, k = cKDTree(centres).query(g)
+        ii = np.clip(np.floor(g[:, 0]).astype(np.int64) - bi[k] * b, 0, b - 1)
+        jj = np.clip(np.floor(g[:, 1]).astype(np.int64) - bj[k] * b, 0, b - 1)
+        return self.tiles[k, ii, jj]
 
 
 def _fill_nearest(values: np.ndarray, known: np.ndarray) -> np.ndarray:
@@ -71,18 +133,12 @@ def _fill_smooth(values: np.ndarray, known: np.ndarray, sigma_cells: float) -> n
     return np.where(known, values, smooth)
 
 
-def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
-    """The ground surface under a scene.
-
-    points : (n, 3) float, metres (large projected coordinates are fine: the grid is relative to the minimum).
-    """
+def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: CoscoParams) -> np.ndarray:
+    """The filter on one dense window of ``shape`` cells at ``origin`` (every point inside it): the surface z."""
     from scipy import ndimage
 
-    pts = as_points(points)
     cell = params.ground_cell
-    origin = np.floor(pts[:, :2].min(0) / cell) * cell
     ij = np.floor((pts[:, :2] - origin) / cell).astype(np.int64)
-    shape = tuple(ij.max(0) + 1)
     flat = ij[:, 0] * shape[1] + ij[:, 1]
     zmin = np.full(shape[0] * shape[1], np.inf)
     np.minimum.at(zmin, flat, pts[:, 2])
@@ -108,7 +164,7 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     z = _fill_smooth(np.where(ground, zmin, 0.0), ground, sigma_cells=max(1.0, 2.0 / cell))
     # the lowest point of a cell sits a few range-noise sigmas under the true ground: a second pass takes the
     # median of the points near that first surface in each ground cell
-    first = Ground(origin=origin.astype(np.float64), cell=cell, z=z)
+    first = _Grid(origin=origin, cell=cell, z=z)
     near = np.abs(first.height(pts)) < params.ground_tol
     near &= ground.ravel()[flat]
     if near.any():
@@ -121,7 +177,47 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
         zmed = zmed.reshape(shape)
         known = np.isfinite(zmed)
         z = _fill_smooth(np.where(known, zmed, 0.0), known, sigma_cells=max(1.0, 2.0 / cell))
-    return Ground(origin=origin.astype(np.float64), cell=cell, z=z)
+    return z
+
+
+def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
+    """The ground surface under a scene, block by block (see the module docstring).
+
+    points : (n, 3) float, metres (large projected coordinates are fine: the grid is relative to the minimum).
+    """
+    pts = as_points(points)
+    cell, b, h = params.ground_cell, params.ground_block, params.ground_halo
+    origin = (np.floor(pts[:, :2].min(0) / cell) * cell).astype(np.float64)
+    ij = np.floor((pts[:, :2] - origin) / cell).astype(np.int64)
+    extent = ij.max(0) + 1
+    n_cols = int(extent[1] // b + 1)
+    bkey = (ij[:, 0] // b) * n_cols + ij[:, 1] // b
+    order = np.argsort(bkey, kind="stable")
+    keys, starts = np.unique(bkey[order], return_index=True)
+    ends = np.r_[starts[1:], len(order)]
+    tiles = np.empty((len(keys), b, b))
+    for k, key in enumerate(keys):
+        bi, bj = divmod(int(key), n_cols)
+        lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
+        hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
+        wanted = np.array([(bi + di) * n_cols + bj + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)
+                           if 0 <= bi + di and 0 <= bj + dj < n_cols])
+        pos = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
+        idx = np.concatenate([order[starts[n]:ends[n]] for n in pos[keys[pos] == wanted]])
+        inside = np.all((ij[idx] >= lo) & (ij[idx] < hi), axis=1)
+        idx = idx[inside]
+        z = _window_ground(pts[idx], origin + lo * cell, tuple(hi - lo), params)
+        core = np.full((b, b), np.nan)
+        a0, a1 = bi * b - lo[0], bj * b - lo[1]
+        part = z[a0:a0 + b, a1:a1 + b]
+        core[:part.shape[0], :part.shape[1]] = part
+        tiles[k] = core
+    # cells beyond the scan's extent inside a block take their nearest known value (edges of the data)
+    for k in range(len(keys)):
+        known = np.isfinite(tiles[k])
+        if not known.all():
+            tiles[k] = _fill_nearest(np.where(known, tiles[k], 0.0), known)
+    return Ground(origin, cell, b, n_cols, keys, tiles)
 
 
 def remove_ground(points, params: CoscoParams = DEFAULT) -> tuple[np.ndarray, np.ndarray, Ground]:

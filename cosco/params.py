@@ -84,6 +84,9 @@ class CoscoParams:
         Strict threshold (m) against the widest opening (ramps pass, car edges do not).
     ground_tol : float
         Points this close to the ground surface (m) are ground (a kerb is 0.15 m).
+    ground_block, ground_halo : int
+        Blocks (cells) in which the ground is computed, and the halo (cells) around each: memory goes by occupied
+        blocks, not by the bounding box. The halo exceeds the widest window plus the smoothing reach.
 
     Objects (paper 3.1; patches are voxels of ``seg_voxel``, the paper's 15 cm seeds):
 
@@ -100,6 +103,9 @@ class CoscoParams:
         the object whose core lies within two patches of them, so they cannot bridge two cars.
     seg_min_points : int
         Smaller connected groups are noise.
+    outlier_voxel, outlier_points : float, int
+        Points far from the scan: groups of at most ``outlier_points`` points with no other point within the
+        neighbouring ``outlier_voxel`` (m) cubes are reported and ignored (birds, multipath, stray returns).
     car_length, car_width, car_height, car_area : (min, max)
         The size filter of the target class (m, m, m, m^2 of footprint); the paper kept 1-20 m^2 of surface.
 
@@ -117,6 +123,11 @@ class CoscoParams:
     share_margin : float
         An object of a cluster first tries the models its cluster's first object liked best; it tries all of its
         candidates when the best of those fits it worse than that by more than this RMSE (m).
+
+    Accepting a match (twinreg/acceptance.py; docs/METHOD.md): a point is explained by the placed model when it
+    lies within ``accept_sigmas * noise + accept_model_tol + accept_spacing_k * spacing`` (m) of its surface;
+    the match is accepted when at most ``accept_max_outliers`` of the points are not explained. The best
+    ``accept_candidates`` models by section RMSE are tried in order.
     """
 
     sym_voxel: float = 0.10
@@ -154,6 +165,8 @@ class CoscoParams:
     ground_dh_max: float = 2.5
     ground_dh_final: float = 0.30
     ground_tol: float = 0.15
+    ground_block: int = 256
+    ground_halo: int = 48
 
     seg_voxel: float = 0.15
     seg_column: float = 0.25
@@ -161,6 +174,8 @@ class CoscoParams:
     seg_max_height: float = 4.0
     seg_core_height: float = 0.5
     seg_min_points: int = 30
+    outlier_voxel: float = 10.0
+    outlier_points: int = 10
     car_length: tuple = (2.5, 7.5)
     car_width: tuple = (1.0, 3.0)
     car_height: tuple = (0.9, 3.3)
@@ -171,6 +186,12 @@ class CoscoParams:
 
     size_tol: float = 0.20
     share_margin: float = 0.01
+
+    accept_sigmas: float = 3.0
+    accept_model_tol: float = 0.04
+    accept_spacing_k: float = 0.10
+    accept_max_outliers: float = 0.10
+    accept_candidates: int = 3
 
     def with_(self, **changes) -> "CoscoParams":
         """A copy with some values changed.

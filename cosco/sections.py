@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points, cell_keys, from_frame, min_area_rectangle, to_frame
+from .footprint import as_points, cell_keys, check_object, from_frame, min_area_rectangle, to_frame
 from .params import DEFAULT, CoscoParams
 from .symmetry import Symmetry, detect_symmetry
 
@@ -234,7 +234,8 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
                     front_hint: float | None = None) -> ObjectShape:
     """Symmetry, frame, sections, size and footprint centre of one object's points.
 
-    points : (n, 3) float, metres (n >= 10). ground_z : the ground level under the object (m); the lowest point
+    points : (n, 3) float, metres (at least 10 distinct points, not all on a line: see
+    :func:`~cosco.footprint.check_object`, which raises ``ValueError`` otherwise). ground_z : the ground level under the object (m); the lowest point
     when None. front_hint : direction (rad) the heading should point to when known (see :func:`object_frame`).
 
     >>> rng = np.random.default_rng(1)
@@ -243,7 +244,7 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     >>> [round(float(v), 1) for v in shape.size.as_array()], np.round(shape.centroid[:2], 1).tolist()
     ([4.4, 1.8, 1.5], [100.0, 50.0])
     """
-    pts = as_points(points, min_points=10)
+    pts = check_object(points)
     sym = detect_symmetry(pts, params)
     frame = object_frame(pts, sym, ground_z, params, front_hint)
     sections = cut_sections(pts, frame, sym.found, params)

@@ -100,6 +100,23 @@ def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int,
     return comp[inverse], n, ncomp
 
 
+def far_outliers(points, params: CoscoParams = DEFAULT) -> np.ndarray:
+    """Mask of points far from the rest of the scan (birds, multipath, a stray return kilometres away): groups of
+    at most ``params.outlier_points`` points with no other point in the 26 neighbouring ``params.outlier_voxel``
+    cubes. Memory and time go by points (sparse voxel keys), whatever the bounding box.
+
+    >>> pts = np.vstack([np.random.default_rng(0).uniform(0, 20, (500, 3)), [[30000.0, 0.0, 0.0]]])
+    >>> np.flatnonzero(far_outliers(pts)).tolist()
+    [500]
+    """
+    pts = as_points(points)
+    comp, _, _ = voxel_components(pts - pts.min(0), params.outlier_voxel)
+    sizes = np.bincount(comp)
+    if len(sizes) < 2:
+        return np.zeros(len(pts), dtype=bool)
+    return sizes[comp] <= params.outlier_points
+
+
 def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, big: int = 100,
                       share: float = 0.25, margin: float = 0.2) -> np.ndarray:
     """A small component whose centre lies inside a larger, at most target-sized one's footprint rectangle (a piece
@@ -208,7 +225,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
         return Segmentation(labels, [], 0, 0)
     local = pts[core] - origin
     # patches no smaller than the point spacing, or a sparse scan falls apart
-    spacing = _spacing(local)
+    spacing = point_spacing(local)
     voxel = max(params.seg_voxel, 1.2 * spacing)
     cell = max(0.1, spacing)  # footprint cells: each point stands for about one spacing squared
     comp, n_patches, n_comp = voxel_components(local, voxel)
@@ -244,8 +261,13 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
     return Segmentation(labels, objects, n_patches, n_comp)
 
 
-def _spacing(local: np.ndarray, cell: float = 0.5) -> float:
-    """Typical point spacing (m) from the density over the occupied footprint (O(n), no tree)."""
+def point_spacing(local: np.ndarray, cell: float = 0.5) -> float:
+    """Typical point spacing (m) from the density over the occupied footprint (O(n), no tree).
+
+    >>> g = np.mgrid[0:10:0.1, 0:10:0.1].reshape(2, -1).T
+    >>> round(point_spacing(np.c_[g, np.zeros(len(g))]), 3)
+    0.1
+    """
     if len(local) < 3:
         return 0.0
     cells = np.unique(np.floor(local[:, :2] / cell).astype(np.int64), axis=0)

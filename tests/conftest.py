@@ -1,9 +1,11 @@
-"""Shared data paths and fixtures. Tests that need ../shared/data skip only when that folder is absent."""
+"""Shared data paths and fixtures. Tests that need ../shared/data skip only when that folder is absent, and fail
+instead with TWINREG_REQUIRE_SHARED_DATA=1 (set by `make test` and so by CI)."""
 
 from __future__ import annotations
 
 import csv
 import functools
+import os
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +19,14 @@ DALES = SHARED_DATA / "dales_objects"
 UNIT_WORDS = {"centimetres": "cm", "metres": "m", "inches": "in"}
 
 
+REQUIRE_SHARED = os.environ.get("TWINREG_REQUIRE_SHARED_DATA") == "1"
+
+
 def need(path: Path) -> Path:
     if not path.exists():
+        if REQUIRE_SHARED:
+            pytest.fail(f"shared data missing: {path}; clone ../shared beside the repository (plain `pytest` "
+                        "skips these tests)")
         pytest.skip(f"shared data not available: {path}")
     return path
 
@@ -37,6 +45,20 @@ def manifest_rows() -> list[dict]:
 @pytest.fixture(scope="session")
 def cars() -> list[dict]:
     return manifest_rows()
+
+
+@pytest.fixture(scope="session")
+def parametric_objs(tmp_path_factory) -> dict:
+    """The project's own parametric cars written as OBJ files (no shared data): name -> path."""
+    from twinreg.parametric import LIBRARY, car_mesh, write_obj
+
+    folder = tmp_path_factory.mktemp("parametric")
+    out = {}
+    for spec in LIBRARY:
+        v, f = car_mesh(spec)
+        out[spec.name] = folder / f"{spec.name}.obj"
+        write_obj(out[spec.name], v, f)
+    return out
 
 
 @pytest.fixture(scope="session")

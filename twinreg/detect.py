@@ -10,7 +10,7 @@ import numpy as np
 
 from cosco.ground import Ground, remove_ground
 from cosco.params import DEFAULT, CoscoParams
-from cosco.segment import Segmentation, segment_objects
+from cosco.segment import Segmentation, far_outliers, segment_objects
 
 from .errors import SceneReadError
 from .io.points import PointSet, read_points
@@ -38,8 +38,12 @@ class Detection:
 
 
 def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None) -> Detection:
-    """Ground removal and connectivity-based object detection on a read scene."""
+    """Ground removal and connectivity-based object detection on a read scene (points far from the scan are
+    dropped first and counted in ``scene.n_outliers``)."""
     t0 = time.perf_counter()
+    outliers = far_outliers(scene.local, params)
+    if outliers.any():
+        scene = scene.without(outliers)
     local = scene.local
     is_ground, hag, ground = remove_ground(local, params)
     t1 = time.perf_counter()
@@ -49,7 +53,7 @@ def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None)
     t2 = time.perf_counter()
     if progress:
         progress("objects")
-    ground = Ground(origin=ground.origin + scene.offset[:2], cell=ground.cell, z=ground.z + scene.offset[2])
+    ground = ground.shifted(*scene.offset)
     return Detection(scene, is_ground, hag, ground, seg, {"ground": t1 - t0, "objects": t2 - t1})
 
 
@@ -67,9 +71,11 @@ def describe_detected(det: Detection, params: CoscoParams = DEFAULT) -> list:
     return shapes
 
 
-def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None) -> Detection:
+def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None,
+                crs: str | None = None) -> Detection:
+    """Read a scene (``crs``: its projected CRS, overriding a LAS header's) and detect its objects."""
     t = time.perf_counter()
-    scene = read_points(path, unit=unit)
+    scene = read_points(path, unit=unit, crs=crs)
     if len(scene.points) < 100:
         raise SceneReadError(f"{path}: only {len(scene.points)} points; a scene needs at least 100")
     read_s = time.perf_counter() - t
@@ -81,13 +87,21 @@ def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progres
 
 
 def detection_json(det: Detection, all_objects: bool = False) -> dict:
-    """The contract's ``detect`` JSON (plus sizes, the unit, the offset and timings)."""
+    """The contract's ``detect`` JSON (plus sizes, the unit, the offset and timings). ``centroid`` is the centre of
+    the object's minimum-area footprint rectangle in x/y and mid-height above the ground under it in z (as in
+    ``build-twin`` and ``inspect``); ``mean`` is the mean of its points."""
+    from cosco.footprint import min_area_rectangle
+
     pts = det.scene.points
     objs = []
     for oid, o in det.ids(all_objects):
         p = pts[o.indices]
+        centre = min_area_rectangle(p[:, :2]).centre if len(p) >= 3 else p[:, :2].mean(0)
+        ground_z = float(np.median(p[:, 2] - det.hag[o.indices]))
         objs.append({
-            "id": oid, "n_points": int(o.n_points), "centroid": [float(v) for v in p.mean(0)],
+            "id": oid, "n_points": int(o.n_points),
+            "centroid": [float(centre[0]), float(centre[1]), ground_z + o.height / 2],
+            "mean": [float(v) for v in p.mean(0)],
             "bbox_min": [float(v) for v in p.min(0)], "bbox_max": [float(v) for v in p.max(0)],
             "footprint": {"length": round(o.length, 3), "width": round(o.width, 3), "height": round(o.height, 3),
                           "area_m2": round(o.area, 2)},
@@ -96,7 +110,8 @@ def detection_json(det: Detection, all_objects: bool = False) -> dict:
     return {
         "scene": det.scene.path.name, "n_points": int(len(pts)), "n_ground": int(det.is_ground.sum()),
         "unit": det.scene.unit, "crs": det.scene.crs, "offset": [float(v) for v in det.scene.offset],
-        "n_dropped_nonfinite": det.scene.n_dropped, "n_patches": det.segmentation.n_patches,
+        "n_dropped_nonfinite": det.scene.n_dropped, "n_outliers": det.scene.n_outliers,
+        "n_patches": det.segmentation.n_patches,
         "n_components": det.segmentation.n_components, "objects": objs,
         "timing_s": {k: round(v, 4) for k, v in det.timing_s.items()},
     }
@@ -108,7 +123,7 @@ def write_detection(det: Detection, out: Path, all_objects: bool = False) -> lis
     from .outdir import staged_folder
 
     written = []
-    with staged_folder(out) as stage:
+    with staged_folder(out, protect=[det.scene.path]) as stage:
         for oid, o in det.ids(all_objects):
             write_ply(stage / f"{oid}.ply", det.scene.points[o.indices],
                       comments=[f"twinreg object {oid} of {det.scene.path.name}", f"unit m (file unit {det.scene.unit})"])

@@ -40,3 +40,23 @@ class GeorefError(TwinregError):
 
 class ExportError(TwinregError):
     """Output files could not be written."""
+
+
+class ParameterError(TwinregError):
+    """An option's value is out of its range (bad usage: exit status 2)."""
+
+    exit_code = 2
+
+
+def require_positive(name: str, value, hint: str = "") -> float | None:
+    """``value`` as a float if it is a positive finite number (None passes through), else :class:`ParameterError`.
+
+    >>> require_positive("--tol", 0.2)
+    0.2
+    """
+    if value is None:
+        return None
+    v = float(value)
+    if not (v == v and v > 0 and v != float("inf")):
+        raise ParameterError(f"{name} {value}: must be a positive length in metres{hint}")
+    return v

@@ -1,10 +1,13 @@
 """Matching detected objects to catalogue models (paper 4.3): size prefilter, cross-section registration, pose.
 
 For each object, the catalogue is asked once (one indexed SQL query) for models whose length, width and height
-are all within ``tol``; each candidate's sections are registered to the object's over rz in {0, pi/2, pi, 3pi/2},
-a continuous tz and a small axial shift du; the lowest RMSE wins and the runner-up is kept for the report. Objects
-of one cluster share work: the cluster's first object tries every candidate, the others first the best few of
-its ranking, and all of their own candidates only when those fit clearly worse (by ``share_margin``).
+are all within ``params.size_tol``; each candidate's sections are registered to the object's over rz in
+{0, pi/2, pi, 3pi/2}, a continuous tz and a small axial shift du, and the candidates are ranked by RMSE. Objects of
+one cluster share work: the cluster's first object (its leader) tries every candidate, the others first the best
+few of the leader's ranking, and all of their own candidates only when those fit clearly worse (by
+``share_margin``). When the object's points are given, the best few are then verified against all of them
+(:mod:`twinreg.acceptance`): the first that explains the object wins, and an object no candidate explains gets no
+model (a box, a skip or a kiosk of car size).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ class Match:
     runner_up: dict | None = None
     n_candidates: int = 0
     n_trials: int = 0
+    verdict: object = None
 
 
 @dataclass
@@ -47,6 +51,7 @@ class ObjectMatch:
     match: Match | None
     reason: str = ""
     candidates: list = field(default_factory=list)
+    rejected: dict | None = None
 
 
 class ModelCache:
@@ -59,6 +64,7 @@ class ModelCache:
         self._pairs: dict[int, cosco.SectionPair] = {}
         self._frames: dict[int, cosco.Frame] = {}
         self._rows: dict[int, object] = {}
+        self._meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def row(self, model_id):
         return self._rows[model_id]
@@ -76,6 +82,12 @@ class ModelCache:
         if model_id not in self._pairs:
             self._pairs[model_id] = cosco.SectionPair(self.geometry(model_id).sections, self.params)
         return self._pairs[model_id]
+
+    def mesh(self, model_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """The model's mesh as the twin carries it (decimated to Google Earth's limit, cached in the catalogue)."""
+        if model_id not in self._meshes:
+            self._meshes[model_id] = self.catalogue.ge_mesh(self._rows[model_id])
+        return self._meshes[model_id]
 
     def frame(self, model_id: int) -> cosco.Frame:
         """The model's section frame as stored by add-model (recomputed from its points for older entries)."""
@@ -114,15 +126,19 @@ def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams, poli
     return cosco.register_sections(obj_pair, cache.pair(model_id), params, polish=polish)
 
 
-def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, tol: float = 0.2,
-                  labels: np.ndarray | None = None, params: CoscoParams = DEFAULT, share: int = 4,
-                  progress=None) -> tuple[list[ObjectMatch], dict]:
+def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
+                  params: CoscoParams = DEFAULT, share: int = 4, progress=None, clouds: list | None = None,
+                  noise: float | None = None) -> tuple[list[ObjectMatch], dict]:
     """Match every object; returns the per-object outcomes and statistics (trials, timings).
 
-    labels : cluster label per object (objects of one cluster share work), or None.
+    labels : cluster label per object (objects of one cluster share work), or None. clouds : each object's points
+    ((n, 3) metres, the frame of its shape) and noise : the scan's range noise (m), to verify the best candidates
+    against all the points (:mod:`twinreg.acceptance`); without them the lowest RMSE wins unverified.
     """
+    tol = params.size_tol
     cache = ModelCache(catalogue, params)
-    stats = {"prefilter_s": 0.0, "registration_s": 0.0, "n_trials": 0, "n_pairs_without_prefilter": 0}
+    stats = {"prefilter_s": 0.0, "registration_s": 0.0, "verification_s": 0.0, "n_trials": 0,
+             "n_pairs_without_prefilter": 0}
     total_models = catalogue.count()
     pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
     cands = []
@@ -140,19 +156,19 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, tol: fl
         cache.pair(mid)
     stats["model_prep_s"] = time.perf_counter() - t
 
-    # order: per cluster, the medoid first (it tries every candidate), then the members
+    # order: per cluster, the leader (its first object) first: it tries every candidate; then the members
     groups: dict[int, list[int]] = {}
     for i in range(len(shapes)):
         groups.setdefault(int(labels[i]) if labels is not None else -1 - i, []).append(i)
     results: list[ObjectMatch | None] = [None] * len(shapes)
     t = time.perf_counter()
     for members in groups.values():
-        ranked_by_medoid: list[int] = []
-        medoid_best = np.inf
+        ranked_by_leader: list[int] = []
+        leader_best = np.inf
         for k, i in enumerate(members):
             ids = cands[i]
-            if k > 0 and share and ranked_by_medoid:
-                preferred = [m for m in ranked_by_medoid[:share] if m in ids]
+            if k > 0 and share and ranked_by_leader:
+                preferred = [m for m in ranked_by_leader[:share] if m in ids]
                 ids = preferred or ids
             regs = []
             for mid in ids:
@@ -161,8 +177,8 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, tol: fl
                 if progress:
                     progress(1)
             regs.sort(key=lambda r: r[0].rmse)
-            if k > 0 and regs and regs[0][0].rmse > medoid_best + params.share_margin:
-                # this member fits the medoid's favourites clearly worse than the medoid did: not the same kind
+            if k > 0 and regs and regs[0][0].rmse > leader_best + params.share_margin:
+                # this member fits the leader's favourites clearly worse than the leader did: not the same kind
                 # of car after all, so it tries the rest of its own candidates too
                 for mid in [m for m in cands[i] if m not in ids]:
                     regs.append((_trial(pairs[i], cache, mid, params), mid))
@@ -171,17 +187,50 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, tol: fl
             if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
                 regs[0] = (_trial(pairs[i], cache, regs[0][1], params, polish=True), regs[0][1])
             if k == 0:
-                ranked_by_medoid = [m for _, m in regs]
-                medoid_best = regs[0][0].rmse if regs else np.inf
-            results[i] = _outcome(shapes[i], regs, cache, len(cands[i]))
-    stats["registration_s"] = time.perf_counter() - t
+                ranked_by_leader = [m for _, m in regs]
+                leader_best = regs[0][0].rmse if regs else np.inf
+            cloud = clouds[i] if clouds is not None else None
+            t_v = time.perf_counter()
+            results[i] = _outcome(shapes[i], regs, cache, len(cands[i]), cloud, noise, pairs[i], params)
+            stats["verification_s"] += time.perf_counter() - t_v
+    stats["registration_s"] = time.perf_counter() - t - stats["verification_s"]
     stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]
     return results, stats
 
 
-def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, n_candidates: int) -> ObjectMatch:
+def _verified(shape, regs, cache: ModelCache, cloud, noise, obj_pair, params: CoscoParams):
+    """The index in ``regs`` of the first of the best few candidates whose placed mesh explains the object's points,
+    with its verdict, or ``(None, the best one's verdict)``; ``regs`` gets the accepted one polished."""
+    from cosco.segment import point_spacing
+
+    from .acceptance import judge
+
+    spacing = point_spacing(cloud)
+    first = None
+    for k, (reg, mid) in enumerate(regs[:params.accept_candidates]):
+        v, f = cache.mesh(mid)
+        m = placement(shape.frame, cache.frame(mid), reg)
+        verdict = judge(cloud, v @ m[:3, :3].T + m[:3, 3], f, noise, spacing, params)
+        first = first or verdict
+        if verdict.accepted:
+            if k > 0:
+                regs[k] = (_trial(obj_pair, cache, mid, params, polish=True), mid)
+            return k, verdict
+    return None, first
+
+
+def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, n_candidates: int, cloud=None, noise=None,
+             obj_pair=None, params: CoscoParams = DEFAULT) -> ObjectMatch:
     if not regs:
         return ObjectMatch(shape, None, "no catalogue model within the size tolerance", [])
+    verdict = None
+    if cloud is not None:
+        k, verdict = _verified(shape, regs, cache, cloud, noise, obj_pair, params)
+        if k is None:
+            best = cache.row(regs[0][1]).name
+            return ObjectMatch(shape, None, verdict.reason(best), [m for _, m in regs],
+                               rejected={"name": best, "rmse_m": round(regs[0][0].rmse, 4), **verdict.as_dict()})
+        regs.insert(0, regs.pop(k))
     reg, mid = regs[0]
     row = cache.row(mid)
     m = placement(shape.frame, cache.frame(mid), reg)
@@ -193,5 +242,6 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, n_candidates: in
         r2, m2 = regs[1]
         runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}
     match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=reg.rz, tz=reg.tz, du=reg.du, transform=m,
-                  heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs))
+                  heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
+                  verdict=verdict)
     return ObjectMatch(shape, match, "", [m for _, m in regs])

@@ -36,9 +36,10 @@ def shape_json(shape: cosco.ObjectShape, sections: bool = True) -> dict:
 def inspect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT) -> tuple[cosco.ObjectShape, np.ndarray]:
     """Read one object's points and describe it. Returns the shape and the points."""
     ps = read_points(path, unit=unit)
-    if len(ps.points) < 10:
-        raise SceneReadError(f"{path}: only {len(ps.points)} points; an object needs at least 10")
-    return cosco.describe_object(ps.points, params), ps.points
+    try:
+        return cosco.describe_object(ps.points, params), ps.points
+    except ValueError as exc:  # a degenerate object: too few points, one spot, a line
+        raise SceneReadError(f"{path}: {exc}; inspect takes the points of one object") from exc
 
 
 @dataclass

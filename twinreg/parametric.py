@@ -55,7 +55,7 @@ LIBRARY = [
 ]
 
 
-def _prism(profile_xz: np.ndarray, y0: float, y1: float):
+def prism(profile_xz: np.ndarray, y0: float, y1: float):
     """A convex prism: a convex (x, z) polygon extruded from y0 to y1. Returns (vertices, faces)."""
     import trimesh
 
@@ -82,7 +82,7 @@ def car_mesh(spec: CarSpec):
                       [spec.glass_rear, spec.belt], [-hl + 0.12, spec.tail], [-hl, spec.tail - 0.1]])
     glass = np.array([[spec.glass_front, spec.belt - 0.02], [spec.cabin_front, spec.height],
                       [spec.cabin_rear, spec.height], [spec.glass_rear, spec.belt - 0.02]])
-    parts = [_prism(lower, -hw, hw), _prism(glass, -hw + 0.13, hw - 0.13)]
+    parts = [prism(lower, -hw, hw), prism(glass, -hw + 0.13, hw - 0.13)]
     wheelbase = 0.60 * spec.length
     for x in (wheelbase / 2, -wheelbase / 2):
         for y in (hw - 0.14, -hw + 0.14):
@@ -92,15 +92,20 @@ def car_mesh(spec: CarSpec):
         mirror = np.array([[mx - 0.06, spec.belt + 0.02], [mx + 0.06, spec.belt + 0.02], [mx + 0.06, spec.belt + 0.16],
                            [mx - 0.06, spec.belt + 0.16]])
         y0, y1 = (hw - 0.05, hw + 0.17) if s > 0 else (-hw - 0.17, -hw + 0.05)
-        parts.append(_prism(mirror, y0, y1))
+        parts.append(prism(mirror, y0, y1))
+    v, f = merge_meshes(parts)
+    v[:, 2] -= v[:, 2].min()
+    return v, f
+
+
+def merge_meshes(parts):
+    """One (vertices, faces) of several meshes (faces re-indexed)."""
     verts, faces, base = [], [], 0
     for v, f in parts:
-        verts.append(v)
-        faces.append(f + base)
+        verts.append(np.asarray(v, dtype=np.float64))
+        faces.append(np.asarray(f) + base)
         base += len(v)
-    v = np.vstack(verts)
-    v[:, 2] -= v[:, 2].min()
-    return v, np.vstack(faces)
+    return np.vstack(verts), np.vstack(faces)
 
 
 def write_obj(path, vertices: np.ndarray, faces: np.ndarray, comment: str = "") -> None:

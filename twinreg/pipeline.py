@@ -13,15 +13,17 @@ import cosco
 from cosco.footprint import min_area_rectangle
 from cosco.params import DEFAULT, CoscoParams
 
+from .acceptance import scene_noise
 from .catalogue.repository import Catalogue
 from .detect import describe_detected, detect_file
 from .errors import CatalogueError, SceneReadError
 from .export.kmz import box_mesh, write_kmz
+from .export.painter import HELPER_TIMEOUT_S, HelperError, Painter
 from .export.report import plot_taxonomy, warm_up, write_report
 from .export.twin_ply import cluster_color, write_twin_ply
-from .georef import Georef
+from .georef import Georef, scene_georef
 from .matching import match_objects
-from .outdir import staged_folder
+from .outdir import check_replaceable, staged_folder
 
 
 def _say(progress, msg):
@@ -39,60 +41,53 @@ def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration
     return {"lon": lon, "tra": tra}
 
 
-HELPER_TIMEOUT_S = 30.0
+def _scan_centre(georef: Georef, points: np.ndarray) -> dict:
+    """WGS84 latitude and longitude of the centre of the scan's bounding box (where the scan is on Earth)."""
+    centre = (points.min(0) + points.max(0)) / 2
+    lon, lat, _ = georef.to_wgs84(centre[None])[0]
+    return {"lat": float(lat), "lon": float(lon)}
 
 
-def _abandon(pool) -> None:
-    """Stop a helper process that failed or hangs (its pictures are then drawn in this process)."""
-    if pool is None:
-        return
-    for proc in list(getattr(pool, "_processes", {}).values()):
-        proc.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
+def _checked_params(params: CoscoParams, tol: float | None, threshold: float | None) -> CoscoParams:
+    """``params`` with the size tolerance and cluster threshold the user gave (both must be positive)."""
+    from .errors import require_positive
+
+    tol = require_positive("--tol", tol, f" (default {params.size_tol:g})")
+    threshold = require_positive("--threshold", threshold, f" (default {params.cluster_threshold:g})")
+    return params.with_(size_tol=params.size_tol if tol is None else float(tol),
+                        cluster_threshold=params.cluster_threshold if threshold is None else float(threshold))
 
 
-def _start_painter():
-    """A helper process that imports matplotlib now and draws the report later (None if one cannot start, or
-    with TWINREG_NO_HELPER=1)."""
-    import os
+def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
+               tol: float | None = None, params: CoscoParams = DEFAULT, progress=None,
+               threshold: float | None = None) -> dict:
+    """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT).
 
-    if os.environ.get("TWINREG_NO_HELPER"):
-        return None
-    try:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        # fork: the child starts at once with this process's imports (spawn costs a second interpreter's start on
-        # two cores); the child only draws with matplotlib, and a child that hangs is abandoned after a time limit
-        pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"))
-        pool.submit(warm_up)
-        return pool
-    except Exception:  # pragma: no cover - no fork on this platform
-        return None
-
-
-def build_twin(scene_path, catalogue: Catalogue, georef: Georef, out, unit: str = "auto", tol: float = 0.2,
-               params: CoscoParams = DEFAULT, progress=None, threshold: float | None = None) -> dict:
-    """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT)."""
+    georef : from :func:`~twinreg.georef.georef_from_options`, or None to use the CRS the file states. tol,
+    threshold : the size tolerance and cluster threshold (m), ``params.size_tol`` and ``params.cluster_threshold``
+    when None.
+    """
     t_start = time.perf_counter()
     timing = {}
+    params = _checked_params(params, tol, threshold)
+    scene_path = Path(scene_path)
+    check_replaceable(Path(out), protect=[scene_path, catalogue.folder])
     if catalogue.count() == 0:
         raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
                              "`twinreg add-model MESH` or `twinreg import-models DIR`")
-    painter = _start_painter()
+    painter = Painter.start(warm=warm_up)
     try:
-        return _build(scene_path, catalogue, georef, out, unit, tol, params, progress, threshold, painter, t_start,
-                      timing)
+        return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing)
     finally:
         if painter:
-            painter.shutdown(wait=True, cancel_futures=True)
+            painter.stop()
 
 
-def _build(scene_path, catalogue, georef, out, unit, tol, params, progress, threshold, painter, t_start,
-           timing) -> dict:
-    scene_path = Path(scene_path)
+def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing) -> dict:
     _say(progress, "reading and detecting")
-    det = detect_file(scene_path, unit=unit, params=params)
+    det = detect_file(scene_path, unit=unit, params=params,
+                      crs=georef.crs if georef is not None and georef.crs_source == "--crs" else None)
+    georef = scene_georef(georef, det.scene)
     timing.update(det.timing_s)
     targets = det.objects
     if not targets:
@@ -108,27 +103,30 @@ def _build(scene_path, catalogue, georef, out, unit, tol, params, progress, thre
     matrix = cosco.dissimilarity_matrix([s.sections for s in shapes], params)
     timing["matrix"] = time.perf_counter() - t
     t = time.perf_counter()
-    clusters = cosco.cluster(matrix, params, threshold=threshold)
+    clusters = cosco.cluster(matrix, params)
     timing["clustering"] = time.perf_counter() - t
 
-    with staged_folder(Path(out)) as stage:
+    with staged_folder(Path(out), protect=[scene_path, catalogue.folder]) as stage:
         names = [f"obj{k + 1}" for k in range(len(targets))]
         taxonomy = painter.submit(plot_taxonomy, stage, names, matrix, clusters.linkage, clusters.threshold) \
             if painter else None
         twin = _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, matrix, clusters,
-                                 tol, params, progress, timing, t_start, painter, taxonomy)
+                                 params, progress, timing, t_start, painter, taxonomy)
     return twin
 
 
-def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, matrix, clusters, tol, params,
+def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, matrix, clusters, params,
                       progress, timing, t_start, painter, taxonomy) -> dict:
     local = det.scene.local
     offset = det.scene.offset
     _say(progress, "prefilter and registration")
-    results, stats = match_objects(shapes, catalogue, tol=tol, labels=clusters.labels, params=params)
+    noise = scene_noise(det.hag, det.is_ground)
+    results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
+                                   clouds=[local[o.indices] for o in targets], noise=noise)
     timing["prefilter"] = stats["prefilter_s"]
     timing["model_prep"] = stats["model_prep_s"]
     timing["registration"] = stats["registration_s"]
+    timing["verification"] = stats["verification_s"]
 
     _say(progress, "export")
     t = time.perf_counter()
@@ -156,7 +154,8 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
                 meshes[mesh_key] = (mv, mf, tuple(rgb / 255.0))
             match_doc = {"model_id": m.model_id, "name": m.name, "make": row.make, "model": row.model,
                          "rmse_m": round(m.rmse, 4), "rz": round(m.rz, 6), "tz": round(m.tz, 4), "du": round(m.du, 4),
-                         "n_candidates": m.n_candidates, "n_trials": m.n_trials, "runner_up": m.runner_up}
+                         "n_candidates": m.n_candidates, "n_trials": m.n_trials, "runner_up": m.runner_up,
+                         "verification": m.verdict.as_dict() if m.verdict is not None else None}
             reg = cosco.Registration(m.rmse, m.rz, m.tz, m.du)
             section_items.append({"title": f"{oid}: {m.name} ({m.rmse * 100:.1f} cm)",
                                   "object": {"lon": shape.sections.longitudinal, "tra": shape.sections.transverse},
@@ -188,6 +187,8 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
                "bearing_deg": round(bearing, 3)}
         if match_doc is None:
             doc["reason"] = res.reason
+            if res.rejected:
+                doc["rejected_model"] = res.rejected
         objects.append(doc)
         description = (f"{match_doc['name']} ({match_doc['make'] or ''} {match_doc['model'] or ''}), RMSE "
                        f"{match_doc['rmse_m'] * 100:.1f} cm" if match_doc else f"unmatched: {res.reason}")
@@ -207,12 +208,14 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
                            "label": oid[3:] + ("" if m else "?")})
 
     twin = {
-        "scene": scene_path.name, "n_points": int(len(det.scene.points)), "unit": det.scene.unit,
-        "georef": georef.to_json(), "offset": [float(v) for v in offset],
+        "scene": scene_path.name, "n_points": int(len(det.scene.points)), "n_outliers": det.scene.n_outliers,
+        "unit": det.scene.unit,
+        "georef": georef.to_json() | {"scan_centre": _scan_centre(georef, det.scene.points)},
+        "offset": [float(v) for v in offset], "noise_m": round(noise, 4),
         "objects": objects,
         "dissimilarity": [[round(float(v), 5) for v in row] for row in matrix],
         "clustering": {"threshold_m": clusters.threshold, "n_clusters": clusters.n_clusters},
-        "matching": {"tol_m": tol, "catalogue_models": catalogue.count(), "n_trials": stats["n_trials"],
+        "matching": {"tol_m": params.size_tol, "catalogue_models": catalogue.count(), "n_trials": stats["n_trials"],
                      "n_pairs_without_prefilter": stats["n_pairs_without_prefilter"],
                      "n_trials_saved_by_clusters": stats["n_trials_saved_by_clusters"],
                      "registration_ms_per_trial": round(1000 * stats["registration_s"] / max(stats["n_trials"], 1),
@@ -227,12 +230,14 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
     write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
     try:
-        if report is None or taxonomy is None:
-            raise RuntimeError("no helper process")
-        taxonomy.result(timeout=HELPER_TIMEOUT_S)
-        report.result(timeout=HELPER_TIMEOUT_S)
-    except Exception:  # the helper is a speed-up only: draw here if it is unavailable, stuck or failed
-        _abandon(painter)
+        if painter is None:
+            raise HelperError("no helper process")
+        deadline = time.monotonic() + HELPER_TIMEOUT_S
+        painter.result(taxonomy, timeout=max(deadline - time.monotonic(), 0.0))
+        painter.result(report, timeout=max(deadline - time.monotonic(), 0.0))
+    except HelperError:  # the helper is a speed-up only: stop it and draw here if it is missing, stuck or failed
+        if painter is not None:
+            painter.stop()
         plot_taxonomy(stage, [o["id"] for o in objects], matrix, clusters.linkage, clusters.threshold)
         write_report(*report_args)
     timing["export"] = time.perf_counter() - t

@@ -195,3 +195,43 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
     scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed)
     labels = np.asarray(labels_of_mesh)[scan.labels]
     return CarPark(scan.points, labels, cars, names)
+
+
+def non_car(kind: str, length: float, width: float, height: float):
+    """(vertices, faces) of a car-sized object that is not a car (front +X, footprint centred, bottom at z = 0):
+
+    - ``box``: a plain closed box;
+    - ``skip``: an open-topped waste container whose walls slope outwards (a trapezoid from the side), 5 cm thick;
+    - ``kiosk``: a box with a pitched roof overhanging it by 0.2 m.
+    """
+    import trimesh
+
+    from .parametric import merge_meshes, prism
+
+    if kind == "box":
+        m = trimesh.creation.box([length, width, height])
+        m.apply_translation([0, 0, height / 2])
+        return np.asarray(m.vertices), np.asarray(m.faces)
+    if kind == "skip":
+        base = length - 2 * 0.35 * height
+        outer = np.array([[-base / 2, 0.0], [base / 2, 0.0], [length / 2, height], [-length / 2, height]])
+        t = 0.05
+        inner = np.array([[-base / 2 + t, t], [base / 2 - t, t], [length / 2 - t, height], [-length / 2 + t, height]])
+        parts = []
+        for a, b in zip(range(4), [1, 2, 3, 0]):
+            if a == 2:  # the open top
+                continue
+            quad = np.array([outer[a], outer[b], inner[b], inner[a]])
+            parts.append(prism(quad, -width / 2, width / 2))
+        for y0, y1 in ((-width / 2, -width / 2 + t), (width / 2 - t, width / 2)):
+            parts.append(prism(outer, y0, y1))
+        return merge_meshes(parts)
+    if kind == "kiosk":
+        walls = trimesh.creation.box([length - 0.4, width - 0.4, height - 0.5])
+        walls.apply_translation([0, 0, (height - 0.5) / 2])
+        roof = np.array([[-length / 2, height - 0.5], [length / 2, height - 0.5], [length / 2, height - 0.4],
+                         [0.0, height], [-length / 2, height - 0.4]])
+        return merge_meshes([(np.asarray(walls.vertices), np.asarray(walls.faces)),
+                             prism(roof, -width / 2, width / 2)])
+    raise ValueError(f"unknown object kind {kind!r}; use box, skip or kiosk")
+

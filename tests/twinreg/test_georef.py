@@ -35,8 +35,10 @@ def test_projected_crs_bearing_includes_grid_convergence():
 
 
 @pytest.mark.parametrize("kwargs, match", [({"lat": 91, "lon": 0}, "--lat"), ({"lat": 0, "lon": 181}, "--lon"),
-                                           ({}, "--lat and --lon"), ({"crs": "EPSG:4326"}, "not a projected"),
-                                           ({"crs": "EPSG:999999"}, "not a CRS"),
+                                           ({"lat": 90, "lon": 0}, "strictly between"),
+                                           ({"lat": -90, "lon": 10}, "strictly between"),
+                                           ({}, "--lat and --lon"), ({"crs": "EPSG:4326"}, "is not projected"),
+                                           ({"crs": "EPSG:999999"}, "cannot be parsed"),
                                            ({"crs": "EPSG:2157", "lat": 1, "lon": 1}, "either")])
 def test_bad_options(kwargs, match):
     with pytest.raises(GeorefError, match=match):

@@ -92,13 +92,18 @@ def test_detect_cli_on_autzen_writes_objects_and_topview(tmp_path):
     res = CliRunner().invoke(app, ["detect", str(las), "--out", str(out), "--json"])
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
-    assert doc["unit"] == "ft" and doc["n_points"] == 196485
+    assert doc["unit"] == "ft" and doc["n_points"] == 196485 and doc["n_outliers"] == 0
     # a visual count gives about 60-100 cars
     assert 60 <= len(doc["objects"]) <= 100
     assert (out / "topview.png").stat().st_size > 50_000
     first = read_points(out / "obj1.ply")
     assert first.points.shape == (doc["objects"][0]["n_points"], 3)
-    assert np.allclose(first.points.mean(0), doc["objects"][0]["centroid"])
+    assert np.allclose(first.points.mean(0), doc["objects"][0]["mean"])
+    # the centroid is the footprint rectangle's centre: inside the object's footprint, near its mean
+    from cosco import min_area_rectangle
+
+    rect = min_area_rectangle(first.points[:, :2])
+    assert np.allclose(doc["objects"][0]["centroid"][:2], rect.centre, atol=1e-6)
     # replacing the output folder happens as a whole
     res = CliRunner().invoke(app, ["detect", str(las), "--out", str(out)])
     assert res.exit_code == 0 and not [p for p in tmp_path.iterdir() if ".tmp-" in p.name or ".old-" in p.name]

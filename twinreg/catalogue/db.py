@@ -19,13 +19,11 @@ BUSY_TIMEOUT_S = 60
 
 
 def migrations_dir() -> Path:
-    """The alembic script folder (``migrations/`` beside the packages)."""
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        candidate = parent / "migrations"
-        if (candidate / "env.py").is_file():
-            return candidate
-    raise CatalogueError("the migrations folder was not found; reinstall twinreg with `pip install -e .`")
+    """The alembic script folder, shipped inside the package (``twinreg/catalogue/migrations``)."""
+    here = Path(__file__).resolve().parent / "migrations"
+    if not (here / "env.py").is_file():
+        raise CatalogueError(f"{here}: the catalogue migrations are missing; reinstall twinreg")
+    return here
 
 
 def library_path(path=None) -> Path:

@@ -24,7 +24,7 @@ from sqlalchemy.orm import Session, defer
 
 import cosco
 
-from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError
+from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, require_positive
 from ..outdir import atomic_path
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
@@ -92,10 +92,19 @@ class Catalogue:
         with self.session() as s:
             return int(s.scalar(select(func.count(RefModel.id))))
 
-    def list(self, near=None, tol: float = 0.2, body_class: str | None = None) -> list[RefModel]:
-        """All models, or those whose L, W and H are each within ``tol`` (m) of ``near`` (one indexed query)."""
+    def list(self, near=None, tol: float | None = None, body_class: str | None = None) -> list[RefModel]:
+        """All models, or those whose L, W and H are each within ``tol`` (m, default the matcher's
+        ``CoscoParams.size_tol``) of ``near`` (one indexed query)."""
+        tol = require_positive("--tol", tol) or cosco.DEFAULT.size_tol
         if not self.exists:
             return []
+        q = self.size_query(near, tol, body_class)
+        with self.session() as s:
+            return list(s.scalars(q))
+
+    @staticmethod
+    def size_query(near=None, tol: float = cosco.DEFAULT.size_tol, body_class: str | None = None):
+        """The SELECT of :meth:`list` (large columns deferred), for reuse and for checking its query plan."""
         q = select(RefModel)
         conds = []
         if near is not None:
@@ -107,9 +116,7 @@ class Catalogue:
             conds.append(RefModel.body_class == body_class)
         if conds:
             q = q.where(and_(*conds))
-        q = q.options(*(defer(getattr(RefModel, b)) for b in BLOBS))
-        with self.session() as s:
-            return list(s.scalars(q.order_by(RefModel.id)))
+        return q.options(*(defer(getattr(RefModel, b)) for b in BLOBS)).order_by(RefModel.id)
 
     def get(self, ref) -> RefModel:
         """A model by id or unique name."""
@@ -279,13 +286,22 @@ class Catalogue:
             return row
 
     def remove(self, ref) -> RefModel:
-        """Delete a model row, then its files (the row goes first: a crash leaves orphan files, never a row
-        pointing to nothing)."""
+        """Delete a model row, then its files, all under the writer lock (a concurrent add of the same file waits
+        until the files are gone, then writes them anew). The row goes first: a crash leaves orphan files, which a
+        later add of the same content reuses, never a row pointing to nothing."""
         row = self.get(ref)
-        with writer_lock(self.folder), self.session() as s:
-            victim = s.get(RefModel, row.id)
-            s.delete(victim)
-            s.commit()
-        for rel in (row.stored_file, row.mesh_file, f"meshes/{row.sha256}.ge.npz"):
-            (self.folder / rel).unlink(missing_ok=True)
+        with writer_lock(self.folder):
+            with self.session() as s:
+                victim = s.get(RefModel, row.id)
+                if victim is None:
+                    raise ModelNotFoundError(f"no model '{ref}' in {self.folder}; see `twinreg list-models`")
+                s.delete(victim)
+                s.commit()
+            for rel in (row.stored_file, row.mesh_file, f"meshes/{row.sha256}.ge.npz"):
+                (self.folder / rel).unlink(missing_ok=True)
         return row
+
+    def close(self) -> None:
+        """Release the database (the folder can then be moved)."""
+        if self._engine is not None:
+            self._engine.dispose()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Annotated, Optional
+
 import typer
 
 from . import models, objects, scenes
@@ -13,6 +15,24 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
+
+
+@app.callback()
+def _global(
+    library: Annotated[Optional[str], typer.Option(
+        "--library", help="Catalogue folder for every sub-command (default: $TWINREG_LIBRARY or ./library).",
+        show_default=False)] = None,
+    json_: Annotated[bool, typer.Option("--json", help="Every sub-command prints one JSON document.")] = False,
+):
+    """--library and --json also work before the sub-command, as in git-like tools."""
+    import os
+
+    if library:
+        os.environ["TWINREG_LIBRARY"] = library
+    if json_:
+        os.environ["TWINREG_JSON"] = "1"
+
+
 app.add_typer(models.app)
 app.add_typer(objects.app)
 app.add_typer(scenes.app)

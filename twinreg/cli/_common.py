@@ -20,7 +20,8 @@ LibraryOpt = Annotated[
     Optional[str],
     typer.Option("--library", help="Catalogue folder (default: $TWINREG_LIBRARY or ./library).", show_default=False),
 ]
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout.")]
+JsonOpt = Annotated[bool, typer.Option("--json", envvar="TWINREG_JSON",
+                                       help="Print one JSON document to stdout.")]
 
 
 def fail(message: str, code: int = 1):
@@ -36,7 +37,7 @@ def handled(fn):
         try:
             return fn(*args, **kwargs)
         except TwinregError as exc:
-            fail(str(exc))
+            fail(str(exc), getattr(exc, "exit_code", 1))
         except (typer.Exit, typer.Abort, KeyboardInterrupt):
             raise
         except Exception as exc:  # pragma: no cover - a bug; keep the one-line promise unless debugging

@@ -109,7 +109,8 @@ def _table(rows) -> Table:
 def list_models(
     near: Annotated[Optional[tuple[float, float, float]], typer.Option(
         "--near", help="L W H (m): only models within --tol of this size.")] = None,
-    tol: Annotated[float, typer.Option(help="Size tolerance (m) on each of L, W, H.")] = 0.2,
+    tol: Annotated[Optional[float], typer.Option(
+        help="Size tolerance (m) on each of L, W, H [default: 0.2, the matcher's].")] = None,
     body_class: Annotated[Optional[str], typer.Option("--body-class")] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,

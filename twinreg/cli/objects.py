@@ -10,7 +10,7 @@ from rich.progress import Progress
 
 import cosco
 
-from ..errors import SceneReadError
+from ..errors import SceneReadError, require_positive
 from ..objects import inspect_file, objects_from_folder, objects_from_scene, shape_json
 from ._common import JsonOpt, err_console, handled, info, print_json
 
@@ -49,12 +49,14 @@ def inspect(
 @handled
 def cluster_cmd(
     scene: Annotated[Path, typer.Argument(help="A scene file (objects are detected) or a folder of object files.")],
-    threshold: Annotated[float, typer.Option(help="Dendrogram cut (m); the paper used 0.065.")] = 0.065,
+    threshold: Annotated[Optional[float], typer.Option(
+        help=f"Dendrogram cut (m) [default: {cosco.DEFAULT.cluster_threshold}, the paper's].")] = None,
     plot: Annotated[Optional[Path], typer.Option("--plot", help="Folder for heatmap.png and dendrogram.png.")] = None,
     unit: UnitOpt = "auto",
     json_: JsonOpt = False,
 ):
     """Dissimilarity matrix and hierarchical clustering of objects."""
+    threshold = require_positive("--threshold", threshold) or cosco.DEFAULT.cluster_threshold
     if not scene.exists():
         raise SceneReadError(f"{scene}: no such file or folder")
     with Progress(console=err_console) as bar:

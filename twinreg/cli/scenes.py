@@ -7,7 +7,10 @@ from typing import Annotated, Optional
 
 import typer
 
+from cosco.params import DEFAULT
+
 from ..detect import detect_file, detection_json, write_detection
+from ..outdir import check_replaceable
 from ._common import JsonOpt, LibraryOpt, err_console, handled, info, print_json
 
 app = typer.Typer()
@@ -25,11 +28,15 @@ def detect(
     json_: JsonOpt = False,
 ):
     """Ground removal and connectivity-based object detection."""
+    if out is not None:
+        check_replaceable(out, protect=[scene])
     with err_console.status(f"reading {scene.name}") as status:
         det = detect_file(scene, unit=unit, progress=lambda stage: status.update(f"{scene.name}: {stage} done"))
     doc = detection_json(det, all_objects)
     if det.scene.n_dropped:
         info(f"warning: {det.scene.n_dropped} points with NaN or infinite coordinates were dropped")
+    if det.scene.n_outliers:
+        info(f"warning: {det.scene.n_outliers} points far from the rest of the scan were ignored (outliers)")
     if out is not None:
         doc["files"] = [str(p) for p in write_detection(det, out, all_objects)]
     if json_:
@@ -53,10 +60,13 @@ def build_twin_cmd(
     alt: Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")] = 0.0,
     anchor: Annotated[Optional[tuple[float, float]], typer.Option(
         help="Scene X Y at --lat/--lon (default 0 0).")] = None,
-    crs: Annotated[Optional[str], typer.Option(help="The scene's projected CRS, e.g. EPSG:2157.")] = None,
+    crs: Annotated[Optional[str], typer.Option(
+        help="The scene's projected CRS, e.g. EPSG:2157 (default: the CRS a LAS/LAZ header states).")] = None,
     unit: UnitOpt = "auto",
-    tol: Annotated[float, typer.Option(help="Size tolerance (m) of the catalogue prefilter.")] = 0.2,
-    threshold: Annotated[Optional[float], typer.Option(help="Cluster threshold (m); default 0.065.")] = None,
+    tol: Annotated[Optional[float], typer.Option(
+        help=f"Size tolerance (m) of the catalogue prefilter [default: {DEFAULT.size_tol}].")] = None,
+    threshold: Annotated[Optional[float], typer.Option(
+        help=f"Cluster threshold (m) [default: {DEFAULT.cluster_threshold}].")] = None,
     out: Annotated[Optional[Path], typer.Option(help="Output folder (default exports/<scene name>).")] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
@@ -67,7 +77,7 @@ def build_twin_cmd(
     from ..georef import georef_from_options
     from ..pipeline import build_twin
 
-    georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs)
+    georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False)
     cat = Catalogue(library_path(library), create=False)
     out = out or Path("exports") / scene.stem
     with err_console.status("building the twin") as status:

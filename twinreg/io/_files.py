@@ -9,6 +9,8 @@ def checked_input(path, suffixes, kind: str, formats: str, error) -> tuple[Path,
     """``(path, lower-case suffix)`` of an existing, non-empty file of a supported format, or ``error`` raised
     with one line naming the file and what to do."""
     path = Path(path)
+    if path.is_dir():
+        raise error(f"{path}: is a folder; pass one {kind} file ({formats})")
     if not path.is_file():
         raise error(f"{path}: no such file")
     suffix = path.suffix.lower()

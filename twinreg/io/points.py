@@ -23,17 +23,31 @@ POINT_SUFFIXES = {".ply", ".pcd", ".las", ".laz", ".xyz", ".txt", ".csv", ".pts"
 class PointSet:
     """Points of a scene or object.
 
-    points : (n, 3) float64 metres in the file's frame (after unit scaling). offset : (3,) float64, a round local
-    origin; ``points - offset`` is small. unit : the unit applied. crs : WKT or EPSG string found in the file, or
-    None. n_dropped : non-finite points removed.
+    points : (n, 3) float64 metres in the file's frame (file coordinates times ``scale``, z times ``z_scale``).
+    offset : (3,) float64, a round local origin; ``points - offset`` is small. unit : the horizontal unit applied.
+    crs_info : the projected CRS of the coordinates (``--crs``, else the LAS/LAZ header's), or None. n_dropped :
+    non-finite points removed.
     """
 
     path: Path
     points: np.ndarray
     offset: np.ndarray
     unit: str
-    crs: str | None = None
+    crs_info: object = None
     n_dropped: int = 0
+    scale: float = 1.0
+    z_scale: float = 1.0
+    n_outliers: int = 0
+
+    def without(self, drop: np.ndarray) -> "PointSet":
+        """The same scene without the points of the (n,) mask ``drop`` (counted as outliers)."""
+        from dataclasses import replace
+
+        return replace(self, points=self.points[~drop], n_outliers=self.n_outliers + int(drop.sum()))
+
+    @property
+    def crs(self) -> str | None:
+        return self.crs_info.crs if self.crs_info is not None else None
 
     @property
     def local(self) -> np.ndarray:
@@ -69,6 +83,7 @@ def _read_kitti(path: Path) -> np.ndarray:
 
 
 def _read_las(path: Path):
+    """(points (n, 3) in file units, the header's CRS or None, the error parsing it or None)."""
     import laspy
 
     try:
@@ -77,15 +92,10 @@ def _read_las(path: Path):
         raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
     pts = np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
                            np.asarray(las.z, dtype=np.float64)])
-    crs, unit_factor = None, None
     try:
-        c = las.header.parse_crs()
-        if c is not None:
-            crs = c.to_string()
-            unit_factor = float(c.axis_info[0].unit_conversion_factor)
-    except Exception:  # a broken or absent CRS record is not fatal
-        pass
-    return pts, crs, unit_factor
+        return pts, las.header.parse_crs(), None
+    except Exception as exc:  # a CRS record is there but broken: the caller decides (error unless told the unit)
+        return pts, None, exc
 
 
 _PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
@@ -154,17 +164,47 @@ def _read_o3d(path: Path) -> np.ndarray:
     return pts
 
 
-def read_points(path, unit: str = "auto") -> PointSet:
+def _crs_and_units(path: Path, unit: str, crs, header_crs, header_error):
+    """(CrsInfo or None, unit name, horizontal scale, vertical scale) for a file, or SceneReadError."""
+    from ..georef import crs_info
+
+    info = None
+    if crs:
+        info = crs_info(crs, "--crs", where=f"--crs {crs}")
+    elif header_crs is not None:
+        info = crs_info(header_crs, "file header", where=f"{path}", error=SceneReadError)
+    elif header_error is not None and unit == "auto":
+        raise SceneReadError(f"{path}: the CRS record in the header cannot be parsed "
+                             f"({str(header_error).splitlines()[0]}); pass --crs EPSG:NNNN (the file's CRS) and "
+                             "--unit if its coordinates are not in that CRS's unit")
+    if unit == "auto":
+        if info is None:
+            return None, "m", 1.0, 1.0
+        name = next((k for k, v in UNIT_SCALES.items() if abs(v - info.unit_m) < 1e-9), f"{info.unit_m:g} m")
+        return info, name, info.unit_m, info.vertical_unit_m
+    if unit not in UNIT_SCALES:
+        raise SceneReadError(f"{path}: unknown --unit '{unit}'; use auto, {', '.join(UNIT_SCALES)}")
+    scale = UNIT_SCALES[unit]
+    if info is not None and abs(info.unit_m - scale) > 1e-9:
+        raise SceneReadError(f"{path}: --unit {unit} disagrees with the unit of the CRS {info.name} "
+                             f"({info.unit_m:g} m, from the {info.source}); drop --unit, or pass the right --crs")
+    return info, unit, scale, (info.vertical_unit_m if info is not None else scale)
+
+
+def read_points(path, unit: str = "auto", crs: str | None = None) -> PointSet:
     """Read a point file to a :class:`PointSet`.
 
-    unit : ``auto`` (metres, or the LAS CRS's linear unit when one is stated) or one of m, cm, mm, ft, us-ft, in.
-    Raises :class:`SceneReadError` with one line naming the file for a missing, unreadable, truncated or empty file.
+    unit : ``auto`` (the CRS's units when one is known, else metres) or one of m, cm, mm, ft, us-ft, in.
+    crs : the file's projected CRS (``--crs``), overriding the one a LAS/LAZ header states. Horizontal and vertical
+    units come from the CRS (the vertical part of a compound CRS, else the horizontal unit).
+    Raises :class:`SceneReadError` with one line naming the file for a missing, unreadable, truncated or empty file,
+    a geographic CRS, or a CRS record that cannot be parsed (unless ``--unit`` or ``--crs`` say what it meant).
     """
     path, suffix = checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin",
                                  SceneReadError)
-    crs, file_unit = None, None
+    header_crs = header_error = None
     if suffix in (".las", ".laz"):
-        pts, crs, file_unit = _read_las(path)
+        pts, header_crs, header_error = _read_las(path)
     elif suffix == ".bin":
         pts = _read_kitti(path)
     elif suffix == ".ply":
@@ -181,19 +221,10 @@ def read_points(path, unit: str = "auto") -> PointSet:
     pts = pts[finite]
     if len(pts) == 0:
         raise SceneReadError(f"{path}: no valid points")
-    unit = unit.lower()
-    if unit == "auto":
-        if file_unit and abs(file_unit - 1.0) > 1e-9:
-            scale = file_unit
-            unit = next((k for k, v in UNIT_SCALES.items() if abs(v - file_unit) < 1e-9), f"{file_unit:g} m")
-        else:
-            scale, unit = 1.0, "m"
-    elif unit in UNIT_SCALES:
-        scale = UNIT_SCALES[unit]
-    else:
-        raise SceneReadError(f"{path}: unknown --unit '{unit}'; use auto, {', '.join(UNIT_SCALES)}")
-    if scale != 1.0:
-        pts = pts * scale
+    info, unit, scale, z_scale = _crs_and_units(path, unit.lower(), crs, header_crs, header_error)
+    if scale != 1.0 or z_scale != 1.0:
+        pts = pts * np.array([scale, scale, z_scale])
     offset = np.floor(pts.min(0) / 100.0) * 100.0
     offset[2] = 0.0
-    return PointSet(path=path, points=pts, offset=offset, unit=unit, crs=crs, n_dropped=dropped)
+    return PointSet(path=path, points=pts, offset=offset, unit=unit, crs_info=info, n_dropped=dropped, scale=scale,
+                    z_scale=z_scale)
