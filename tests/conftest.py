@@ -162,3 +162,32 @@ def catalogue_models(cat, names):
     """(vertices, faces, glass) of catalogue models, for simulated scenes."""
     rows = {r.name: r for r in cat.list()}
     return cat.scan_meshes([rows[n] for n in names])
+
+
+@pytest.fixture(scope="session")
+def parametric_catalogue(tmp_path_factory, parametric_objs):
+    """A catalogue of the project's 8 parametric cars (no shared data), named by spec."""
+    from twinreg.catalogue.repository import Catalogue
+
+    cat = Catalogue(tmp_path_factory.mktemp("parametric_lib"))
+    for name, path in parametric_objs.items():
+        cat.add(path, name=name)
+    return cat
+
+
+def write_las(path, points, crs=None, version="1.4", vlr=None):
+    """A LAS/LAZ file of (n, 3) points (file units) with ``crs`` (pyproj input) in its header, or a raw ``vlr``."""
+    import laspy
+    import pyproj
+
+    header = laspy.LasHeader(point_format=3, version=version)
+    header.scales = [0.001, 0.001, 0.001]
+    header.offsets = np.floor(points.min(0))
+    if crs is not None:
+        header.add_crs(pyproj.CRS(crs))
+    if vlr is not None:
+        header.vlrs.append(vlr)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
+    las.write(path)
+    return path
