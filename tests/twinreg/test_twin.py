@@ -188,3 +188,53 @@ def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_pat
     assert len(twin["objects"]) == 12
     for name in ("topview.png", "heatmap.png", "dendrogram.png", "sections.png", "report.html"):
         assert (tmp_path / "out" / name).stat().st_size > 1000
+
+
+MAIN_PID = __import__("os").getpid()
+
+
+def hang_in_helper(*args):
+    """Stands for a drawing call that hangs in the helper process (and draws normally in the main one)."""
+    import os
+    import time
+
+    from twinreg.export import report
+
+    if os.getpid() != MAIN_PID:
+        time.sleep(3600)
+    return report.write_report(*args)
+
+
+def _children():
+    import psutil
+
+    return [c for c in psutil.Process().children(recursive=True) if c.is_running() and c.status() != "zombie"]
+
+
+@pytest.mark.timeout(300)
+def test_a_stuck_helper_does_not_hang_build_twin(park, catalogue16, tmp_path, monkeypatch):
+    from twinreg import pipeline
+    from twinreg.errors import ExportError
+    from twinreg.georef import georef_from_options
+
+    monkeypatch.setattr(pipeline, "write_report", hang_in_helper)
+    monkeypatch.setattr(pipeline, "HELPER_TIMEOUT_S", 3.0)
+    georef = georef_from_options(53.35116, -6.261601)
+    twin = pipeline.build_twin(park["path"], catalogue16, georef, tmp_path / "out")
+    assert len(twin["objects"]) == 12
+    for name in ("topview.png", "sections.png", "report.html"):  # drawn here when the helper was stuck
+        assert (tmp_path / "out" / name).stat().st_size > 1000
+    assert not list((tmp_path / "out").rglob(".tmp-*"))
+    assert _children() == []  # the helper was stopped, not left behind
+
+    # an export error while the helper is stuck: the error comes out at once, nothing is left behind
+    def broken_kmz(*args, **kwargs):
+        raise ExportError("disk full (simulated)")
+
+    monkeypatch.setattr(pipeline, "write_kmz", broken_kmz)
+    before = sorted(p.name for p in (tmp_path / "out").iterdir())
+    with pytest.raises(ExportError, match="disk full"):
+        pipeline.build_twin(park["path"], catalogue16, georef, tmp_path / "out")
+    assert _children() == []
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
