@@ -99,11 +99,27 @@ def test_size_query_is_one_indexed_query(full_catalogue):
     assert prius.id in [m.id for m in near]
     for m in near:
         assert abs(m.length - prius.length) <= 0.2 and abs(m.width - prius.width) <= 0.2
+    assert "USING INDEX" in _plan_of_size_query(cat)
+
+
+def _plan_of_size_query(cat) -> str:
+    """SQLite's plan of the very statement Catalogue.list runs for a size query (captured from the engine)."""
+    from sqlalchemy import event
+
+    seen = []
+
+    def grab(conn, cursor, statement, parameters, context, executemany):
+        if "ref_models" in statement and "BETWEEN" in statement.upper():
+            seen.append((statement, parameters))
+
+    event.listen(cat._engine, "before_cursor_execute", grab)
+    try:
+        cat.list(near=(4.5, 1.8, 1.5))
+    finally:
+        event.remove(cat._engine, "before_cursor_execute", grab)
+    (statement, parameters), = seen
     with sqlite3.connect(cat.folder / "catalogue.sqlite") as con:
-        plan = " ".join(str(r) for r in con.execute(
-            "explain query plan select * from ref_models where length between ? and ? and width between ? and ? "
-            "and height between ? and ?", (4, 5, 1, 2, 1, 2)))
-    assert "USING INDEX" in plan
+        return " ".join(str(r) for r in con.execute("explain query plan " + statement, parameters))
 
 
 def test_duplicate_content_is_refused_naming_the_entry(full_catalogue):
@@ -115,10 +131,29 @@ def test_duplicate_content_is_refused_naming_the_entry(full_catalogue):
 BAD_OBJ_NAN = "v 0 0 0\nv nan 1 0\nv 1 1 0\nf 1 2 3\n"
 
 
+@pytest.fixture(scope="module")
+def small_catalogue(tmp_path_factory):
+    """Two parametric cars (the project's own, no shared data), one of them also written in millimetres."""
+    from twinreg.parametric import LIBRARY, car_mesh, write_obj
+
+    folder = tmp_path_factory.mktemp("small")
+    cat = Catalogue(folder / "lib")
+    paths = {}
+    for spec in (LIBRARY[1], LIBRARY[2]):
+        v, f = car_mesh(spec)
+        paths[spec.name] = folder / f"{spec.name}.obj"
+        write_obj(paths[spec.name], v, f)
+        cat.add(paths[spec.name])
+    v, f = car_mesh(LIBRARY[3])
+    paths["mm"] = folder / "wagon_mm.obj"
+    write_obj(paths["mm"], v * 1000.0, f)
+    return cat, paths
+
+
 @pytest.mark.parametrize("kind", ["missing", "empty", "garbage", "nan", "no-faces", "implausible", "duplicate",
-                                  "unsupported", "bad-unit"])
-def test_bad_input_leaves_catalogue_unchanged(full_catalogue, tmp_path, kind):
-    cat, _ = full_catalogue
+                                  "unsupported", "bad-unit", "folder"])
+def test_bad_input_leaves_catalogue_unchanged(small_catalogue, tmp_path, kind):
+    cat, paths = small_catalogue
     before = folder_state(cat.folder)
     path, kwargs = tmp_path / "x.obj", {}
     if kind == "empty":
@@ -131,26 +166,26 @@ def test_bad_input_leaves_catalogue_unchanged(full_catalogue, tmp_path, kind):
     elif kind == "no-faces":
         path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     elif kind == "implausible":
-        path = CARS / "generic_hatchback_gazebo" / "hatchback.obj"
-        kwargs = {"unit": "m"}
-        cat.remove("hatchback")  # make room: the same file is in the catalogue
-        before = folder_state(cat.folder)
+        path, kwargs = paths["mm"], {"unit": "m"}  # a 4,770 m car
     elif kind == "duplicate":
-        path = CARS / "uaz_469" / "uaz469_chassis.obj"
+        path = paths["demo_sedan"]
     elif kind == "unsupported":
         path = tmp_path / "x.fbx"
         path.write_text("fbx")
     elif kind == "bad-unit":
-        path = CARS / "jeep_cherokee_xj_1997" / "JeepCherokee.obj"
-        kwargs = {"unit": "furlong"}
+        path, kwargs = paths["mm"], {"unit": "furlong"}
+    elif kind == "folder":
+        path = tmp_path
     with pytest.raises(TwinregError) as info:
         cat.add(path, **kwargs)
     message = str(info.value)
     assert "\n" not in message and str(path) in message
     assert folder_state(cat.folder) == before
     if kind == "implausible":
-        assert isinstance(info.value, UnitError) and "--unit in" in message
-        cat.add(path)  # and it goes back in with the right unit
+        assert isinstance(info.value, UnitError) and "--unit mm" in message
+        row = cat.add(path)  # and it goes in with the unit the message names
+        assert row.unit == "mm"
+        cat.remove(row.id)
 
 
 def test_cli_reports_bad_input_on_one_line(tmp_path):
@@ -186,29 +221,119 @@ def test_two_concurrent_add_model_processes(tmp_path):
     assert not [f for f in files if ".tmp-" in f]
 
 
-def test_catalogue_at_the_initial_revision_is_upgraded(tmp_path):
-    from twinreg.catalogue.db import current_revision, head_revision, make_engine, upgrade
+OLD_COLUMNS = ("name", "tags_json", "sha256", "source_name", "stored_file", "mesh_file", "n_faces", "unit",
+               "unit_scale", "unit_source", "up_axis", "front_axis", "notes", "length", "width", "height",
+               "mesh_length", "mesh_width", "mesh_height", "sym_found", "sym_pcr", "sym_rmse", "sym_heading",
+               "sample_spacing", "n_points", "points", "section_longitudinal", "section_transverse", "section_res",
+               "created_at", "updated_at")
 
+
+def test_a_real_catalogue_at_the_initial_revision_is_upgraded_and_matches(tmp_path, small_catalogue):
+    """A catalogue made at revision 0001 with real rows (blobs and files copied from models measured today, without
+    the fine sections and frames later revisions added) is upgraded on open, and a scan of its car is matched
+    through the old-row fallback (frame and sections recomputed from the stored points)."""
+    import shutil
+
+    from twinreg.catalogue.db import current_revision, head_revision, make_engine, upgrade
+    from twinreg.matching import match_objects
+    from twinreg.simulate import pose_matrix, scan_meshes, transform
+
+    src, _ = small_catalogue
     lib = tmp_path / "old"
     lib.mkdir()
     engine = make_engine(lib / "catalogue.sqlite")
     upgrade(engine, "0001_initial")
     assert current_revision(engine) == "0001_initial"
-    cols = ("name, tags_json, sha256, source_name, stored_file, mesh_file, n_faces, unit, unit_scale, unit_source, "
-            "up_axis, front_axis, notes, length, width, height, mesh_length, mesh_width, mesh_height, sym_found, "
-            "sym_pcr, sym_rmse, sym_heading, sample_spacing, n_points, points, section_longitudinal, "
-            "section_transverse, section_res, created_at, updated_at")
+    with sqlite3.connect(src.folder / "catalogue.sqlite") as con:
+        rows = con.execute(f"select {', '.join(OLD_COLUMNS)} from ref_models").fetchall()
     with engine.begin() as con:
-        con.exec_driver_sql(
-            f"insert into ref_models ({cols}) values ('old_car', '[]', 'abc', 'old.obj', 'files/ab/abc.obj', "
-            "'meshes/abc.npz', 12, 'm', 1.0, 'file', '+z', '+x', '', 4.5, 1.8, 1.5, 4.5, 1.9, 1.5, 1, 0.95, 0.02, "
-            "0.0, 0.05, 0, x'', x'', x'', 0.1, '2024-01-01', '2024-01-01')")
+        for r in rows:
+            con.exec_driver_sql(f"insert into ref_models ({', '.join(OLD_COLUMNS)}) values "
+                                f"({', '.join('?' * len(OLD_COLUMNS))})", tuple(r))
     engine.dispose()
+    for sub in ("files", "meshes"):
+        shutil.copytree(src.folder / sub, lib / sub)
     cat = Catalogue(lib)  # opening upgrades
     assert current_revision(cat._engine) == head_revision()
-    rows = cat.list()
-    assert [r.name for r in rows] == ["old_car"] and rows[0].glass_fraction == 0.0
-    assert [r.name for r in cat.list(near=(4.5, 1.8, 1.5))] == ["old_car"]
+    old = {r.name: r for r in cat.list()}
+    assert sorted(old) == ["demo_hatchback", "demo_sedan"]
+    assert all(r.frame_x is None and r.glass_fraction == 0.0 for r in old.values())
+    geo = cat.geometry(old["demo_sedan"], with_mesh=True)
+    assert geo.sections.longitudinal_fine is None and len(geo.points) > 1000
+    scan = scan_meshes([(transform(geo.mesh_vertices, pose_matrix(30.0, -4.0, 2.0)), geo.mesh_faces)], seed=3)
+    shape = __import__("cosco").describe_object(scan.points, ground_z=0.0)
+    (res,), _ = match_objects([shape], cat, clouds=[scan.points], noise=0.02)
+    assert res.match is not None and res.match.name == "demo_sedan", res.reason
+    assert np.hypot(*(res.match.centre[:2] - [30.0, -4.0])) < 0.05
+    assert abs(np.angle(np.exp(1j * (res.match.heading - 2.0)))) < np.radians(1.0)
+
+
+def test_remove_deletes_files_under_the_writer_lock(tmp_path, small_catalogue, monkeypatch):
+    """A concurrent add of the same file waits for the removal to finish: each file is deleted while the lock is
+    held (flock from a second open file conflicts)."""
+    import fcntl
+
+    _, paths = small_catalogue
+    cat = Catalogue(tmp_path / "lib")
+    row = cat.add(paths["demo_sedan"])
+    held = []
+    real_unlink = Path.unlink
+
+    def spy(self, *args, **kwargs):
+        if cat.folder in self.parents:
+            with open(cat.folder / ".lock", "a+") as fh:
+                try:
+                    fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+                    held.append(False)
+                except BlockingIOError:
+                    held.append(True)
+        return real_unlink(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "unlink", spy)
+    cat.remove(row.id)
+    assert held and all(held)
+    assert not (cat.folder / row.stored_file).exists() and not (cat.folder / row.mesh_file).exists()
+
+
+def test_a_wheel_installed_elsewhere_opens_a_catalogue(tmp_path):
+    """Not an editable install: the wheel goes into a fresh venv (its dependencies from this one's site-packages,
+    by a .pth path line), and add-model and list-models run from another folder."""
+    import site
+    import venv
+
+    repo = Path(__file__).resolve().parents[2]
+    wheels = tmp_path / "wheels"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w",
+                    str(wheels), str(repo)], check=True, capture_output=True)
+    (wheel,) = wheels.glob("twinreg-*.whl")
+    env_dir = tmp_path / "venv"
+    venv.create(env_dir, with_pip=False)
+    py = env_dir / "bin" / "python"
+    target = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                            check=True, capture_output=True, text=True).stdout.strip()
+    deps = [p for p in site.getsitepackages() if Path(p).is_dir()]
+    Path(target, "deps.pth").write_text("\n".join(deps) + "\n")
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", target, str(wheel)],
+                   check=True, capture_output=True)
+    from twinreg.parametric import LIBRARY, car_mesh, write_obj
+
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    v, f = car_mesh(LIBRARY[0])
+    write_obj(work / "car.obj", v, f)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("TWINREG")}
+    where = subprocess.run([str(py), "-c", "import twinreg, sys; print(twinreg.__file__)"], cwd=work, env=env,
+                           check=True, capture_output=True, text=True).stdout
+    assert where.startswith(target) and str(repo) not in where
+    cli = [str(py), "-m", "twinreg"]
+    add = subprocess.run(cli + ["add-model", "car.obj", "--library", "lib"], cwd=work, env=env,
+                         capture_output=True, text=True)
+    assert add.returncode == 0, add.stderr
+    listed = subprocess.run(cli + ["list-models", "--library", "lib", "--json"], cwd=work, env=env,
+                            capture_output=True, text=True)
+    assert listed.returncode == 0, listed.stderr
+    assert [m["name"] for m in __import__("json").loads(listed.stdout)] == ["car"]
 
 
 def test_update_and_remove(tmp_path):

@@ -96,6 +96,11 @@ def test_cluster_folder_with_plots(tmp_path, dales):
     assert m.shape == (6, 6) and np.allclose(m, m.T)
     assert (tmp_path / "plots" / "heatmap.png").stat().st_size > 5000
     assert (tmp_path / "plots" / "dendrogram.png").stat().st_size > 5000
+    # at the default threshold (the paper's 6.5 cm) no pole shares a cluster with a car
+    assert doc["threshold_m"] == 0.065
+    cluster_of = {o["id"]: o["cluster"] for o in doc["objects"]}
+    cars = {cluster_of[n] for n in ("100", "101", "102", "103")}
+    assert cluster_of["p300"] not in cars and cluster_of["p301"] not in cars
 
 
 def test_cluster_a_scene_file(tmp_path):
@@ -109,11 +114,64 @@ def test_cluster_a_scene_file(tmp_path):
     models = [car_mesh(s) for s in specs]
     park = car_park(models, n_cars=6, seed=4, distractors=False)
     write_ply(tmp_path / "park.ply", park.points)
-    res = run("cluster", tmp_path / "park.ply", "--threshold", "0.045", "--json")
+
+    def clusters_by_model(*options):
+        res = run("cluster", tmp_path / "park.ply", *options, "--json")
+        assert res.exit_code == 0, res.output
+        doc = json.loads(res.stdout)
+        assert len(doc["objects"]) == 6
+        groups = {}
+        for o in doc["objects"]:  # objects are ordered by x then y: the truth is the nearest simulated car
+            c = min(park.cars, key=lambda car: np.hypot(car.x - o_x(o), car.y - o_y(o)))
+            groups.setdefault(o["cluster"], []).append(specs[c.model].body_class)
+        return sorted(sorted(g) for g in groups.values())
+
+    centres = {}
+
+    def o_x(o):
+        return centres[o["id"]][0]
+
+    def o_y(o):
+        return centres[o["id"]][1]
+
+    det = json.loads(run("detect", tmp_path / "park.ply", "--json").stdout)
+    centres.update({o["id"]: o["centroid"] for o in det["objects"]})
+    # 4.5 cm tells the three models apart; the default (the paper's 6.5 cm) groups body types: the two vans
+    # alone, the low cars (superminis and saloons) together
+    assert clusters_by_model("--threshold", "0.045") == [["sedan", "sedan"], ["supermini", "supermini"],
+                                                         ["van", "van"]]
+    assert clusters_by_model() == [["sedan", "sedan", "supermini", "supermini"], ["van", "van"]]
+
+
+@pytest.mark.parametrize("args, code, words", [
+    (["list-models", "--near", "4", "2", "1", "--tol", "-1"], 2, "--tol -1.0: must be a positive length"),
+    (["cluster", "{tmp}", "--threshold", "-1"], 2, "--threshold -1.0: must be a positive length"),
+    (["detect", "{tmp}"], 1, "is a folder; pass one point file"),
+    (["inspect", "{tmp}"], 1, "is a folder; pass one point file"),
+    (["build-twin", "{tmp}", "--lat", "90", "--lon", "0"], 1, "strictly between -90 and 90"),
+    (["inspect", "{same}"], 1, "degenerate object: all 5000 points are at one spot"),
+    (["inspect", "{line}"], 1, "degenerate object: its 300 points are collinear in plan"),
+    (["inspect", "{few}"], 1, "degenerate object: only 6 points"),
+])
+def test_bad_arguments_are_one_line_errors(tmp_path, args, code, words):
+    np.savetxt(tmp_path / "same.xyz", np.tile([1.0, 2.0, 3.0], (5000, 1)))
+    t = np.linspace(0, 4, 300)
+    np.savetxt(tmp_path / "line.xyz", np.c_[t, 0.5 * t, np.random.default_rng(0).random(300)])
+    np.savetxt(tmp_path / "few.xyz", np.random.default_rng(1).random((6, 3)))
+    files = {"tmp": tmp_path, "same": tmp_path / "same.xyz", "line": tmp_path / "line.xyz",
+             "few": tmp_path / "few.xyz"}
+    res = run(*[a.format(**files) for a in args], "--library", tmp_path / "lib") if args[0] in (
+        "list-models", "build-twin") else run(*[a.format(**files) for a in args])
+    assert res.exit_code == code, res.output
+    assert res.output.startswith("error:") and words in res.output and "\n" not in res.output.strip()
+    assert "Warning" not in res.output and "RuntimeWarning" not in res.output
+
+
+def test_library_and_json_before_the_sub_command(tmp_path, parametric_objs, monkeypatch):
+    # the global options set $TWINREG_LIBRARY / $TWINREG_JSON for the sub-command: restored after this test
+    monkeypatch.delenv("TWINREG_LIBRARY", raising=False)
+    monkeypatch.delenv("TWINREG_JSON", raising=False)
+    res = run("--library", tmp_path / "lib", "add-model", parametric_objs["demo_van"])
     assert res.exit_code == 0, res.output
-    doc = json.loads(res.stdout)
-    assert len(doc["objects"]) == 6
-    by_model = {}
-    for o in doc["objects"]:
-        by_model.setdefault(o["cluster"], []).append(o["id"])
-    assert doc["n_clusters"] == 3 and sorted(len(v) for v in by_model.values()) == [2, 2, 2]
+    res = run("--library", tmp_path / "lib", "--json", "list-models")
+    assert res.exit_code == 0 and [m["name"] for m in json.loads(res.stdout)] == ["demo_van"]
