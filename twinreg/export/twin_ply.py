@@ -37,4 +37,7 @@ def write_twin_ply(path, parts: list[tuple[np.ndarray, np.ndarray, int]], offset
         f"anchor_xy {georef['anchor'][0]} {georef['anchor'][1]}",
         f"crs {georef.get('crs') or 'local ENU tangent plane at the anchor'}",
     ]
+    if georef.get("crs"):
+        comments.append(f"crs_unit_m {georef.get('crs_unit_m', 1.0)} vertical_unit_m {georef.get('vertical_unit_m', 1.0)}"
+                        " (CRS coordinates = scene coordinates / unit)")
     return write_ply(path, v, f, c, comments)
