@@ -8,7 +8,6 @@ the Dublin car park of the paper (53.351160, -6.261601).
 
 from __future__ import annotations
 
-import shutil
 import time
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import numpy as np
 from .catalogue.repository import Catalogue
 from .georef import georef_from_options
 from .io.ply import write_ply
+from .outdir import staged_folder
 from .parametric import LIBRARY, car_mesh, write_obj
 from .pipeline import build_twin
 from .simulate import car_park
@@ -25,14 +25,20 @@ DUBLIN = (53.351160, -6.261601)
 
 
 def run_demo(out, seed: int = 0, n_cars: int = 14, progress=None) -> dict:
-    """Run the demo into ``out`` (its library/, models/, scan.ply and twin/ are replaced). Returns a summary."""
+    """Run the demo into ``out`` (library/, models/, scan.ply and twin/), which is replaced as a whole and only if
+    it is missing, empty or an earlier demo (see :func:`~twinreg.outdir.staged_folder`). Returns a summary."""
     t0 = time.perf_counter()
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    with staged_folder(out) as stage:
+        summary = _run(stage, seed, n_cars, progress)
+    summary["files"] = {k: str(out / v) for k, v in summary["files"].items()}
+    summary["timing_s"]["total"] = round(time.perf_counter() - t0, 2)
+    return summary
+
+
+def _run(out: Path, seed: int, n_cars: int, progress) -> dict:
+    t0 = time.perf_counter()
     models_dir, lib_dir = out / "models", out / "library"
-    for d in (models_dir, lib_dir):
-        if d.exists():
-            shutil.rmtree(d)
     models_dir.mkdir()
 
     def say(msg):
@@ -59,6 +65,7 @@ def run_demo(out, seed: int = 0, n_cars: int = 14, progress=None) -> dict:
     say("building the twin")
     twin = build_twin(scan, cat, georef_from_options(*DUBLIN), out / "twin",
                       progress=lambda m: say(f"build-twin: {m}"))
+    cat.close()
     rows_out = []
     for o in twin["objects"]:
         c = np.array(o["centroid"][:2])
@@ -75,7 +82,6 @@ def run_demo(out, seed: int = 0, n_cars: int = 14, progress=None) -> dict:
         })
     return {"seed": seed, "n_cars": n_cars, "n_points": twin["n_points"], "objects": rows_out,
             "n_correct": sum(r["correct"] for r in rows_out), "files": {
-                "scan": str(scan), "library": str(lib_dir), "twin_json": str(out / "twin" / "twin.json"),
-                "twin_ply": str(out / "twin" / "twin.ply"), "twin_kmz": str(out / "twin" / "twin.kmz"),
-                "report": str(out / "twin" / "report.html")},
+                "scan": "scan.ply", "library": "library", "twin_json": "twin/twin.json", "twin_ply": "twin/twin.ply",
+                "twin_kmz": "twin/twin.kmz", "report": "twin/report.html"},
             "timing_s": {"total": round(time.perf_counter() - t0, 2), "build_twin": twin["timing_s"]["total"]}}

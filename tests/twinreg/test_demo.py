@@ -39,3 +39,12 @@ def test_demo_runs_and_is_deterministic(tmp_path):
     b = json.loads(res.stdout)
     strip = lambda d: [{k: v for k, v in o.items()} for o in d["objects"]]  # noqa: E731
     assert strip(a) == strip(b)
+    # an earlier demo is replaced; a folder holding the user's own files is not touched
+    res = runner.invoke(app, ["demo", "--out", str(tmp_path / "a"), "--seed", "3"])
+    assert res.exit_code == 0, res.output
+    mine = tmp_path / "mine"
+    (mine / "library").mkdir(parents=True)
+    (mine / "library" / "catalogue.sqlite").write_text("the user's catalogue")
+    res = runner.invoke(app, ["demo", "--out", str(mine)])
+    assert res.exit_code == 1 and "did not write" in res.output
+    assert (mine / "library" / "catalogue.sqlite").read_text() == "the user's catalogue"
