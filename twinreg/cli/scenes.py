@@ -1,4 +1,4 @@
-"""Scene commands: detect (and, with the twin issue, build-twin and demo)."""
+"""Scene commands: detect, build-twin and demo."""
 
 from __future__ import annotations
 
