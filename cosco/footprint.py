@@ -39,7 +39,10 @@ def check_object(points, min_points: int = 10, min_extent: float = 0.01) -> np.n
     ValueError: degenerate object: all 5000 points are at one spot (needs at least 10 distinct points)
     """
     arr = as_points(points)
-    n_distinct = len(np.unique(arr, axis=0)) if len(arr) <= 100_000 else len(arr)
+    # distinct x values are distinct points: the full row-unique is needed only when there are few of them
+    n_distinct = len(np.unique(arr[:, 0]))
+    if n_distinct < min_points:
+        n_distinct = len(np.unique(arr, axis=0))
     if n_distinct < min_points:
         what = (f"only {len(arr)} points" if n_distinct == len(arr) else
                 f"all {len(arr)} points are at one spot" if n_distinct == 1 else

@@ -47,11 +47,11 @@ def surface_distances(points: np.ndarray, vertices: np.ndarray, faces: np.ndarra
     centre so that float32 inside open3d keeps millimetres."""
     import open3d as o3d
 
+    from .raycast import raycasting_scene
+
     v = np.asarray(vertices, dtype=np.float64)
     centre = v.mean(0)
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor((v - centre).astype(np.float32)),
-                        o3d.core.Tensor(np.asarray(faces, dtype=np.uint32)))
+    scene = raycasting_scene(v - centre, faces)
     query = (np.asarray(points, dtype=np.float64) - centre).astype(np.float32)
     return scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)
 

@@ -70,7 +70,7 @@ def crs_info(user_input, source: str, where: str = "--crs", error=GeorefError) -
 
 @dataclass
 class Georef:
-    """Scene -> WGS84. Build with :func:`georef_from_options`, then :meth:`for_scene` once the scene is read.
+    """Scene -> WGS84. Build with :func:`georef_from_options`, then :func:`scene_georef` once the scene is read.
 
     ``crs_unit_m`` / ``vertical_unit_m``: metres per CRS unit (scene coordinates are metric; pyproj gets scene
     coordinates divided by these)."""

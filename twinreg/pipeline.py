@@ -54,8 +54,8 @@ def _checked_params(params: CoscoParams, tol: float | None, threshold: float | N
 
     tol = require_positive("--tol", tol, f" (default {params.size_tol:g})")
     threshold = require_positive("--threshold", threshold, f" (default {params.cluster_threshold:g})")
-    return params.with_(size_tol=params.size_tol if tol is None else float(tol),
-                        cluster_threshold=params.cluster_threshold if threshold is None else float(threshold))
+    return params.with_(size_tol=params.size_tol if tol is None else tol,
+                        cluster_threshold=params.cluster_threshold if threshold is None else threshold)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",

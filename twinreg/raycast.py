@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 
-def _scene(vertices: np.ndarray, faces: np.ndarray):
+def raycasting_scene(vertices: np.ndarray, faces: np.ndarray):
+    """An open3d RaycastingScene of a triangle mesh (float32 inside: pass local coordinates)."""
     import open3d as o3d
 
     scene = o3d.t.geometry.RaycastingScene()
@@ -28,7 +29,7 @@ def cast(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, direction
     """
     import open3d as o3d
 
-    scene = _scene(vertices, faces)
+    scene = raycasting_scene(vertices, faces)
     rays = np.hstack([origins, directions]).astype(np.float32)
     ans = scene.cast_rays(o3d.core.Tensor(rays))
     t = ans["t_hit"].numpy()
