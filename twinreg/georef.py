@@ -125,6 +125,12 @@ class Georef:
         lon, lat, h = to_geo.transform(ecef[:, 0], ecef[:, 1], ecef[:, 2])
         return np.column_stack([lon, lat, h])
 
+    def centre_of(self, points) -> dict:
+        """WGS84 latitude and longitude of the centre of (n, 3) scene points' bounding box (where a scan is)."""
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        lon, lat, _ = self.to_wgs84(((pts.min(0) + pts.max(0)) / 2)[None])[0]
+        return {"lat": float(lat), "lon": float(lon)}
+
     def bearing(self, point, heading: float) -> float:
         """Degrees clockwise from true north of the scene direction ``heading`` (rad CCW from +X) at ``point``."""
         from pyproj import Geod

@@ -128,15 +128,16 @@ def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams, poli
 
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
                   params: CoscoParams = DEFAULT, share: int = 4, progress=None, clouds: list | None = None,
-                  noise: float | None = None) -> tuple[list[ObjectMatch], dict]:
+                  noise: float | None = None, cache: ModelCache | None = None) -> tuple[list[ObjectMatch], dict]:
     """Match every object; returns the per-object outcomes and statistics (trials, timings).
 
     labels : cluster label per object (objects of one cluster share work), or None. clouds : each object's points
     ((n, 3) metres, the frame of its shape) and noise : the scan's range noise (m), to verify the best candidates
-    against all the points (:mod:`twinreg.acceptance`); without them the lowest RMSE wins unverified.
+    against all the points (:mod:`twinreg.acceptance`); without them the lowest RMSE wins unverified. cache : a
+    :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
     """
     tol = params.size_tol
-    cache = ModelCache(catalogue, params)
+    cache = ModelCache(catalogue, params) if cache is None else cache
     stats = {"prefilter_s": 0.0, "registration_s": 0.0, "verification_s": 0.0, "n_trials": 0,
              "n_pairs_without_prefilter": 0}
     total_models = catalogue.count()

@@ -22,7 +22,7 @@ from .export.painter import HELPER_TIMEOUT_S, HelperError, Painter
 from .export.report import plot_taxonomy, warm_up, write_report
 from .export.twin_ply import cluster_color, write_twin_ply
 from .georef import Georef, scene_georef
-from .matching import match_objects
+from .matching import ModelCache, match_objects
 from .outdir import check_replaceable, staged_folder
 
 
@@ -39,13 +39,6 @@ def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration
     lon = model_sections.longitudinal * [c, 1.0] + [reg.du, reg.tz]
     tra = model_sections.transverse * [c, 1.0] + [0.0, reg.tz]
     return {"lon": lon, "tra": tra}
-
-
-def _scan_centre(georef: Georef, points: np.ndarray) -> dict:
-    """WGS84 latitude and longitude of the centre of the scan's bounding box (where the scan is on Earth)."""
-    centre = (points.min(0) + points.max(0)) / 2
-    lon, lat, _ = georef.to_wgs84(centre[None])[0]
-    return {"lat": float(lat), "lon": float(lon)}
 
 
 def _checked_params(params: CoscoParams, tol: float | None, threshold: float | None) -> CoscoParams:
@@ -121,8 +114,9 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     offset = det.scene.offset
     _say(progress, "prefilter and registration")
     noise = scene_noise(det.hag, det.is_ground)
+    models = ModelCache(catalogue, params)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
-                                   clouds=[local[o.indices] for o in targets], noise=noise)
+                                   clouds=[local[o.indices] for o in targets], noise=noise, cache=models)
     timing["prefilter"] = stats["prefilter_s"]
     timing["model_prep"] = stats["model_prep_s"]
     timing["registration"] = stats["registration_s"]
@@ -131,20 +125,16 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     _say(progress, "export")
     t = time.perf_counter()
     objects, ply_parts, kmz_objects, meshes, footprints, section_items = [], [], [], {}, [], []
-    cache_meshes = {}
     for k, (o, res) in enumerate(zip(targets, results)):
         oid = f"obj{k + 1}"
         shape, m = res.shape, res.match
         label = int(clusters.labels[k])
         rgb = cluster_color(label)
         if m is not None:
-            if m.model_id not in cache_meshes:
-                # the twin carries each model decimated to Google Earth's 21,845 triangles (cached in the
-                # catalogue), in the PLY as in the KMZ; one catalogue read per model, not per object
-                row = catalogue.get(m.model_id)
-                gv, gf = catalogue.ge_mesh(row)
-                cache_meshes[m.model_id] = (row, gv, gf, catalogue.geometry(row, with_mesh=False).sections)
-            row, mv, mf, msec = cache_meshes[m.model_id]
+            # the twin carries each model decimated to Google Earth's 21,845 triangles (cached in the catalogue),
+            # in the PLY as in the KMZ: the rows, meshes and sections the matcher already read
+            row, (mv, mf) = models.row(m.model_id), models.mesh(m.model_id)
+            msec = models.geometry(m.model_id).sections
             placed = mv @ m.transform[:3, :3].T + m.transform[:3, 3]
             heading = m.heading
             size = {"length": row.length, "width": row.width, "height": row.height}
@@ -210,7 +200,7 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     twin = {
         "scene": scene_path.name, "n_points": int(len(det.scene.points)), "n_outliers": det.scene.n_outliers,
         "unit": det.scene.unit,
-        "georef": georef.to_json() | {"scan_centre": _scan_centre(georef, det.scene.points)},
+        "georef": georef.to_json() | {"scan_centre": georef.centre_of(det.scene.points)},
         "offset": [float(v) for v in offset], "noise_m": round(noise, 4),
         "objects": objects,
         "dissimilarity": [[round(float(v), 5) for v in row] for row in matrix],
