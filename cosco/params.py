@@ -165,7 +165,7 @@ class CoscoParams:
     ground_dh_max: float = 2.5
     ground_dh_final: float = 0.30
     ground_tol: float = 0.15
-    ground_block: int = 256
+    ground_block: int = 1024
     ground_halo: int = 48
 
     seg_voxel: float = 0.15

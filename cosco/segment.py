@@ -100,19 +100,34 @@ def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int,
     return comp[inverse], n, ncomp
 
 
-def far_outliers(points, params: CoscoParams = DEFAULT) -> np.ndarray:
+def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6) -> np.ndarray:
     """Mask of points far from the rest of the scan (birds, multipath, a stray return kilometres away): groups of
     at most ``params.outlier_points`` points with no other point in the 26 neighbouring ``params.outlier_voxel``
-    cubes. Memory and time go by points (sparse voxel keys), whatever the bounding box.
+    cubes. A dense grid of coarse voxels counts them when it has at most ``dense_limit`` cells; beyond that,
+    sparse voxel keys do (memory and time by points, whatever the bounding box).
 
     >>> pts = np.vstack([np.random.default_rng(0).uniform(0, 20, (500, 3)), [[30000.0, 0.0, 0.0]]])
-    >>> np.flatnonzero(far_outliers(pts)).tolist()
-    [500]
+    >>> np.flatnonzero(far_outliers(pts)).tolist(), np.flatnonzero(far_outliers(pts, dense_limit=0)).tolist()
+    ([500], [500])
     """
     pts = as_points(points)
-    comp, _, _ = voxel_components(pts - pts.min(0), params.outlier_voxel)
-    sizes = np.bincount(comp)
-    if len(sizes) < 2:
+    ijk = np.floor((pts - pts.min(0)) / params.outlier_voxel).astype(np.int64)
+    dims = ijk.max(0) + 1
+    if np.prod(dims.astype(np.float64)) > dense_limit:
+        # a huge extent (a stray point kilometres away): sparse voxel keys, memory by points
+        comp, _, _ = voxel_components(pts - pts.min(0), params.outlier_voxel)
+        sizes = np.bincount(comp)
+    else:
+        # the usual case: a small grid of coarse voxels, counted and labelled densely in O(n)
+        from scipy import ndimage
+
+        flat = np.ravel_multi_index(ijk.T, dims)
+        counts = np.bincount(flat, minlength=int(np.prod(dims)))
+        labels, _ = ndimage.label((counts > 0).reshape(dims), structure=np.ones((3, 3, 3)))
+        comp = labels.ravel()[flat]
+        sizes = np.bincount(comp)
+        sizes[0] = 0
+    if np.count_nonzero(sizes) < 2:
         return np.zeros(len(pts), dtype=bool)
     return sizes[comp] <= params.outlier_points
 

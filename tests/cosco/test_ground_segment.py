@@ -123,3 +123,15 @@ def test_a_stray_point_far_away_is_reported_and_ignored(tmp_path):
     assert docs[0]["n_outliers"] == 0 and docs[1]["n_outliers"] == 2
     assert "2 points far from the rest of the scan were ignored" in res.stderr
     assert [o["centroid"] for o in docs[0]["objects"]] == [o["centroid"] for o in docs[1]["objects"]]
+
+
+def test_far_outliers_dense_and_sparse_counts_agree():
+    """The dense count (small extents) and the sparse voxel keys (huge extents) find the same outliers."""
+    from cosco.segment import far_outliers
+
+    rng = np.random.default_rng(5)
+    park = _parametric_park().points
+    strays = np.vstack([park[:3] + [0.0, 0.0, 300.0], rng.uniform([-400, -400, 0], [400, 400, 50], (20, 3))])
+    pts = np.vstack([park, strays])
+    dense, sparse = far_outliers(pts), far_outliers(pts, dense_limit=0)
+    assert (dense == sparse).all() and dense[len(park):len(park) + 3].all() and not dense[:len(park)].any()
