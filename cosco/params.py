@@ -127,7 +127,14 @@ class CoscoParams:
     Accepting a match (twinreg/acceptance.py; docs/METHOD.md): a point is explained by the placed model when it
     lies within ``accept_sigmas * noise + accept_model_tol + accept_spacing_k * spacing`` (m) of its surface;
     the match is accepted when at most ``accept_max_outliers`` of the points are not explained. The best
-    ``accept_candidates`` models by section RMSE are tried in order.
+    ``accept_candidates`` models by section RMSE are tried in order. Objects with more than ``accept_max_points``
+    points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
+    points is a proportion: 1,500 points give it to about one percentage point).
+
+    Taxonomy at scale (cosco/taxonomy.py; docs/METHOD.md): up to ``taxonomy_full_max`` objects, the full matrix
+    and the dendrogram (the paper); beyond, each object is compared with its ``taxonomy_neighbours`` nearest
+    objects by size and sections only, and clusters are the connected parts of the graph of pairs closer than
+    ``cluster_threshold``.
     """
 
     sym_voxel: float = 0.10
@@ -192,6 +199,10 @@ class CoscoParams:
     accept_spacing_k: float = 0.10
     accept_max_outliers: float = 0.10
     accept_candidates: int = 3
+    accept_max_points: int = 1500
+
+    taxonomy_full_max: int = 32
+    taxonomy_neighbours: int = 6
 
     def with_(self, **changes) -> "CoscoParams":
         """A copy with some values changed.

@@ -77,11 +77,49 @@ class Verdict:
                 f"{self.max_share:.0%} allowed)")
 
 
-def judge(points: np.ndarray, placed_vertices: np.ndarray, faces: np.ndarray, noise: float, spacing: float,
-          params: CoscoParams = DEFAULT) -> Verdict:
-    """The acceptance test of a model placed over an object's points (both (n, 3), scene-local metres)."""
+def sample_cloud(points: np.ndarray, max_points: int) -> np.ndarray:
+    """At most ``max_points`` of (n, 3) points, at a regular stride (deterministic: the same points for the same
+    ordered input).
+
+    >>> sample_cloud(np.zeros((3001, 3)), 1500).shape
+    (1001, 3)
+    """
+    n = len(points)
+    if n <= max_points:
+        return points
+    return points[::int(np.ceil(n / max_points))]
+
+
+class SurfaceIndex:
+    """A mesh ready for distance queries in its own frame (built once per model, queried for many objects)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        from .raycast import raycasting_scene
+
+        v = np.asarray(vertices, dtype=np.float64)
+        self.centre = v.mean(0)
+        self.scene = raycasting_scene(v - self.centre, faces)
+
+    def distances(self, points: np.ndarray) -> np.ndarray:
+        """Unsigned distance (m) of (n, 3) points, in the mesh's frame, to its surface."""
+        import open3d as o3d
+
+        query = (np.asarray(points, dtype=np.float64) - self.centre).astype(np.float32)
+        return self.scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)
+
+
+def verdict(distances: np.ndarray, noise: float, spacing: float, params: CoscoParams = DEFAULT) -> Verdict:
+    """The acceptance test from the points' distances (m) to the placed model's surface."""
     tau = params.accept_sigmas * noise + params.accept_model_tol + params.accept_spacing_k * spacing
-    d = surface_distances(points, placed_vertices, faces)
+    d = np.asarray(distances, dtype=np.float64)
     share = float(np.mean(d > tau)) if len(d) else 1.0
     return Verdict(bool(share <= params.accept_max_outliers), float(tau), share,
                    float(np.median(d)) if len(d) else 0.0, params.accept_max_outliers)
+
+
+def judge(points: np.ndarray, placed_vertices: np.ndarray, faces: np.ndarray, noise: float, spacing: float,
+          params: CoscoParams = DEFAULT) -> Verdict:
+    """The acceptance test of a model placed over an object's points (both (n, 3), scene-local metres); objects
+    of more than ``params.accept_max_points`` points are judged on a regular sample of them."""
+    pts = sample_cloud(np.asarray(points, dtype=np.float64), params.accept_max_points)
+    return verdict(surface_distances(pts, placed_vertices, faces), noise, spacing, params)

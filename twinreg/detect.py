@@ -57,18 +57,26 @@ def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None)
     return Detection(scene, is_ground, hag, ground, seg, {"ground": t1 - t0, "objects": t2 - t1})
 
 
-def describe_detected(det: Detection, params: CoscoParams = DEFAULT) -> list:
-    """COSCO shapes (symmetry, sections, size) of the detected target objects, each measured from the ground
-    surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
+def object_points(det: Detection, obj) -> np.ndarray:
+    """An object's points, scene-local (n, 3), in a canonical order (sorted by x, y, z) so that what is computed
+    from them does not depend on the order in which a file or a tile stored them."""
+    pts = det.scene.local[obj.indices]
+    return pts[np.lexsort((pts[:, 2], pts[:, 1], pts[:, 0]))]
+
+
+def object_ground(det: Detection, obj) -> float:
+    """The ground level (m, scene-local) under an object: the median of its points' z minus their height above
+    ground."""
+    return float(np.median(det.scene.local[obj.indices, 2] - det.hag[obj.indices]))
+
+
+def describe_detected(det: Detection, params: CoscoParams = DEFAULT, objects=None) -> list:
+    """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
+    from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
     import cosco
 
-    local = det.scene.local
-    shapes = []
-    for o in det.objects:
-        pts = local[o.indices]
-        ground_z = float(np.median(pts[:, 2] - det.hag[o.indices]))
-        shapes.append(cosco.describe_object(pts, params, ground_z=ground_z))
-    return shapes
+    return [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o))
+            for o in (det.objects if objects is None else objects)]
 
 
 def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None,

@@ -16,6 +16,7 @@ convergence is accounted for.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +69,15 @@ def crs_info(user_input, source: str, where: str = "--crs", error=GeorefError) -
     return CrsInfo(code, c.name, unit, v_unit, source)
 
 
+@functools.lru_cache(maxsize=16)
+def transformer(source: str, target: str):
+    """A pyproj Transformer (always x/y order), made once per pair of CRSs: making one costs milliseconds, which
+    a city of thousands of objects would pay for each."""
+    from pyproj import Transformer
+
+    return Transformer.from_crs(source, target, always_xy=True)
+
+
 @dataclass
 class Georef:
     """Scene -> WGS84. Build with :func:`georef_from_options`, then :func:`scene_georef` once the scene is read.
@@ -98,10 +108,8 @@ class Georef:
                       info.source)
 
     def _ltp(self):
-        from pyproj import Transformer
-
-        to_ecef = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
-        to_geo = Transformer.from_crs("EPSG:4978", "EPSG:4979", always_xy=True)
+        to_ecef = transformer("EPSG:4979", "EPSG:4978")
+        to_geo = transformer("EPSG:4978", "EPSG:4979")
         x0, y0, z0 = to_ecef.transform(self.lon, self.lat, self.alt)
         la, lo = np.radians(self.lat), np.radians(self.lon)
         # columns: east, north, up unit vectors in ECEF
@@ -114,9 +122,7 @@ class Georef:
         """(n, 3) scene points -> (n, 3) longitude, latitude (degrees), ellipsoidal height (m)."""
         pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
         if self.crs:
-            from pyproj import Transformer
-
-            t = Transformer.from_crs(self.crs, "EPSG:4326", always_xy=True)
+            t = transformer(self.crs, "EPSG:4326")
             lon, lat = t.transform(pts[:, 0] / self.crs_unit_m, pts[:, 1] / self.crs_unit_m)
             return np.column_stack([lon, lat, pts[:, 2]])
         origin, enu, to_geo = self._ltp()

@@ -65,6 +65,7 @@ class ModelCache:
         self._frames: dict[int, cosco.Frame] = {}
         self._rows: dict[int, object] = {}
         self._meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._surfaces: dict[int, object] = {}
 
     def row(self, model_id):
         return self._rows[model_id]
@@ -88,6 +89,14 @@ class ModelCache:
         if model_id not in self._meshes:
             self._meshes[model_id] = self.catalogue.ge_mesh(self._rows[model_id])
         return self._meshes[model_id]
+
+    def surface(self, model_id: int):
+        """The twin's mesh of the model as a :class:`~twinreg.acceptance.SurfaceIndex` (distance queries)."""
+        if model_id not in self._surfaces:
+            from .acceptance import SurfaceIndex
+
+            self._surfaces[model_id] = SurfaceIndex(*self.mesh(model_id))
+        return self._surfaces[model_id]
 
     def frame(self, model_id: int) -> cosco.Frame:
         """The model's section frame as stored by add-model (recomputed from its points for older entries)."""
@@ -128,12 +137,15 @@ def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams, poli
 
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
                   params: CoscoParams = DEFAULT, share: int = 4, progress=None, clouds: list | None = None,
-                  noise: float | None = None, cache: ModelCache | None = None) -> tuple[list[ObjectMatch], dict]:
+                  noise=None, cache: ModelCache | None = None,
+                  spacings: list | None = None) -> tuple[list[ObjectMatch], dict]:
     """Match every object; returns the per-object outcomes and statistics (trials, timings).
 
     labels : cluster label per object (objects of one cluster share work), or None. clouds : each object's points
     ((n, 3) metres, the frame of its shape) and noise : the scan's range noise (m), to verify the best candidates
-    against all the points (:mod:`twinreg.acceptance`); without them the lowest RMSE wins unverified. cache : a
+    against all the points (:mod:`twinreg.acceptance`); without them the lowest RMSE wins unverified. noise may
+    be one value or one per object (tiles of a city); spacings : each object's point spacing (m) when ``clouds``
+    are samples of the objects' points, else None (measured on the clouds). cache : a
     :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
     """
     tol = params.size_tol
@@ -191,42 +203,48 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
                 ranked_by_leader = [m for _, m in regs]
                 leader_best = regs[0][0].rmse if regs else np.inf
             cloud = clouds[i] if clouds is not None else None
+            noise_i = noise if noise is None or np.ndim(noise) == 0 else float(noise[i])
             t_v = time.perf_counter()
-            results[i] = _outcome(shapes[i], regs, cache, len(cands[i]), cloud, noise, pairs[i], params)
+            results[i] = _outcome(shapes[i], regs, cache, len(cands[i]), cloud, noise_i, pairs[i], params,
+                                  spacings[i] if spacings is not None else None)
             stats["verification_s"] += time.perf_counter() - t_v
     stats["registration_s"] = time.perf_counter() - t - stats["verification_s"]
     stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]
     return results, stats
 
 
-def _verified(shape, regs, cache: ModelCache, cloud, noise, obj_pair, params: CoscoParams):
+def _verified(shape, regs, cache: ModelCache, cloud, noise, obj_pair, params: CoscoParams, spacing=None):
     """The index in ``regs`` of the first of the best few candidates whose placed mesh explains the object's points,
-    with its verdict, or ``(None, the best one's verdict)``; ``regs`` gets the accepted one polished."""
+    with its verdict, or ``(None, the best one's verdict)``; ``regs`` gets the accepted one polished. ``spacing``:
+    the object's point spacing (m) when known (``cloud`` may then be a sample of its points)."""
     from cosco.segment import point_spacing
 
-    from .acceptance import judge
+    from .acceptance import sample_cloud, verdict
 
-    spacing = point_spacing(cloud)
+    if spacing is None:
+        spacing = point_spacing(cloud)
+    sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
     first = None
     for k, (reg, mid) in enumerate(regs[:params.accept_candidates]):
-        v, f = cache.mesh(mid)
         m = placement(shape.frame, cache.frame(mid), reg)
-        verdict = judge(cloud, v @ m[:3, :3].T + m[:3, 3], f, noise, spacing, params)
-        first = first or verdict
-        if verdict.accepted:
+        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
+        in_model = (sample - m[:3, 3]) @ m[:3, :3]
+        v = verdict(cache.surface(mid).distances(in_model), noise, spacing, params)
+        first = first or v
+        if v.accepted:
             if k > 0:
                 regs[k] = (_trial(obj_pair, cache, mid, params, polish=True), mid)
-            return k, verdict
+            return k, v
     return None, first
 
 
 def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, n_candidates: int, cloud=None, noise=None,
-             obj_pair=None, params: CoscoParams = DEFAULT) -> ObjectMatch:
+             obj_pair=None, params: CoscoParams = DEFAULT, spacing=None) -> ObjectMatch:
     if not regs:
         return ObjectMatch(shape, None, "no catalogue model within the size tolerance", [])
     verdict = None
     if cloud is not None:
-        k, verdict = _verified(shape, regs, cache, cloud, noise, obj_pair, params)
+        k, verdict = _verified(shape, regs, cache, cloud, noise, obj_pair, params, spacing)
         if k is None:
             best = cache.row(regs[0][1]).name
             return ObjectMatch(shape, None, verdict.reason(best), [m for _, m in regs],

@@ -23,6 +23,8 @@ from .errors import ExportError
 
 #: the file marking a folder as written by twinreg, with the list of what it wrote there
 MARKER = ".twinreg-output.json"
+#: files under this folder of OUT are a tiled run's finished cells (twinreg's, kept to resume; see city/resume.py)
+WORK_PREFIX = ".cells/"
 
 
 def _umask() -> int:
@@ -90,7 +92,7 @@ def check_replaceable(target, protect=()) -> Path:
         listed = set(json.loads(marker.read_text(encoding="utf-8"))["files"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ExportError(f"{marker}: not a readable twinreg marker ({exc}); choose another --out") from exc
-    foreign = [e for e in entries if e != MARKER and e not in listed]
+    foreign = [e for e in entries if e != MARKER and e not in listed and not e.startswith(WORK_PREFIX)]
     if foreign:
         shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
         raise ExportError(f"{target}: holds files twinreg did not write ({shown}); move them out or choose another "
@@ -169,6 +171,23 @@ def _drop_temporaries(stage: Path) -> None:
     for p in stage.rglob(".tmp-*"):
         if p.is_file():
             p.unlink(missing_ok=True)
+
+
+def claim(target, protect=()) -> Path:
+    """Make ``target`` a folder marked as twinreg's (creating it when missing), after :func:`check_replaceable`:
+    a long run can then keep work in it (``.cells/``) before its results replace it as a whole."""
+    target = Path(target)
+    recover(target)
+    check_replaceable(target, protect)
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        marker = target / MARKER
+        if not marker.exists():
+            with atomic_path(marker, ".json") as tmp:
+                Path(tmp).write_text(json.dumps({"tool": "twinreg", "files": []}), encoding="utf-8")
+    except OSError as exc:
+        raise ExportError(f"{target}: cannot write here ({exc.strerror}); choose another --out") from exc
+    return target
 
 
 @contextlib.contextmanager

@@ -55,3 +55,27 @@ def print_json(doc) -> None:
 
 def info(message: str) -> None:
     err_console.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
+class CityProgress:
+    """Progress bars on stderr for a tiled run: one bar per stage (``update(stage, done, total)``)."""
+
+    def __init__(self):
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self.progress = Progress(TextColumn("{task.description:<12}"), BarColumn(), MofNCompleteColumn(),
+                                 TimeElapsedColumn(), console=err_console, transient=False)
+        self.tasks: dict = {}
+
+    def __enter__(self) -> "CityProgress":
+        self.progress.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.progress.stop()
+        return False
+
+    def update(self, stage: str, done: int = 0, total: int = 0) -> None:
+        if stage not in self.tasks:
+            self.tasks[stage] = self.progress.add_task(stage, total=max(total, 1))
+        self.progress.update(self.tasks[stage], completed=done, total=max(total, 1))

@@ -11,7 +11,7 @@ from cosco.params import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
 from ..outdir import check_replaceable
-from ._common import JsonOpt, LibraryOpt, err_console, handled, info, print_json
+from ._common import CityProgress, JsonOpt, LibraryOpt, err_console, handled, info, print_json
 
 app = typer.Typer()
 
@@ -54,7 +54,9 @@ def detect(
 @app.command("build-twin")
 @handled
 def build_twin_cmd(
-    scene: Annotated[Path, typer.Argument(help="Scene points: PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin.")],
+    paths: Annotated[list[Path], typer.Argument(
+        help="Scene points (PLY, PCD, LAS, LAZ, XYZ/TXT, KITTI .bin), or LAS/LAZ/COPC tiles: files, a folder or a "
+             "quoted glob.", show_default=False)],
     lat: Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")] = None,
     lon: Annotated[Optional[float], typer.Option(help="WGS84 longitude of the anchor point.")] = None,
     alt: Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")] = 0.0,
@@ -68,33 +70,63 @@ def build_twin_cmd(
     threshold: Annotated[Optional[float], typer.Option(
         help=f"Cluster threshold (m) [default: {DEFAULT.cluster_threshold}].")] = None,
     out: Annotated[Optional[Path], typer.Option(help="Output folder (default exports/<scene name>).")] = None,
+    cell: Annotated[Optional[float], typer.Option(
+        help="Tiled runs: cell side (m) [default: about 6M points a cell at the tiles' density].",
+        show_default=False)] = None,
+    buffer: Annotated[Optional[float], typer.Option(
+        help="Tiled runs: metres read around each cell [default: 10].", show_default=False)] = None,
+    workers: Annotated[Optional[int], typer.Option(
+        help="Tiled runs: Dask worker processes of the embedded cluster [default: the cores].",
+        show_default=False)] = None,
+    scheduler: Annotated[Optional[str], typer.Option(
+        help="Tiled runs: an existing Dask scheduler, tcp://HOST:PORT (inputs, catalogue and OUT at the same "
+             "paths on its workers).", show_default=False)] = None,
+    restart: Annotated[bool, typer.Option(
+        "--restart", help="Tiled runs: ignore the cells a previous run finished.")] = False,
+    ply: Annotated[Optional[bool], typer.Option(
+        "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
+                               "--ply writes ply/<cell>.ply].", show_default=False)] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
-    """The whole pipeline: detect, sections, cluster, prefilter, register, export PLY/KMZ/JSON/report."""
+    """The whole pipeline: detect, sections, cluster, prefilter, register, export PLY/KMZ/JSON/report; on tiles,
+    cell by cell on Dask (resumable)."""
     from ..catalogue.db import library_path
     from ..catalogue.repository import Catalogue
+    from ..city.build import build_city_twin, is_tiled
     from ..georef import georef_from_options
     from ..pipeline import build_twin
 
     georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False)
     cat = Catalogue(library_path(library), create=False)
-    out = out or Path("exports") / scene.stem
-    with err_console.status("building the twin") as status:
-        twin = build_twin(scene, cat, georef, out, unit=unit, tol=tol, threshold=threshold,
-                          progress=lambda msg: status.update(f"{scene.name}: {msg}"))
+    first = paths[0]
+    out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")
+    tiled = is_tiled(paths, explicit=any(v is not None for v in (cell, buffer, workers, scheduler)) or restart
+                     or bool(ply))
+    if tiled:
+        with CityProgress() as bars:
+            twin = build_city_twin(paths, cat, georef, out, unit=unit, tol=tol, threshold=threshold, cell=cell,
+                                   buffer=10.0 if buffer is None else buffer, workers=workers, scheduler=scheduler,
+                                   restart=restart, ply=bool(ply), progress=bars.update)
+    else:
+        with err_console.status("building the twin") as status:
+            twin = build_twin(first, cat, georef, out, unit=unit, tol=tol, threshold=threshold,
+                              progress=lambda msg: status.update(f"{first.name}: {msg}"), ply=ply is not False)
     if json_:
         print_json(twin)
-    else:
-        matched = sum(1 for o in twin["objects"] if o["match"])
-        info(f"{scene.name}: {len(twin['objects'])} objects, {matched} matched, "
-             f"{twin['clustering']['n_clusters']} clusters, {twin['matching']['n_trials']} registration trials, "
-             f"{twin['timing_s']['total']:.2f} s")
+        return
+    matched = sum(1 for o in twin["objects"] if o["match"])
+    info(f"{twin['scene']}: {len(twin['objects'])} objects, {matched} matched, "
+         f"{twin['clustering']['n_clusters']} clusters, {twin['matching']['n_trials']} registration trials, "
+         f"{twin['timing_s']['total']:.2f} s" + (f", {twin['grid']['n_cells']} cells" if tiled else ""))
+    if len(twin["objects"]) <= 50:
         for o in twin["objects"]:
             m = o["match"]
             what = f"{m['name']} ({m['rmse_m'] * 100:.1f} cm)" if m else f"no match: {o.get('reason', '')}"
             info(f"  {o['id']}: {what}, bearing {o['bearing_deg']:.1f} deg")
-        info(f"written: {out / 'twin.json'}, {out / 'twin.ply'}, {out / 'twin.kmz'}, {out / 'report.html'}")
+    written = [p for p in ("twin.json", "twin.ply", "twin.kmz", "report.html") if (out / p).exists()]
+    info("written: " + ", ".join(str(out / p) for p in written) + (f", {out / 'ply'}/" if (out / "ply").exists()
+                                                                  else ""))
 
 
 @app.command("demo")

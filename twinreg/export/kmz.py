@@ -42,9 +42,20 @@ def placemark(obj: dict, href: str) -> str:
             f"<Scale><x>1</x><y>1</y><z>1</z></Scale><Link><href>{escape(href)}</href></Link></Model></Placemark>")
 
 
-def write_kmz(path, name: str, objects: list[dict], meshes: dict) -> Path:
+def region_folder(name: str, bounds: dict, marks: str, min_pixels: int = 128) -> str:
+    """A KML Folder with a Region (``bounds``: north, south, east, west in degrees): Google Earth loads its
+    placemarks only when the region covers at least ``min_pixels`` on screen, so a city opens at once."""
+    box = "".join(f"<{k}>{bounds[k]:.9f}</{k}>" for k in ("north", "south", "east", "west"))
+    return (f"<Folder><name>{escape(name)}</name><Region><LatLonAltBox>{box}</LatLonAltBox>"
+            f"<Lod><minLodPixels>{min_pixels}</minLodPixels><maxLodPixels>-1</maxLodPixels></Lod></Region>"
+            f"{marks}</Folder>")
+
+
+def write_kmz(path, name: str, objects: list[dict], meshes: dict, folders: list[dict] | None = None) -> Path:
     """Write the KMZ. ``objects``: dicts with id, lon, lat, alt, bearing, description, data, mesh (a key of
-    ``meshes``). ``meshes``: key -> (vertices, faces, rgb) in model coordinates (metres, Z up, front +X)."""
+    ``meshes``). ``meshes``: key -> (vertices, faces, rgb) in model coordinates (metres, Z up, front +X).
+    ``folders``: for a tiled run, dicts with name, bounds (see :func:`region_folder`) and ids (of ``objects``):
+    one Folder with a Region each."""
     path = Path(path)
     with tempfile.TemporaryDirectory() as tmpdir:
         files = {}
@@ -53,7 +64,12 @@ def write_kmz(path, name: str, objects: list[dict], meshes: dict) -> Path:
             rel = f"models/{key}.dae"
             write_collada(Path(tmpdir) / f"{key}.dae", np.asarray(v2) @ FRONT_TO_NORTH.T, f2, rgb, key)
             files[rel] = Path(tmpdir) / f"{key}.dae"
-        marks = "".join(placemark(o, f"models/{o['mesh']}.dae") for o in objects)
+        if folders is None:
+            marks = "".join(placemark(o, f"models/{o['mesh']}.dae") for o in objects)
+        else:
+            by_id = {o["id"]: o for o in objects}
+            marks = "".join(region_folder(f["name"], f["bounds"], "".join(
+                placemark(by_id[i], f"models/{by_id[i]['mesh']}.dae") for i in f["ids"])) for f in folders)
         kml = ('<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2">'
                f"<Document><name>{escape(name)}</name><open>1</open>{marks}</Document></kml>\n")
         with atomic_path(path, ".kmz") as tmp, zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED,

@@ -103,7 +103,8 @@ def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: li
     """topview.png, sections.png and report.html (which also shows heatmap.png and dendrogram.png)."""
     folder = Path(folder)
     files = [plot_twin_top(path=folder / "topview.png", **top_png_args)]
-    files += [folder / n for n in ("heatmap.png", "dendrogram.png") if len(twin["objects"]) >= 2]
+    files += [folder / n for n in ("heatmap.png", "dendrogram.png")
+              if len(twin["objects"]) >= 2 and twin.get("dissimilarity") is not None]
     files.append(plot_object_sections(section_items, folder / "sections.png"))
     rows = []
     for o in twin["objects"]:

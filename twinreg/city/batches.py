@@ -1,0 +1,105 @@
+"""The worker side of a city run's global stages: the taxonomy's pair comparisons and the matching, each cut into
+batches (whole clusters for the matching, so that objects of one cluster still share work)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cosco.params import DEFAULT, CoscoParams
+
+
+@dataclass(frozen=True)
+class PairBatch:
+    """Pairs ``(m, 2)`` of indices into ``sections`` (a dict index -> Sections of the objects involved)."""
+
+    pairs: np.ndarray
+    sections: dict
+    params: CoscoParams = DEFAULT
+
+
+def compare_pairs(batch: PairBatch) -> np.ndarray:
+    """The section dissimilarity (m) of each pair of the batch."""
+    from cosco.taxonomy import pair_distances
+
+    index = {k: n for n, k in enumerate(batch.sections)}
+    local = np.array([[index[int(i)], index[int(j)]] for i, j in batch.pairs], dtype=np.int64).reshape(-1, 2)
+    return pair_distances(list(batch.sections.values()), local, batch.params)
+
+
+def pair_batches(sections: list, pairs: np.ndarray, params: CoscoParams, size: int = 400) -> list[PairBatch]:
+    """Batches of about ``size`` pairs, in the order of their first object (each object's sections are sent
+    with the few batches that need them)."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    out = []
+    for a in range(0, len(pairs), size):
+        p = pairs[a:a + size]
+        ids = sorted(set(p.ravel().tolist()))
+        out.append(PairBatch(p, {i: sections[i] for i in ids}, params))
+    return out
+
+
+@dataclass(frozen=True)
+class MatchBatch:
+    """Objects to match against the catalogue in ``folder``: shapes, cluster labels, point samples (float32),
+    each object's scan noise and point spacing (m)."""
+
+    folder: str
+    shapes: list
+    labels: np.ndarray
+    clouds: list
+    noise: np.ndarray
+    spacings: list
+    params: CoscoParams = DEFAULT
+
+
+_CACHES: dict = {}
+
+
+def _models(folder: str, params: CoscoParams):
+    """One catalogue and model cache per worker process and catalogue state (reused by the next batches)."""
+    from pathlib import Path
+
+    from ..catalogue.repository import Catalogue
+    from ..matching import ModelCache
+
+    db = Path(folder) / "catalogue.sqlite"
+    key = (folder, db.stat().st_mtime_ns if db.exists() else 0, repr(params))
+    if key not in _CACHES:
+        _CACHES.clear()
+        cat = Catalogue(folder, create=False)
+        _CACHES[key] = (cat, ModelCache(cat, params))
+    return _CACHES[key]
+
+
+def match_batch(batch: MatchBatch):
+    """``(outcomes, stats)`` of :func:`~twinreg.matching.match_objects` on the batch."""
+    from ..matching import match_objects
+
+    cat, cache = _models(batch.folder, batch.params)
+    return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params, clouds=batch.clouds,
+                         noise=batch.noise, cache=cache, spacings=batch.spacings)
+
+
+def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: str, params: CoscoParams,
+                  size: int = 200) -> tuple[list[MatchBatch], list[np.ndarray]]:
+    """Whole clusters packed into batches of about ``size`` objects; returns the batches and, for each, the
+    indices of its objects."""
+    labels = np.asarray(labels)
+    order = np.argsort(labels, kind="stable")
+    cuts = np.flatnonzero(np.diff(labels[order])) + 1
+    groups = np.split(order, cuts) if len(order) else []
+    batches, members, current = [], [], []
+    for g in groups:
+        current.append(g)
+        if sum(len(c) for c in current) >= size:
+            members.append(np.sort(np.concatenate(current)))
+            current = []
+    if current:
+        members.append(np.sort(np.concatenate(current)))
+    for idx in members:
+        batches.append(MatchBatch(folder, [objects[i].shape for i in idx], labels[idx],
+                                  [objects[i].cloud for i in idx], noise[idx],
+                                  [objects[i].spacing for i in idx], params))
+    return batches, members

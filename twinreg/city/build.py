@@ -1,0 +1,231 @@
+"""build-twin on tiles: plan the grid, split the plain tiles once, run the cells on Dask (resumable), then the
+taxonomy and the matching of all objects (spread over the workers by batches), then the exports.
+
+The per-scene stages run unchanged inside each cell (:mod:`twinreg.city.cells`); this module only maps them over
+the grid and gathers what they found.
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cosco.params import DEFAULT, CoscoParams
+
+from ..errors import CatalogueError, ParameterError, SceneReadError, TwinregError
+from .cells import CellJob, process_cell
+from .engine import Engine
+from .grid import Grid, cell_size_for
+from .resume import CellStore, cell_key
+from .sources import Source, open_sources, split_key, split_tile
+
+
+class CityError(TwinregError):
+    """Cells of a tiled run failed twice."""
+
+
+@dataclass(frozen=True)
+class SplitJob:
+    source: Source
+    grid: Grid
+    folder: str
+
+
+def run_split(job: SplitJob) -> dict:
+    """Worker side: cut one plain LAS/LAZ tile into the cells it feeds (see :func:`~.sources.split_tile`)."""
+    return split_tile(job.source, job.grid, job.folder)
+
+
+@dataclass
+class Plan:
+    """The grid, its cells (name -> Cell, row by row) and the tiles feeding each cell."""
+
+    grid: Grid
+    cells: dict
+    feeds: dict
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.cells)
+
+
+def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0) -> Plan:
+    """The processing grid over the tiles: ``cell`` metres (default: about
+    :data:`~twinreg.city.grid.TARGET_POINTS` points a cell at the tiles' mean density), read ``buffer`` metres
+    wider."""
+    if buffer < 0:
+        raise ParameterError(f"--buffer must be 0 or more (got {buffer:g}); the default is 10 m")
+    if cell is not None and not cell > 2 * buffer:
+        raise ParameterError(f"--cell must be more than twice --buffer ({2 * buffer:g} m); got {cell:g}")
+    size = cell or cell_size_for(sum(s.n_points for s in sources), sum(s.area for s in sources), buffer=buffer)
+    grid = Grid(float(size), float(buffer))
+    cells: dict = {}
+    for s in sources:
+        # an object's footprint centre lies inside the points' bounds: cells whose cores miss every tile own none
+        for c in grid.cells_over(np.asarray(s.lo[:2]), np.asarray(s.hi[:2])):
+            cells.setdefault((c.iy, c.ix), c)
+    cells = {c.name: c for _, c in sorted(cells.items())}
+    feeds = {}
+    for name, c in cells.items():
+        feeds[name] = [s for s in sources if (np.asarray(s.lo[:2]) <= c.read_hi).all()
+                       and (np.asarray(s.hi[:2]) >= c.read_lo).all()]
+    cells = {n: c for n, c in cells.items() if feeds[n]}
+    return Plan(grid, cells, {n: feeds[n] for n in cells})
+
+
+def is_tiled(paths, explicit: bool = False) -> bool:
+    """Whether build-twin should run cell by cell: several paths, a folder, a glob, one of the tiling options
+    (``explicit``), a COPC file, or one LAS/LAZ file holding more than a cell's worth of points."""
+    from .grid import TARGET_POINTS
+
+    paths = [str(p) for p in paths]
+    if explicit or len(paths) != 1 or Path(paths[0]).is_dir() or any(ch in paths[0] for ch in "*?["):
+        return True
+    if Path(paths[0]).suffix.lower() not in (".las", ".laz") or not Path(paths[0]).is_file():
+        return False
+    try:
+        import laspy
+
+        with laspy.open(paths[0]) as reader:
+            from .sources import _is_copc
+
+            return _is_copc(reader.header) or reader.header.point_count > TARGET_POINTS
+    except Exception:  # the per-scene reader reports a broken file with its own message
+        return False
+
+
+def _say(progress, stage, done=0, total=0):
+    if progress:
+        progress(stage, done, total)
+
+
+def city_georef(georef, sources: list[Source]):
+    """The georeference of a tiled run: the options' when given, else the CRS the headers state."""
+    from ..georef import CrsInfo, Georef, GeorefError
+
+    s = sources[0]
+    if georef is not None:
+        if georef.crs and georef.crs_source == "--crs":
+            from ..georef import crs_info
+
+            return georef.with_crs(crs_info(georef.crs, "--crs", where=f"--crs {georef.crs}"))
+        return georef
+    if s.crs is None:
+        raise GeorefError(f"{s.path}: the tiles state no CRS; georeference them with --crs EPSG:NNNN (their "
+                          "projected CRS) or --lat/--lon (the WGS84 position of their origin)")
+    from ..georef import crs_info
+
+    info = crs_info(s.crs, "file header", where=s.path)
+    return Georef(None, None, 0.0, (0.0, 0.0), None).with_crs(CrsInfo(info.crs, info.name, s.scale, s.z_scale,
+                                                                      "file header"))
+
+
+def _clean_work(store: CellStore) -> None:
+    """Remove what killed runs left half-written in the work folder (temporary files and split folders)."""
+    for folder in (store.folder, store.folder / "split"):
+        if folder.is_dir():
+            for p in folder.glob(".tmp-*"):
+                shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+
+
+def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: float | None = None,
+                    threshold: float | None = None, params: CoscoParams = DEFAULT, cell: float | None = None,
+                    buffer: float = 10.0, workers: int | None = None, scheduler: str | None = None,
+                    restart: bool = False, ply: bool = False, progress=None) -> dict:
+    """Build the twin of tiles (files, folders, globs of LAS/LAZ/COPC) cell by cell on Dask; returns the twin JSON
+    (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances."""
+    import twinreg
+
+    from ..outdir import check_replaceable, claim
+    from ..pipeline import _checked_params
+
+    t_start = time.perf_counter()
+    timing: dict = {}
+    params = _checked_params(params, tol, threshold)
+    if workers is not None and workers < 1:
+        raise ParameterError(f"--workers must be 1 or more (got {workers})")
+    crs = georef.crs if georef is not None and georef.crs_source == "--crs" else None
+    sources = open_sources(paths, unit=unit, crs=crs)
+    georef = city_georef(georef, sources)
+    p = plan(sources, cell, buffer)
+    if not p.cells:
+        raise SceneReadError(f"{sources[0].path}: the tiles hold no points")
+    out = Path(out)
+    protect = [Path(s.path) for s in sources] + [catalogue.folder]
+    check_replaceable(out, protect)
+    if catalogue.count() == 0:
+        raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
+                             "`twinreg add-model MESH` or `twinreg import-models DIR`")
+    claim(out, protect)
+    store = CellStore(out)
+    if restart:
+        store.clear()
+    _clean_work(store)
+    keys = {n: cell_key(n, p.feeds[n], p.grid, params, twinreg.__version__) for n in p.cells}
+    todo = [n for n in p.cells if not store.has(n, keys[n])]
+    timing["plan"] = time.perf_counter() - t_start
+    with Engine(workers=workers, scheduler=scheduler) as eng:
+        _run_cells(eng, p, todo, keys, store, params, progress, timing)
+        results = [store.load(n, keys[n]) for n in p.cells]
+        objects = [o for r in results for o in r.objects]
+        if not objects:
+            raise SceneReadError(f"{sources[0].path}: no car-sized objects were found in the tiles; check --unit "
+                                 "and that the scan covers parked cars")
+        from .gather import classify_and_match
+
+        tax, outcomes, stats, models = classify_and_match(eng, results, objects, catalogue, params, progress,
+                                                          timing)
+    from .export import export_city
+
+    t = time.perf_counter()
+    _say(progress, "export", 0, 1)
+    twin = export_city(out, protect, store, keys, sources, p, georef, results, objects, tax, outcomes, stats,
+                       models, catalogue, params, ply, timing, t_start, progress)
+    timing["export"] = time.perf_counter() - t
+    _say(progress, "export", 1, 1)
+    return twin
+
+
+def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellStore, params, progress, timing):
+    """Split the plain tiles that feed unfinished cells (when there is more than one cell), then run those
+    cells; each finished cell is stored at once. Failed cells raise :class:`CityError` after the others."""
+    t = time.perf_counter()
+    need = {s.path: s for n in todo for s in p.feeds[n] if not s.copc} if p.n_cells > 1 else {}
+    folders = {path: store.split_folder(split_key(s, p.grid)) for path, s in need.items()}
+    jobs = [SplitJob(s, p.grid, str(folders[path])) for path, s in need.items()]
+    if jobs:
+        done = [0]
+        _say(progress, "split tiles", 0, len(jobs))
+
+        def split_done(name, result):
+            done[0] += 1
+            _say(progress, "split tiles", done[0], len(jobs))
+
+        fails = eng.run(run_split, jobs, [Path(j.source.path).name for j in jobs], on_result=split_done)
+        if fails:
+            raise CityError("tiles failed to split: " + "; ".join(f"{f.name} ({f.error})" for f in fails))
+    timing["split"] = time.perf_counter() - t
+    t = time.perf_counter()
+    cell_jobs = []
+    for n in todo:
+        splits = tuple(str(folders[s.path]) for s in p.feeds[n] if s.path in folders)
+        boxes = tuple(s for s in p.feeds[n] if s.path not in folders)
+        cell_jobs.append(CellJob(p.cells[n], splits, boxes, params, keys[n]))
+    done = [p.n_cells - len(todo)]
+    _say(progress, "cells", done[0], p.n_cells)
+
+    def cell_done(name, result):
+        store.save(result)
+        done[0] += 1
+        _say(progress, "cells", done[0], p.n_cells)
+
+    fails = eng.run(process_cell, cell_jobs, todo, on_result=cell_done)
+    timing["cells"] = time.perf_counter() - t
+    if fails:
+        shown = "; ".join(f"{f.name} ({f.error})" for f in fails[:5]) + (" ..." if len(fails) > 5 else "")
+        raise CityError(f"{len(fails)} of {p.n_cells} cells failed twice: {shown}; the {done[0]} finished cells are "
+                        f"kept in {store.folder}: rerun the same command to compute only the missing ones")

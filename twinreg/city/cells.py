@@ -1,0 +1,141 @@
+"""One cell of a city run, as one task on a worker: read the cell's points (with its buffer) from the tiles,
+ground, detection and COSCO description (the per-scene stages, unchanged), and keep the objects the cell owns.
+
+A worker gets a :class:`CellJob` (paths and bounds, never points) and returns a :class:`CellResult`: the owned
+objects' shapes, a sample of their points for the match verification, and the cell's summary.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cosco.params import DEFAULT, CoscoParams
+
+from .grid import Cell
+from .sources import read_box, read_split
+
+#: height-above-ground image of each cell for the report: pixel (m) and the value of a pixel with no points
+IMAGE_PIXEL = 1.0
+IMAGE_EMPTY = 255
+
+
+@dataclass(frozen=True)
+class CellJob:
+    """What a worker needs for one cell: the cell, and for each tile that feeds it either the folder of its split
+    (plain LAS/LAZ cut once into cells) or the tile itself (COPC, or a run of one cell), read by bounds."""
+
+    cell: Cell
+    splits: tuple = ()
+    boxes: tuple = ()
+    params: CoscoParams = DEFAULT
+    key: str = ""
+
+
+@dataclass
+class CellObject:
+    """An object the cell owns: ``id`` (cell name and index, the same from run to run), its shape and a sample of
+    its points (float32, scene-local: add ``offset``), its point ``spacing`` (m) and the ground under it."""
+
+    id: str
+    cell: str
+    offset: np.ndarray
+    n_points: int
+    shape: object
+    cloud: np.ndarray
+    spacing: float
+    ground_z: float
+
+
+@dataclass
+class CellResult:
+    """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings
+    and a height-above-ground image of its core (uint8 decimetres, :data:`IMAGE_EMPTY` where no point fell)."""
+
+    name: str
+    key: str
+    lo: tuple
+    hi: tuple
+    n_read: int = 0
+    n_points: int = 0
+    n_ground: int = 0
+    n_outliers: int = 0
+    noise: float = 0.0
+    n_segments: int = 0
+    objects: list = field(default_factory=list)
+    timing_s: dict = field(default_factory=dict)
+    image: np.ndarray | None = None
+
+
+def read_cell(job: CellJob) -> np.ndarray:
+    """The (n, 3) float64 metre points of the cell's buffered square, from every tile that feeds it."""
+    parts = [read_split(folder, job.cell.name) for folder in job.splits]
+    parts += [read_box(src, job.cell.read_lo, job.cell.read_hi) for src in job.boxes]
+    parts = [p for p in parts if len(p)]
+    return np.vstack(parts) if parts else np.zeros((0, 3))
+
+
+def _image(cell: Cell, points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
+    n = int(np.ceil((cell.hi[0] - cell.lo[0]) / IMAGE_PIXEL))
+    own = cell.owns(points[:, :2])
+    ij = np.clip(np.floor((points[own, :2] - cell.lo) / IMAGE_PIXEL).astype(np.int64), 0, n - 1)
+    h = np.where(is_ground[own], 0.0, np.clip(hag[own], 0.0, 25.0))
+    flat = np.full(n * n, -1.0)
+    np.maximum.at(flat, ij[:, 0] * n + ij[:, 1], h)
+    img = np.where(flat < 0, IMAGE_EMPTY, np.round(flat * 10)).astype(np.uint8)
+    return img.reshape(n, n)
+
+
+def process_cell(job: CellJob) -> CellResult:
+    """Read, ground, detection and description of one cell; the objects whose footprint centre lies in the
+    cell's half-open core (see :mod:`twinreg.city.grid`)."""
+    from cosco.footprint import min_area_rectangle
+    from cosco.segment import point_spacing
+
+    from ..acceptance import sample_cloud, scene_noise
+    from ..detect import describe_detected, detect_points, object_ground, object_points
+    from ..io.points import PointSet
+
+    cell, params = job.cell, job.params
+    out = CellResult(cell.name, job.key, cell.lo, cell.hi)
+    t0 = time.perf_counter()
+    pts = read_cell(job)
+    out.n_read = len(pts)
+    out.timing_s["read"] = time.perf_counter() - t0
+    if len(pts) < 100:
+        return out
+    offset = np.array([cell.lo[0], cell.lo[1], 0.0])
+    scene = PointSet(path=Path(cell.name), points=pts, offset=offset, unit="m")
+    det = detect_points(scene, params)
+    out.timing_s.update(det.timing_s)
+    pts = det.scene.points
+    own = cell.owns(pts[:, :2])
+    out.n_points = int(own.sum())
+    out.n_ground = int((det.is_ground & own).sum())
+    out.n_outliers = int(det.scene.n_outliers)
+    out.noise = scene_noise(det.hag, det.is_ground)
+    out.image = _image(cell, pts, det.hag, det.is_ground)
+    t = time.perf_counter()
+    owned, centres = [], []
+    for o in det.segmentation.objects:
+        p = pts[o.indices, :2]
+        centre = min_area_rectangle(p).centre if len(p) >= 3 else p.mean(0)
+        if cell.owns(centre[None])[0]:
+            out.n_segments += 1
+            if o.target:
+                owned.append(o)
+                centres.append(centre)
+    order = sorted(range(len(owned)), key=lambda k: (round(float(centres[k][0]), 2), round(float(centres[k][1]), 2)))
+    owned = [owned[k] for k in order]
+    shapes = describe_detected(det, params, objects=owned)
+    for k, (o, shape) in enumerate(zip(owned, shapes)):
+        cloud = object_points(det, o)
+        out.objects.append(CellObject(
+            id=f"{cell.name}-{k + 1}", cell=cell.name, offset=offset, n_points=int(o.n_points), shape=shape,
+            cloud=sample_cloud(cloud, params.accept_max_points).astype(np.float32),
+            spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o)))
+    out.timing_s["sections"] = time.perf_counter() - t
+    return out

@@ -1,0 +1,123 @@
+"""The Dask engine of a city run: an embedded ``LocalCluster`` (one single-threaded worker process per core by
+default) or an existing cluster given by its scheduler's address.
+
+Tasks go out through a bounded window (at most ``per_worker`` in flight per worker, so the scheduler never holds a
+city's worth of results), each is retried once (a worker killed by its memory limit or a crash), and a task that
+fails again is reported by name while the others finish.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass
+
+from ..errors import TwinregError
+
+#: memory limit of an embedded worker (bytes); Dask pauses it at 80 % and restarts it at 95 %
+WORKER_MEMORY = 4 * 1024 ** 3
+
+
+class EngineError(TwinregError):
+    """The Dask cluster could not be started or reached."""
+
+
+@dataclass
+class Failure:
+    """A task that failed twice: its name and the error's first line."""
+
+    name: str
+    error: str
+
+
+class Engine:
+    """``with Engine(workers=2) as eng: eng.run(fn, jobs, names, on_result)`` (see the module's text)."""
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None, per_worker: int = 2):
+        self.workers = workers
+        self.scheduler = scheduler
+        self.per_worker = per_worker
+        self.cluster = None
+        self.client = None
+
+    def __enter__(self) -> "Engine":
+        from distributed import Client, LocalCluster
+
+        try:
+            if self.scheduler:
+                self.client = Client(self.scheduler, timeout="20s")
+            else:
+                n = self.workers or os.cpu_count() or 1
+                try:
+                    import psutil
+
+                    memory = min(WORKER_MEMORY, int(psutil.virtual_memory().total * 0.8 / n))
+                except ImportError:  # pragma: no cover - psutil comes with distributed
+                    memory = WORKER_MEMORY
+                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, memory_limit=memory,
+                                            dashboard_address=None, silence_logs=logging.ERROR,
+                                            host="127.0.0.1", scheduler_port=0)
+                self.client = Client(self.cluster)
+        except (OSError, TimeoutError) as exc:
+            self.__exit__(None, None, None)
+            where = self.scheduler or "a local cluster"
+            raise EngineError(f"{where}: cannot start or reach the Dask cluster ({exc}); check the address "
+                              "(tcp://HOST:PORT) and that the scheduler runs") from exc
+        return self
+
+    def __exit__(self, *exc):
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        if self.cluster is not None:
+            self.cluster.close()
+            self.cluster = None
+        return False
+
+    @property
+    def n_workers(self) -> int:
+        return max(len(self.client.scheduler_info(n_workers=-1)["workers"]), 1) if self.client else 1
+
+    def run(self, fn, jobs: list, names: list[str], on_result=None, window: int | None = None) -> list[Failure]:
+        """Run ``fn(job)`` for every job, at most ``window`` at a time (default ``per_worker`` per worker);
+        ``on_result(name, result)`` is called in this process as each finishes. Returns the failures."""
+        from distributed import as_completed
+
+        window = window or self.per_worker * self.n_workers
+        pending = list(zip(names, jobs))[::-1]
+        failures: list[Failure] = []
+        futures = {}
+
+        def submit():
+            name, job = pending.pop()
+            f = self.client.submit(fn, job, key=f"{fn.__name__}-{name}-{os.getpid()}", retries=1, pure=False)
+            futures[f] = name
+            return f
+
+        ac = as_completed([submit() for _ in range(min(window, len(pending)))])
+        try:
+            for f in ac:
+                name = futures.pop(f)
+                if f.status == "error":
+                    exc = f.exception()
+                    failures.append(Failure(name, f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"))
+                else:
+                    result = f.result()
+                    if on_result is not None:
+                        on_result(name, result)
+                f.release()
+                if pending:
+                    ac.add(submit())
+        finally:
+            for f in futures:
+                f.cancel()
+        return failures
+
+    def map(self, fn, jobs: list, names: list[str]) -> list:
+        """Results of ``fn(job)`` in order; raises :class:`EngineError` naming a job that failed twice."""
+        results = {}
+        failures = self.run(fn, jobs, names, on_result=lambda n, r: results.__setitem__(n, r))
+        if failures:
+            f = failures[0]
+            raise EngineError(f"task {f.name} failed twice ({f.error})")
+        return [results[n] for n in names]

@@ -1,0 +1,98 @@
+"""The exports of a tiled run: twin.json (every object in the contract's shape, plus a summary per cell), the
+KMZ with one Folder and Region per cell, optional PLY files per cell, and a report that summarises instead of
+drawing n x n pictures. Everything is written to a staging folder that replaces OUT as a whole; the finished
+cells move along with it (``OUT/.cells``) so that a rerun can reuse them."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..export.kmz import write_kmz
+from ..export.objects import object_output
+from ..export.twin_ply import write_twin_ply
+from ..outdir import staged_folder
+from .resume import WORK
+
+
+def _cell_bounds(georef, cell) -> dict:
+    corners = np.array([[cell.lo[0], cell.lo[1], 0.0], [cell.hi[0], cell.lo[1], 0.0], [cell.hi[0], cell.hi[1], 0.0],
+                        [cell.lo[0], cell.hi[1], 0.0]])
+    ll = georef.to_wgs84(corners)
+    return {"north": float(ll[:, 1].max()), "south": float(ll[:, 1].min()), "east": float(ll[:, 0].max()),
+            "west": float(ll[:, 0].min())}
+
+
+def export_city(out, protect, store, keys, sources, plan, georef, results, objects, tax, outcomes, stats, models,
+                catalogue, params, ply, timing, t_start, progress) -> dict:
+    from ..pipeline import taxonomy_json
+    from .report import write_city_report
+
+    out = Path(out)
+    docs, kmz_objects, meshes, per_cell_ply = [], [], {}, {}
+    t = time.perf_counter()
+    for o, res, label in zip(objects, outcomes, tax.labels):
+        item = object_output(o.id, o.n_points, res, int(label), o.offset, georef, models)
+        docs.append(item.doc)
+        kmz_objects.append(item.kmz)
+        meshes.setdefault(item.mesh_key, item.mesh)
+        if ply:
+            per_cell_ply.setdefault(o.cell, []).append((item.placed, item.faces, int(label)))
+    timing["records"] = time.perf_counter() - t
+    by_cell: dict = {}
+    for d, o in zip(docs, objects):
+        by_cell.setdefault(o.cell, []).append(d)
+    cells = []
+    for r in results:
+        own = by_cell.get(r.name, [])
+        cells.append({"name": r.name, "bounds": [float(v) for v in (*r.lo, *r.hi)], "n_points": r.n_points,
+                      "n_ground": r.n_ground, "n_outliers": r.n_outliers, "noise_m": round(r.noise, 4),
+                      "n_objects": len(own), "n_matched": sum(1 for d in own if d["match"]),
+                      "timing_s": {k: round(v, 3) for k, v in r.timing_s.items()}})
+    lo = np.min([s.lo for s in sources], axis=0)
+    hi = np.max([s.hi for s in sources], axis=0)
+    names = [Path(s.path).name for s in sources]
+    twin = {
+        "scene": names[0] if len(names) == 1 else f"{len(names)} tiles ({names[0]} ...)",
+        "sources": [s.path for s in sources],
+        "n_points": int(sum(r.n_points for r in results)), "n_outliers": int(sum(r.n_outliers for r in results)),
+        "unit": sources[0].unit,
+        "georef": georef.to_json() | {"scan_centre": georef.centre_of(np.vstack([lo, hi]))},
+        "offset": [0.0, 0.0, 0.0],
+        "noise_m": round(float(np.median([r.noise for r in results if r.n_points])), 4),
+        "objects": docs,
+        **taxonomy_json(tax),
+        "matching": {"tol_m": params.size_tol, "catalogue_models": catalogue.count(), "n_trials": stats["n_trials"],
+                     "n_pairs_without_prefilter": stats["n_pairs_without_prefilter"],
+                     "n_trials_saved_by_clusters": stats["n_trials_saved_by_clusters"],
+                     "registration_ms_per_trial": round(1000 * stats["registration_s"] / max(stats["n_trials"], 1),
+                                                        3),
+                     "worker_s": {k[:-2]: round(stats[k], 3) for k in ("prefilter_s", "model_prep_s",
+                                                                        "registration_s", "verification_s")}},
+        "grid": {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "n_cells": plan.n_cells,
+                 "origin": [0.0, 0.0]},
+        "cells": cells,
+        "timing_s": {},
+    }
+    folders = [{"name": r.name, "bounds": _cell_bounds(georef, plan.cells[r.name]),
+                "ids": [d["id"] for d in by_cell.get(r.name, [])]} for r in results if by_cell.get(r.name)]
+    with staged_folder(out, protect=protect) as stage:
+        write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", kmz_objects, meshes, folders=folders)
+        if ply:
+            for name, parts in per_cell_ply.items():
+                c = plan.cells[name]
+                write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.array([c.lo[0], c.lo[1], 0.0]),
+                               georef.to_json(), f"{twin['scene']}, cell {name}")
+        write_city_report(stage, twin, results, objects, outcomes, plan)
+        timing["total"] = time.perf_counter() - t_start
+        twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
+        (stage / "twin.json").write_text(json.dumps(twin, indent=2), encoding="utf-8")
+        # the finished cells go with the twin (a rerun with the same inputs reuses them); splits are dropped
+        store.prune({(r.name, keys[r.name]) for r in results})
+        if store.folder.is_dir():
+            os.replace(store.folder, stage / WORK)
+    return twin

@@ -1,0 +1,63 @@
+"""The global stages of a city run, over every cell's objects: the taxonomy (its comparisons spread over the
+workers) and the matching (whole clusters per batch, so that objects of one cluster still share work)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .batches import compare_pairs, match_batch, match_batches, pair_batches
+
+
+def classify_and_match(eng, results, objects, catalogue, params, progress, timing):
+    """(taxonomy, outcomes in object order, matching statistics, the client's ModelCache)."""
+    from ..matching import ModelCache
+    from ..pipeline import classify
+
+    shapes = [o.shape for o in objects]
+    sections = [s.sections for s in shapes]
+
+    def distances_of(pairs):
+        batches = pair_batches(sections, pairs, params)
+        if progress:
+            progress("taxonomy", 0, len(batches))
+        out = eng.map(compare_pairs, batches, [f"pairs{k}" for k in range(len(batches))])
+        if progress:
+            progress("taxonomy", len(batches), len(batches))
+        return np.concatenate(out) if out else np.zeros(0)
+
+    tax = classify(shapes, params, timing, distances_of=distances_of)
+    noise_of = {r.name: r.noise for r in results}
+    noise = np.array([noise_of[o.cell] for o in objects])
+    t = time.perf_counter()
+    batches, members = match_batches(objects, tax.labels, noise, str(catalogue.folder), params)
+    done = [0]
+    if progress:
+        progress("matching", 0, len(objects))
+    outcomes = [None] * len(objects)
+    stats = {"prefilter_s": 0.0, "model_prep_s": 0.0, "registration_s": 0.0, "verification_s": 0.0,
+             "n_trials": 0, "n_pairs_without_prefilter": 0, "n_trials_saved_by_clusters": 0}
+
+    def batch_done(name, result):
+        k = int(name[5:])
+        res, st = result
+        for i, r in zip(members[k], res):
+            outcomes[i] = r
+        for key in stats:
+            stats[key] += st.get(key, 0)
+        done[0] += len(res)
+        if progress:
+            progress("matching", done[0], len(objects))
+
+    from .engine import EngineError
+
+    fails = eng.run(match_batch, batches, [f"batch{k}" for k in range(len(batches))], on_result=batch_done)
+    if fails:
+        raise EngineError(f"matching failed twice for {fails[0].name} ({fails[0].error})")
+    timing["matching"] = time.perf_counter() - t
+    for key in ("prefilter_s", "model_prep_s", "registration_s", "verification_s"):
+        timing[key[:-2]] = stats[key]
+    models = ModelCache(catalogue, params)
+    models.add_rows(catalogue.list())
+    return tax, outcomes, stats, models

@@ -1,0 +1,118 @@
+"""The processing grid of a tiled run (lidR's LAScatalog chunks): square cells aligned to the CRS origin, each read
+with a buffer, and the rule that gives every object to exactly one cell.
+
+A cell ``(ix, iy)`` owns the half-open square ``[ix * size, (ix + 1) * size) x [iy * size, (iy + 1) * size)`` of
+scene coordinates (metres); it is read ``buffer`` metres wider on every side so that an object near its edge is
+whole. An object belongs to the cell whose core holds the centre of its footprint, so an object on a seam comes out
+once, whole, from the cell that owns its centre.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: points a cell should hold by default (ground, detection and sections of one cell in about 1 GB)
+TARGET_POINTS = 6_000_000
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One cell of a :class:`Grid`: ``ix, iy`` its indices; ``lo, hi`` (2,) its core (metres, half-open)."""
+
+    ix: int
+    iy: int
+    lo: tuple
+    hi: tuple
+    buffer: float
+
+    @property
+    def name(self) -> str:
+        """A stable name (the same for the same grid from run to run), e.g. ``c612_2435``."""
+        return f"c{self.ix}_{self.iy}"
+
+    @property
+    def read_lo(self) -> np.ndarray:
+        return np.asarray(self.lo) - self.buffer
+
+    @property
+    def read_hi(self) -> np.ndarray:
+        return np.asarray(self.hi) + self.buffer
+
+    def owns(self, xy: np.ndarray) -> np.ndarray:
+        """(n,) bool: which of the (n, 2) points lie in this cell's half-open core."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        return ((xy >= self.lo) & (xy < self.hi)).all(1)
+
+    def reads(self, xy: np.ndarray) -> np.ndarray:
+        """(n,) bool: which of the (n, 2) points lie in the buffered square this cell reads (closed)."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        return ((xy >= self.read_lo) & (xy <= self.read_hi)).all(1)
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Square cells of ``size`` metres aligned to the scene origin (0, 0), read with ``buffer`` metres around.
+
+    >>> g = Grid(100.0, 10.0)
+    >>> c = g.cell(*g.index([[250.0, -0.5]])[0])
+    >>> c.name, c.lo, c.hi
+    ('c2_-1', (200.0, -100.0), (300.0, 0.0))
+    """
+
+    size: float
+    buffer: float
+
+    def __post_init__(self):
+        if not self.size > 2 * self.buffer:
+            raise ValueError(f"a cell ({self.size} m) must be wider than twice its buffer ({self.buffer} m)")
+
+    def index(self, xy: np.ndarray) -> np.ndarray:
+        """(n, 2) int64 indices of the cells whose cores hold the (n, 2) points."""
+        return np.floor(np.asarray(xy, dtype=np.float64).reshape(-1, 2) / self.size).astype(np.int64)
+
+    def cell(self, ix: int, iy: int) -> Cell:
+        lo = (float(ix) * self.size, float(iy) * self.size)
+        return Cell(int(ix), int(iy), lo, (lo[0] + self.size, lo[1] + self.size), self.buffer)
+
+    def cells_over(self, lo, hi) -> list[Cell]:
+        """The cells whose cores meet the box ``[lo, hi]`` (2-vectors, metres), row by row."""
+        a = self.index(np.asarray(lo, dtype=np.float64)[None, :2])[0]
+        b = self.index(np.asarray(hi, dtype=np.float64)[None, :2])[0]
+        return [self.cell(i, j) for j in range(a[1], b[1] + 1) for i in range(a[0], b[0] + 1)]
+
+    def membership(self, xy: np.ndarray) -> dict[tuple[int, int], np.ndarray]:
+        """For (n, 2) points, the cells whose buffered squares hold them: ``{(ix, iy): indices}`` (a point within
+        ``buffer`` of a seam belongs to up to four cells)."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        base = self.index(xy)
+        frac = xy - base * self.size
+        out: dict[tuple[int, int], list] = {}
+        for dx in (-1, 0, 1):
+            near_x = (frac[:, 0] <= self.buffer) if dx < 0 else (frac[:, 0] >= self.size - self.buffer) if dx > 0 \
+                else np.ones(len(xy), bool)
+            for dy in (-1, 0, 1):
+                near_y = (frac[:, 1] <= self.buffer) if dy < 0 else (frac[:, 1] >= self.size - self.buffer) \
+                    if dy > 0 else np.ones(len(xy), bool)
+                idx = np.flatnonzero(near_x & near_y)
+                if not len(idx):
+                    continue
+                keys = base[idx] + [dx, dy]
+                uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+                order = np.argsort(inv.ravel(), kind="stable")
+                bounds = np.searchsorted(inv.ravel()[order], np.arange(len(uniq) + 1))
+                for k, (i, j) in enumerate(uniq):
+                    out.setdefault((int(i), int(j)), []).append(idx[order[bounds[k]:bounds[k + 1]]])
+        return {k: np.sort(np.concatenate(v)) for k, v in out.items()}
+
+
+def cell_size_for(n_points: int, area_m2: float, target: int = TARGET_POINTS, buffer: float = 10.0) -> float:
+    """A cell side (m, a multiple of 10) holding about ``target`` points at the density ``n_points / area_m2``.
+
+    >>> cell_size_for(100_000_000, 500_000)   # 200 points per m2: 6M points in about 173 m
+    170.0
+    """
+    density = max(n_points, 1) / max(area_m2, 1.0)
+    side = np.sqrt(target / density)
+    return float(max(np.floor(side / 10.0) * 10.0, 10.0 * np.ceil(4 * buffer / 10.0), 20.0))

@@ -1,0 +1,70 @@
+"""Resuming a city run: each finished cell's result is kept under the output folder (``OUT/.cells/``), named by
+the cell and a hash of what it was computed from (the tiles that feed it, the grid, the parameters and the
+program's version). A rerun reuses the results whose hash still matches and computes only the others; a result
+file is written under a temporary name and renamed, so a killed run never leaves half of one.
+
+The results are Python pickles: the folder is the user's own output, written by this program; do not point a
+run at an output folder someone else gave you.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import pickle
+import shutil
+from pathlib import Path
+
+from ..outdir import atomic_path
+
+#: the work folder inside OUT, kept with the twin (a rerun with the same inputs reuses it)
+WORK = ".cells"
+
+
+def cell_key(cell_name: str, sources: list, grid, params, version: str) -> str:
+    """The hash of what a cell's result depends on."""
+    text = json.dumps([cell_name, sorted(s.key() for s in sources), grid.size, grid.buffer, repr(params), version])
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+class CellStore:
+    """The finished cells of a run under ``OUT/.cells`` (see the module's text)."""
+
+    def __init__(self, out):
+        self.folder = Path(out) / WORK
+
+    def path(self, name: str, key: str) -> Path:
+        return self.folder / f"{name}-{key}.pkl"
+
+    def has(self, name: str, key: str) -> bool:
+        return self.path(name, key).is_file()
+
+    def save(self, result) -> Path:
+        dst = self.path(result.name, result.key)
+        with atomic_path(dst, ".pkl") as tmp:
+            with open(tmp, "wb") as fh:
+                pickle.dump(result, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        return dst
+
+    def load(self, name: str, key: str):
+        with open(self.path(name, key), "rb") as fh:
+            return pickle.load(fh)
+
+    def split_folder(self, key: str) -> Path:
+        return self.folder / "split" / key
+
+    def clear(self) -> None:
+        """Forget every stored result (``--restart``)."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def prune(self, keep: set[tuple[str, str]]) -> None:
+        """Remove the splits, temporary files and results of cells other than ``keep`` ((name, key) pairs)."""
+        if not self.folder.is_dir():
+            return
+        shutil.rmtree(self.folder / "split", ignore_errors=True)
+        wanted = {self.path(n, k).name for n, k in keep}
+        for p in self.folder.iterdir():
+            if p.is_dir():
+                shutil.rmtree(p, ignore_errors=True)
+            elif p.name not in wanted:
+                p.unlink(missing_ok=True)

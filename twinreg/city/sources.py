@@ -1,0 +1,234 @@
+"""The input tiles of a city run: LAS/LAZ/COPC files named one by one, as a folder or as a glob; their headers
+(bounds, point counts, CRS and unit) read without the points; and the two ways a worker reads the points of a
+cell: COPC by bounds (octree nodes), plain LAS/LAZ by chunks (bounded memory), split once per tile into the cells
+it feeds.
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneReadError
+from .grid import Grid
+
+TILE_SUFFIXES = (".las", ".laz")
+#: points read at a time from a plain LAS/LAZ file
+CHUNK_POINTS = 2_000_000
+
+
+@dataclass(frozen=True)
+class Source:
+    """One input tile, from its header. ``lo, hi`` (3,) metres (file coordinates times the unit's scale);
+    ``copc``: the file is a COPC (read by bounds)."""
+
+    path: str
+    n_points: int
+    lo: tuple
+    hi: tuple
+    copc: bool
+    crs: str | None
+    crs_name: str | None
+    unit: str
+    scale: float
+    z_scale: float
+    size: int
+    mtime_ns: int
+
+    @property
+    def area(self) -> float:
+        return max(float(self.hi[0] - self.lo[0]) * float(self.hi[1] - self.lo[1]), 1.0)
+
+    def key(self) -> str:
+        """What identifies this input for resuming: its path, size, modification time and unit."""
+        return f"{self.path}|{self.size}|{self.mtime_ns}|{self.scale}|{self.z_scale}|{self.crs}"
+
+
+def expand_paths(paths) -> list[Path]:
+    """Files named, files of named folders (``*.las``, ``*.laz``, any case) and glob matches, sorted, once each;
+    a name that matches nothing raises :class:`SceneReadError`."""
+    found: list[Path] = []
+    for p in paths:
+        s = str(p)
+        if any(ch in s for ch in "*?["):
+            hits = sorted(Path(h) for h in glob.glob(s, recursive=True) if Path(h).is_file())
+            if not hits:
+                raise SceneReadError(f"{s}: the pattern matches no file; check the path (quote it so the shell "
+                                     "does not expand it)")
+            found += hits
+        elif Path(s).is_dir():
+            hits = sorted(f for f in Path(s).iterdir() if f.is_file() and f.suffix.lower() in TILE_SUFFIXES)
+            if not hits:
+                raise SceneReadError(f"{s}: the folder holds no .las or .laz file; pass the tiles' folder")
+            found += hits
+        elif Path(s).is_file():
+            found.append(Path(s))
+        else:
+            raise SceneReadError(f"{s}: no such file or folder")
+    seen, out = set(), []
+    for f in found:
+        r = f.resolve()
+        if r not in seen:
+            seen.add(r)
+            out.append(f)
+    return out
+
+
+def _is_copc(header) -> bool:
+    return any(getattr(v, "user_id", "") == "copc" and getattr(v, "record_id", 0) == 1 for v in header.vlrs)
+
+
+def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Source:
+    """The header of one LAS/LAZ/COPC tile as a :class:`Source` (no points are read)."""
+    import laspy
+
+    from ..io._files import checked_input
+    from ..io.points import _crs_and_units
+
+    path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
+    try:
+        with laspy.open(str(path)) as reader:
+            header = reader.header
+    except Exception as exc:
+        raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
+    header_crs = header_error = None
+    try:
+        header_crs = header.parse_crs()
+    except Exception as exc:
+        header_error = exc
+    info, unit_name, scale, z_scale = _crs_and_units(path, unit.lower(), crs, header_crs, header_error)
+    mins, maxs = np.asarray(header.mins, dtype=np.float64), np.asarray(header.maxs, dtype=np.float64)
+    s = np.array([scale, scale, z_scale])
+    st = path.stat()
+    return Source(path=str(path.resolve()), n_points=int(header.point_count), lo=tuple(mins * s), hi=tuple(maxs * s),
+                  copc=_is_copc(header), crs=info.crs if info else None, crs_name=info.name if info else None,
+                  unit=unit_name, scale=scale, z_scale=z_scale, size=st.st_size, mtime_ns=st.st_mtime_ns)
+
+
+def open_sources(paths, unit: str = "auto", crs: str | None = None) -> list[Source]:
+    """Headers of every tile; tiles whose CRS or unit disagree are refused with one line naming two of them."""
+    files = expand_paths(paths)
+    bad = [f for f in files if f.suffix.lower() not in TILE_SUFFIXES]
+    if bad:
+        raise SceneReadError(f"{bad[0]}: a tiled run reads LAS, LAZ or COPC files; pass this file on its own to "
+                             "build-twin, or convert it to LAZ")
+    sources = [read_source(f, unit, crs) for f in files]
+    first = sources[0]
+    for s in sources[1:]:
+        if not _same_crs(first.crs, s.crs):
+            raise SceneReadError(f"{s.path}: its CRS ({s.crs_name or 'none stated'}) differs from that of "
+                                 f"{first.path} ({first.crs_name or 'none stated'}); tiles of one run must share "
+                                 "one CRS (reproject them, or pass --crs if the headers are wrong)")
+        if abs(s.scale - first.scale) > 1e-12 or abs(s.z_scale - first.z_scale) > 1e-12:
+            raise SceneReadError(f"{s.path}: its unit ({s.unit}) differs from that of {first.path} ({first.unit}); "
+                                 "tiles of one run must share one unit")
+    return sources
+
+
+def _same_crs(a: str | None, b: str | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    if a == b:
+        return True
+    from pyproj import CRS
+
+    return CRS.from_user_input(a).equals(CRS.from_user_input(b), ignore_axis_order=True)
+
+
+def _xyz(points, source: Source) -> np.ndarray:
+    return np.column_stack([np.asarray(points.x, dtype=np.float64) * source.scale,
+                            np.asarray(points.y, dtype=np.float64) * source.scale,
+                            np.asarray(points.z, dtype=np.float64) * source.z_scale])
+
+
+def _chunks(source: Source):
+    """The (n, 3) float64 metre points of a plain LAS/LAZ file, ``CHUNK_POINTS`` at a time."""
+    import laspy
+
+    try:
+        with laspy.open(source.path) as reader:
+            for chunk in reader.chunk_iterator(CHUNK_POINTS):
+                yield _xyz(chunk, source)
+    except Exception as exc:
+        raise SceneReadError(f"{source.path}: reading failed ({type(exc).__name__}: {exc}); is the file complete?") \
+            from exc
+
+
+def read_box(source: Source, lo, hi) -> np.ndarray:
+    """The points of one tile inside the closed box ``[lo, hi]`` (2-vectors, metres): a COPC file by bounds (only
+    the octree nodes that meet the box are decompressed), a plain LAS/LAZ file by chunks."""
+    lo, hi = np.asarray(lo, dtype=np.float64)[:2], np.asarray(hi, dtype=np.float64)[:2]
+    if source.copc:
+        import laspy
+
+        # laspy issue 370: 2-D bounds miss points on some files; pass 3-D bounds spanning the file's z range
+        zlo, zhi = source.lo[2] / source.z_scale - 1.0, source.hi[2] / source.z_scale + 1.0
+        bounds = laspy.copc.Bounds(mins=np.array([lo[0] / source.scale, lo[1] / source.scale, zlo]),
+                                   maxs=np.array([hi[0] / source.scale, hi[1] / source.scale, zhi]))
+        try:
+            with laspy.CopcReader.open(source.path) as reader:
+                pts = _xyz(reader.query(bounds=bounds), source)
+        except Exception as exc:
+            raise SceneReadError(f"{source.path}: reading the COPC file failed ({type(exc).__name__}: {exc})") \
+                from exc
+        keep = ((pts[:, :2] >= lo) & (pts[:, :2] <= hi)).all(1)
+        return pts[keep]
+    parts = []
+    for pts in _chunks(source):
+        keep = ((pts[:, :2] >= lo) & (pts[:, :2] <= hi)).all(1)
+        parts.append(pts[keep])
+    return np.vstack(parts) if parts else np.zeros((0, 3))
+
+
+def split_key(source: Source, grid: Grid) -> str:
+    """The hash naming a tile's split for one grid (changes when the file or the grid changes)."""
+    text = json.dumps([source.key(), grid.size, grid.buffer])
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def split_tile(source: Source, grid: Grid, folder) -> dict:
+    """Stream a plain LAS/LAZ tile once and write, for every cell its points feed (core and buffer), those points
+    as raw float64 ``(n, 3)`` metres to ``folder/<cell>.f64``; returns ``{cell name: n}``. The folder appears
+    complete (written under a temporary name, then renamed) or not at all, so a killed split is redone."""
+    import shutil
+    import tempfile
+
+    folder = Path(folder)
+    if (folder / "split.json").is_file():
+        return json.loads((folder / "split.json").read_text())["cells"]
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".tmp-{folder.name}-"))
+    counts: dict[str, int] = {}
+    handles: dict[str, object] = {}
+    try:
+        for pts in _chunks(source):
+            for (ix, iy), idx in grid.membership(pts[:, :2]).items():
+                name = grid.cell(ix, iy).name
+                if name not in handles:
+                    handles[name] = open(tmp / f"{name}.f64", "wb")
+                handles[name].write(np.ascontiguousarray(pts[idx]).tobytes())
+                counts[name] = counts.get(name, 0) + len(idx)
+        for h in handles.values():
+            h.close()
+        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts}))
+        os.replace(tmp, folder)
+    except BaseException:
+        for h in handles.values():
+            h.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return counts
+
+
+def read_split(folder, cell_name: str) -> np.ndarray:
+    """The points a split tile gave one cell ((n, 3) float64 metres; empty when it gave none)."""
+    f = Path(folder) / f"{cell_name}.f64"
+    if not f.is_file():
+        return np.zeros((0, 3))
+    return np.fromfile(f, dtype=np.float64).reshape(-1, 3)

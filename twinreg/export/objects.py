@@ -1,0 +1,102 @@
+"""Each object of a twin as the exports carry it: its twin.json record, its KMZ placemark, its placed mesh (the
+model's, or a box of its measured size when no model fits), its footprint for the top view and its sections for
+the report. Shared by the per-scene pipeline and the city engine."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import cosco
+from cosco.footprint import min_area_rectangle
+
+from .kmz import box_mesh
+from .twin_ply import cluster_color
+
+
+@dataclass
+class ObjectOutput:
+    """``doc`` (twin.json), ``kmz`` (placemark fields), ``placed`` (n, 3) vertices (object's local frame) with
+    ``faces``, ``mesh_key`` and ``mesh`` (vertices, faces, rgb in model coordinates), ``footprint`` and
+    ``sections`` (report items)."""
+
+    doc: dict
+    kmz: dict
+    placed: np.ndarray
+    faces: np.ndarray
+    mesh_key: str
+    mesh: tuple
+    footprint: dict
+    sections: dict
+
+
+def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration) -> dict:
+    """A model's sections moved onto the object's (for the report), when the turn keeps them in their planes."""
+    c = np.cos(reg.rz)
+    if abs(c) < 0.5:
+        return {}
+    lon = model_sections.longitudinal * [c, 1.0] + [reg.du, reg.tz]
+    tra = model_sections.transverse * [c, 1.0] + [0.0, reg.tz]
+    return {"lon": lon, "tra": tra}
+
+
+def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, georef, models) -> ObjectOutput:
+    """The exports of one matched (or unmatched) object. ``res``: its :class:`~twinreg.matching.ObjectMatch`;
+    ``offset``: (3,) added to the object's local frame gives the scene frame; ``models``: the matcher's
+    :class:`~twinreg.matching.ModelCache` (rows, twin meshes and sections read once per model)."""
+    shape, m = res.shape, res.match
+    rgb = cluster_color(label)
+    if m is not None:
+        row, (mv, mf) = models.row(m.model_id), models.mesh(m.model_id)
+        placed = mv @ m.transform[:3, :3].T + m.transform[:3, 3]
+        faces, heading, centre_local = mf, m.heading, m.centre
+        size = {"length": row.length, "width": row.width, "height": row.height}
+        mesh_key, mesh = f"model{m.model_id}", (mv, mf, tuple(rgb / 255.0))
+        match_doc = {"model_id": m.model_id, "name": m.name, "make": row.make, "model": row.model,
+                     "rmse_m": round(m.rmse, 4), "rz": round(m.rz, 6), "tz": round(m.tz, 4), "du": round(m.du, 4),
+                     "n_candidates": m.n_candidates, "n_trials": m.n_trials, "runner_up": m.runner_up,
+                     "verification": m.verdict.as_dict() if m.verdict is not None else None}
+        reg = cosco.Registration(m.rmse, m.rz, m.tz, m.du)
+        sections = {"title": f"{oid}: {m.name} ({m.rmse * 100:.1f} cm)",
+                    "object": {"lon": shape.sections.longitudinal, "tra": shape.sections.transverse},
+                    "model": _registered_sections(models.geometry(m.model_id).sections, reg)}
+    else:
+        s = shape.size
+        bv, faces = box_mesh(s.length, s.width, s.height)
+        c, sn = np.cos(shape.heading), np.sin(shape.heading)
+        rot = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1.0]])
+        placed = bv @ rot.T + shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]
+        heading, centre_local, size = shape.heading, shape.centroid, s.as_dict()
+        mesh_key, mesh = f"box_{oid}", (bv, faces, (0.9, 0.2, 0.2))
+        match_doc = None
+        sections = {"title": f"{oid}: no match ({res.reason})",
+                    "object": {"lon": shape.sections.longitudinal, "tra": shape.sections.transverse}}
+    centre_scene = np.asarray(centre_local) + offset
+    lon, lat, _ = georef.to_wgs84(centre_scene[None])[0]
+    bearing = georef.bearing(centre_scene, heading)
+    doc = {"id": oid, "n_points": int(n_points), "centroid": [float(v) for v in centre_scene],
+           "heading_rad": float(heading), "size": {k: round(float(v), 3) for k, v in size.items()},
+           "measured_size": shape.size.as_dict(),
+           "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4)},
+           "cluster": int(label), "match": match_doc, "lat": float(lat), "lon": float(lon),
+           "bearing_deg": round(bearing, 3)}
+    if match_doc is None:
+        doc["reason"] = res.reason
+        if res.rejected:
+            doc["rejected_model"] = res.rejected
+    description = (f"{match_doc['name']} ({match_doc['make'] or ''} {match_doc['model'] or ''}), RMSE "
+                   f"{match_doc['rmse_m'] * 100:.1f} cm" if match_doc else f"unmatched: {res.reason}")
+    kmz = {"id": oid, "lon": lon, "lat": lat, "alt": 0.0, "bearing": bearing, "mesh": mesh_key,
+           "description": description,
+           "data": {"model": match_doc["name"] if match_doc else "none",
+                    "make": (match_doc or {}).get("make") or "",
+                    "length_m": f"{size['length']:.2f}", "width_m": f"{size['width']:.2f}",
+                    "height_m": f"{size['height']:.2f}",
+                    "rmse_m": f"{match_doc['rmse_m']:.4f}" if match_doc else "", "cluster": int(label)}}
+    rect = min_area_rectangle(placed[:, :2])
+    ctr = np.asarray(centre_local)[:2]
+    footprint = {"corners": rect.corners(), "color": rgb / 255.0, "centre": ctr,
+                 "front": ctr + 1.5 * np.array([np.cos(heading), np.sin(heading)]),
+                 "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1]) + ("" if m else "?")}
+    return ObjectOutput(doc, kmz, placed, faces, mesh_key, mesh, footprint, sections)
