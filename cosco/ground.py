@@ -183,11 +183,13 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
 def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     """The ground surface under a scene, block by block (see the module docstring).
 
-    points : (n, 3) float, metres (large projected coordinates are fine: the grid is relative to the minimum).
+    points : (n, 3) float, metres (large projected coordinates are fine, but a scene-local frame keeps the float
+    arithmetic exact).
     """
     pts = as_points(points)
     cell, b, h = params.ground_cell, params.ground_block, params.ground_halo
-    origin = (np.floor(pts[:, :2].min(0) / cell) * cell).astype(np.float64)
+    # blocks on a lattice anchored at the frame's origin: a tile of a larger scene (same frame) gets the same blocks
+    origin = (np.floor(pts[:, :2].min(0) / (cell * b)) * (cell * b)).astype(np.float64)
     ij = np.floor((pts[:, :2] - origin) / cell).astype(np.int64)
     extent = ij.max(0) + 1
     n_cols = int(extent[1] // b + 1)

@@ -86,7 +86,9 @@ class CoscoParams:
         Points this close to the ground surface (m) are ground (a kerb is 0.15 m).
     ground_block, ground_halo : int
         Blocks (cells) in which the ground is computed, and the halo (cells) around each: memory goes by occupied
-        blocks, not by the bounding box. The halo exceeds the widest window plus the smoothing reach.
+        blocks, not by the bounding box. The halo (32 m) is the filter's reach: the ground at a point depends only
+        on the points within it (the widest opening, 14 m, and two smoothing passes of 8 m each), so a block, or a
+        tile read that much wider, gets exactly the ground the whole scene gives.
 
     Objects (paper 3.1; patches are voxels of ``seg_voxel``, the paper's 15 cm seeds):
 
@@ -173,7 +175,7 @@ class CoscoParams:
     ground_dh_final: float = 0.30
     ground_tol: float = 0.15
     ground_block: int = 1024
-    ground_halo: int = 48
+    ground_halo: int = 64
 
     seg_voxel: float = 0.15
     seg_column: float = 0.25
@@ -203,6 +205,11 @@ class CoscoParams:
 
     taxonomy_full_max: int = 32
     taxonomy_neighbours: int = 6
+
+    @property
+    def ground_reach(self) -> float:
+        """Metres around a point whose points decide its ground (``ground_halo`` cells)."""
+        return self.ground_halo * self.ground_cell
 
     def with_(self, **changes) -> "CoscoParams":
         """A copy with some values changed.

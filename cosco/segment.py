@@ -230,7 +230,9 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
     cand = np.flatnonzero(~ground & (hag <= params.seg_max_height))
     if len(cand) == 0:
         return Segmentation(labels, [], 0, 0)
-    origin = pts[cand].min(0)
+    # grids anchored at the frame's origin, not at the data: a tile or a cell of a larger scene (same frame) cuts
+    # the same columns and voxels as the whole scene
+    origin = np.zeros(3)
     cand = cand[lowest_runs(pts[cand] - origin, hag[cand], params)]
     # objects grow from their cores (points well above the ground): kerbs, planted islands and low clutter
     # between parked cars cannot bridge them; low points then join the core within two patches of them

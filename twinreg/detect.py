@@ -37,15 +37,23 @@ class Detection:
         return [(f"obj{k + 1}", o) for k, o in enumerate(objs)]
 
 
-def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None) -> Detection:
+def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None, keep=None) -> Detection:
     """Ground removal and connectivity-based object detection on a read scene (points far from the scan are
-    dropped first and counted in ``scene.n_outliers``)."""
+    dropped first and counted in ``scene.n_outliers``). ``keep``: a function of the (n, 3) scene points giving
+    the (n,) mask of those to search for objects after the ground is computed on all of them (a tile read wider
+    for its ground), or None for all."""
     t0 = time.perf_counter()
     outliers = far_outliers(scene.local, params)
     if outliers.any():
         scene = scene.without(outliers)
     local = scene.local
     is_ground, hag, ground = remove_ground(local, params)
+    if keep is not None:
+        inside = np.asarray(keep(scene.points), dtype=bool)
+        from dataclasses import replace
+
+        scene = replace(scene, points=scene.points[inside])
+        local, is_ground, hag = local[inside], is_ground[inside], hag[inside]
     t1 = time.perf_counter()
     if progress:
         progress("ground")

@@ -47,22 +47,26 @@ class Plan:
     grid: Grid
     cells: dict
     feeds: dict
+    offset: tuple = (0.0, 0.0, 0.0)
 
     @property
     def n_cells(self) -> int:
         return len(self.cells)
 
 
-def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0) -> Plan:
+def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0, margin: float = 0.0) -> Plan:
     """The processing grid over the tiles: ``cell`` metres (default: about
-    :data:`~twinreg.city.grid.TARGET_POINTS` points a cell at the tiles' mean density), read ``buffer`` metres
-    wider."""
+    :data:`~twinreg.city.grid.TARGET_POINTS` points a cell at the tiles' mean density), objects searched
+    ``buffer`` metres wider, points read ``margin`` metres wider (the ground filter's reach)."""
     if buffer < 0:
         raise ParameterError(f"--buffer must be 0 or more (got {buffer:g}); the default is 10 m")
-    if cell is not None and not cell > 2 * buffer:
-        raise ParameterError(f"--cell must be more than twice --buffer ({2 * buffer:g} m); got {cell:g}")
-    size = cell or cell_size_for(sum(s.n_points for s in sources), sum(s.area for s in sources), buffer=buffer)
-    grid = Grid(float(size), float(buffer))
+    least = max(2 * buffer, margin)
+    if cell is not None and not cell > least:
+        raise ParameterError(f"--cell must be more than {least:g} m (twice --buffer, and the ground filter's "
+                             f"reach of {margin:g} m); got {cell:g}")
+    size = cell or max(cell_size_for(sum(s.n_points for s in sources), sum(s.area for s in sources),
+                                     buffer=buffer), 10.0 * np.ceil(least / 10.0 + 1))
+    grid = Grid(float(size), float(buffer), float(margin))
     cells: dict = {}
     for s in sources:
         # an object's footprint centre lies inside the points' bounds: cells whose cores miss every tile own none
@@ -74,7 +78,11 @@ def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0)
         feeds[name] = [s for s in sources if (np.asarray(s.lo[:2]) <= c.read_hi).all()
                        and (np.asarray(s.hi[:2]) >= c.read_lo).all()]
     cells = {n: c for n, c in cells.items() if feeds[n]}
-    return Plan(grid, cells, {n: feeds[n] for n in cells})
+    # one local frame for the whole run, chosen as the reader chooses it for one file (a round number under the
+    # minimum): the cells then compute exactly what the merged scene would
+    lo = np.min([s.lo for s in sources], axis=0)
+    offset = (float(np.floor(lo[0] / 100.0) * 100.0), float(np.floor(lo[1] / 100.0) * 100.0), 0.0)
+    return Plan(grid, cells, {n: feeds[n] for n in cells}, offset)
 
 
 def is_tiled(paths, explicit: bool = False) -> bool:
@@ -151,7 +159,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     crs = georef.crs if georef is not None and georef.crs_source == "--crs" else None
     sources = open_sources(paths, unit=unit, crs=crs)
     georef = city_georef(georef, sources)
-    p = plan(sources, cell, buffer)
+    p = plan(sources, cell, buffer, params.ground_reach)
     if not p.cells:
         raise SceneReadError(f"{sources[0].path}: the tiles hold no points")
     out = Path(out)
@@ -165,7 +173,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     if restart:
         store.clear()
     _clean_work(store)
-    keys = {n: cell_key(n, p.feeds[n], p.grid, params, twinreg.__version__) for n in p.cells}
+    keys = {n: cell_key(n, p.feeds[n], p.grid, params, twinreg.__version__, p.offset) for n in p.cells}
     todo = [n for n in p.cells if not store.has(n, keys[n])]
     timing["plan"] = time.perf_counter() - t_start
     with Engine(workers=workers, scheduler=scheduler) as eng:
@@ -214,7 +222,7 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
     for n in todo:
         splits = tuple(str(folders[s.path]) for s in p.feeds[n] if s.path in folders)
         boxes = tuple(s for s in p.feeds[n] if s.path not in folders)
-        cell_jobs.append(CellJob(p.cells[n], splits, boxes, params, keys[n]))
+        cell_jobs.append(CellJob(p.cells[n], splits, boxes, params, keys[n], p.offset))
     done = [p.n_cells - len(todo)]
     _say(progress, "cells", done[0], p.n_cells)
 

@@ -26,13 +26,16 @@ IMAGE_EMPTY = 255
 @dataclass(frozen=True)
 class CellJob:
     """What a worker needs for one cell: the cell, and for each tile that feeds it either the folder of its split
-    (plain LAS/LAZ cut once into cells) or the tile itself (COPC, or a run of one cell), read by bounds."""
+    (plain LAS/LAZ cut once into cells) or the tile itself (COPC, or a run of one cell), read by bounds; and the
+    run's local frame (``offset``, the same for every cell, as a reader would choose for all the tiles merged),
+    so that every grid the stages cut lies where it would on the whole scene."""
 
     cell: Cell
     splits: tuple = ()
     boxes: tuple = ()
     params: CoscoParams = DEFAULT
     key: str = ""
+    offset: tuple = (0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -107,9 +110,10 @@ def process_cell(job: CellJob) -> CellResult:
     out.timing_s["read"] = time.perf_counter() - t0
     if len(pts) < 100:
         return out
-    offset = np.array([cell.lo[0], cell.lo[1], 0.0])
+    offset = np.asarray(job.offset, dtype=np.float64)
     scene = PointSet(path=Path(cell.name), points=pts, offset=offset, unit="m")
-    det = detect_points(scene, params)
+    # the ground from everything read (the filter's reach), the objects from the core and its buffer
+    det = detect_points(scene, params, keep=lambda p: cell.searches(p[:, :2]))
     out.timing_s.update(det.timing_s)
     pts = det.scene.points
     own = cell.owns(pts[:, :2])

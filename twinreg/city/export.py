@@ -62,7 +62,7 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
         "n_points": int(sum(r.n_points for r in results)), "n_outliers": int(sum(r.n_outliers for r in results)),
         "unit": sources[0].unit,
         "georef": georef.to_json() | {"scan_centre": georef.centre_of(np.vstack([lo, hi]))},
-        "offset": [0.0, 0.0, 0.0],
+        "offset": [float(v) for v in plan.offset],
         "noise_m": round(float(np.median([r.noise for r in results if r.n_points])), 4),
         "objects": docs,
         **taxonomy_json(tax),
@@ -84,8 +84,7 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
         write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", kmz_objects, meshes, folders=folders)
         if ply:
             for name, parts in per_cell_ply.items():
-                c = plan.cells[name]
-                write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.array([c.lo[0], c.lo[1], 0.0]),
+                write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset),
                                georef.to_json(), f"{twin['scene']}, cell {name}")
         write_city_report(stage, twin, results, objects, outcomes, plan)
         timing["total"] = time.perf_counter() - t_start

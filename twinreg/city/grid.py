@@ -2,8 +2,9 @@
 with a buffer, and the rule that gives every object to exactly one cell.
 
 A cell ``(ix, iy)`` owns the half-open square ``[ix * size, (ix + 1) * size) x [iy * size, (iy + 1) * size)`` of
-scene coordinates (metres); it is read ``buffer`` metres wider on every side so that an object near its edge is
-whole. An object belongs to the cell whose core holds the centre of its footprint, so an object on a seam comes out
+scene coordinates (metres); objects are searched ``buffer`` metres wider on every side so that an object near its
+edge is whole, and the points are read ``margin`` metres wider (at least the ground filter's reach), so that the
+ground under every object is exactly the one the whole scene gives. An object belongs to the cell whose core holds the centre of its footprint, so an object on a seam comes out
 once, whole, from the cell that owns its centre.
 """
 
@@ -26,6 +27,7 @@ class Cell:
     lo: tuple
     hi: tuple
     buffer: float
+    margin: float = 0.0
 
     @property
     def name(self) -> str:
@@ -34,26 +36,28 @@ class Cell:
 
     @property
     def read_lo(self) -> np.ndarray:
-        return np.asarray(self.lo) - self.buffer
+        return np.asarray(self.lo) - max(self.buffer, self.margin)
 
     @property
     def read_hi(self) -> np.ndarray:
-        return np.asarray(self.hi) + self.buffer
+        return np.asarray(self.hi) + max(self.buffer, self.margin)
 
     def owns(self, xy: np.ndarray) -> np.ndarray:
         """(n,) bool: which of the (n, 2) points lie in this cell's half-open core."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         return ((xy >= self.lo) & (xy < self.hi)).all(1)
 
-    def reads(self, xy: np.ndarray) -> np.ndarray:
-        """(n,) bool: which of the (n, 2) points lie in the buffered square this cell reads (closed)."""
+    def searches(self, xy: np.ndarray) -> np.ndarray:
+        """(n,) bool: which of the (n, 2) points lie in the square where this cell looks for objects (the core and
+        its buffer, closed)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        return ((xy >= self.read_lo) & (xy <= self.read_hi)).all(1)
+        return ((xy >= np.asarray(self.lo) - self.buffer) & (xy <= np.asarray(self.hi) + self.buffer)).all(1)
 
 
 @dataclass(frozen=True)
 class Grid:
-    """Square cells of ``size`` metres aligned to the scene origin (0, 0), read with ``buffer`` metres around.
+    """Square cells of ``size`` metres aligned to the scene origin (0, 0), searched for objects ``buffer`` metres
+    wider and read ``margin`` metres wider (the larger of the two).
 
     >>> g = Grid(100.0, 10.0)
     >>> c = g.cell(*g.index([[250.0, -0.5]])[0])
@@ -63,10 +67,18 @@ class Grid:
 
     size: float
     buffer: float
+    margin: float = 0.0
+
+    @property
+    def reach(self) -> float:
+        """How far around its core a cell reads (m)."""
+        return max(self.buffer, self.margin)
 
     def __post_init__(self):
         if not self.size > 2 * self.buffer:
             raise ValueError(f"a cell ({self.size} m) must be wider than twice its buffer ({self.buffer} m)")
+        if not self.size >= self.reach:
+            raise ValueError(f"a cell ({self.size} m) must be at least as wide as it reads around it ({self.reach} m)")
 
     def index(self, xy: np.ndarray) -> np.ndarray:
         """(n, 2) int64 indices of the cells whose cores hold the (n, 2) points."""
@@ -74,7 +86,7 @@ class Grid:
 
     def cell(self, ix: int, iy: int) -> Cell:
         lo = (float(ix) * self.size, float(iy) * self.size)
-        return Cell(int(ix), int(iy), lo, (lo[0] + self.size, lo[1] + self.size), self.buffer)
+        return Cell(int(ix), int(iy), lo, (lo[0] + self.size, lo[1] + self.size), self.buffer, self.margin)
 
     def cells_over(self, lo, hi) -> list[Cell]:
         """The cells whose cores meet the box ``[lo, hi]`` (2-vectors, metres), row by row."""
@@ -84,16 +96,17 @@ class Grid:
 
     def membership(self, xy: np.ndarray) -> dict[tuple[int, int], np.ndarray]:
         """For (n, 2) points, the cells whose buffered squares hold them: ``{(ix, iy): indices}`` (a point within
-        ``buffer`` of a seam belongs to up to four cells)."""
+        :attr:`reach` of a seam belongs to up to four cells)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         base = self.index(xy)
         frac = xy - base * self.size
         out: dict[tuple[int, int], list] = {}
         for dx in (-1, 0, 1):
-            near_x = (frac[:, 0] <= self.buffer) if dx < 0 else (frac[:, 0] >= self.size - self.buffer) if dx > 0 \
+            r = self.reach
+            near_x = (frac[:, 0] <= r) if dx < 0 else (frac[:, 0] >= self.size - r) if dx > 0 \
                 else np.ones(len(xy), bool)
             for dy in (-1, 0, 1):
-                near_y = (frac[:, 1] <= self.buffer) if dy < 0 else (frac[:, 1] >= self.size - self.buffer) \
+                near_y = (frac[:, 1] <= r) if dy < 0 else (frac[:, 1] >= self.size - r) \
                     if dy > 0 else np.ones(len(xy), bool)
                 idx = np.flatnonzero(near_x & near_y)
                 if not len(idx):

@@ -21,9 +21,10 @@ from ..outdir import atomic_path
 WORK = ".cells"
 
 
-def cell_key(cell_name: str, sources: list, grid, params, version: str) -> str:
+def cell_key(cell_name: str, sources: list, grid, params, version: str, offset=(0.0, 0.0, 0.0)) -> str:
     """The hash of what a cell's result depends on."""
-    text = json.dumps([cell_name, sorted(s.key() for s in sources), grid.size, grid.buffer, repr(params), version])
+    text = json.dumps([cell_name, sorted(s.key() for s in sources), grid.size, grid.buffer, grid.margin, repr(params), version,
+                       [float(v) for v in offset]])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

@@ -172,6 +172,23 @@ def _write_laz(path: Path, points: np.ndarray, crs: str, copc: bool = False):
     las.write(str(path))
 
 
+def city_models(library=None) -> tuple[list, list[str], str]:
+    """The cars of a simulated city: the catalogue's models (their twin meshes) when it has any, else the
+    project's parametric cars. Returns (meshes, names, "catalogue" or "parametric")."""
+    from ..catalogue.db import library_path
+    from ..catalogue.repository import Catalogue
+
+    folder = library_path(library)
+    if (Path(folder) / "catalogue.sqlite").exists():
+        cat = Catalogue(folder, create=False)
+        rows = sorted(cat.list(), key=lambda r: r.name)
+        if rows:
+            return [cat.ge_mesh(r) for r in rows], [r.name for r in rows], "catalogue"
+    from ..parametric import LIBRARY, car_mesh
+
+    return [car_mesh(spec) for spec in LIBRARY], [spec.name for spec in LIBRARY], "parametric"
+
+
 def simulate_city(out, models: list, names: list[str], km2: float = 0.01, density: float = 150.0,
                   tile: float = 100.0, seed: int = 0, crs: str = DEFAULT_CRS, origin=DEFAULT_ORIGIN,
                   progress=None) -> dict:

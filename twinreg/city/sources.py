@@ -188,7 +188,7 @@ def read_box(source: Source, lo, hi) -> np.ndarray:
 
 def split_key(source: Source, grid: Grid) -> str:
     """The hash naming a tile's split for one grid (changes when the file or the grid changes)."""
-    text = json.dumps([source.key(), grid.size, grid.buffer])
+    text = json.dumps([source.key(), grid.size, grid.buffer, grid.margin])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

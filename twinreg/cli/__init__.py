@@ -6,7 +6,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from . import models, objects, scenes
+from . import city, models, objects, scenes
 
 app = typer.Typer(
     name="twinreg",
@@ -36,6 +36,7 @@ def _global(
 app.add_typer(models.app)
 app.add_typer(objects.app)
 app.add_typer(scenes.app)
+app.add_typer(city.app)
 
 
 def main() -> None:
