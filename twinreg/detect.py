@@ -57,7 +57,10 @@ def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None,
     t1 = time.perf_counter()
     if progress:
         progress("ground")
-    seg = segment_objects(local, hag, params, is_ground=is_ground)
+    if len(local):
+        seg = segment_objects(local, hag, params, is_ground=is_ground)
+    else:  # a tile's margin held points, the part searched for objects none
+        seg = Segmentation(np.zeros(0, dtype=np.int64), [], 0, 0)
     t2 = time.perf_counter()
     if progress:
         progress("objects")

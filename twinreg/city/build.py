@@ -192,7 +192,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     t = time.perf_counter()
     _say(progress, "export", 0, 1)
     twin = export_city(out, protect, store, keys, sources, p, georef, results, objects, tax, outcomes, stats,
-                       models, catalogue, params, ply, timing, t_start, progress)
+                       models, catalogue, params, ply, timing, t_start, progress, reused=p.n_cells - len(todo))
     timing["export"] = time.perf_counter() - t
     _say(progress, "export", 1, 1)
     return twin

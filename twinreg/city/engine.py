@@ -55,7 +55,7 @@ class Engine:
                 except ImportError:  # pragma: no cover - psutil comes with distributed
                     memory = WORKER_MEMORY
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, memory_limit=memory,
-                                            dashboard_address=None, silence_logs=logging.ERROR,
+                                            dashboard_address=None, silence_logs=logging.CRITICAL,
                                             host="127.0.0.1", scheduler_port=0)
                 self.client = Client(self.cluster)
         except (OSError, TimeoutError) as exc:

@@ -28,7 +28,7 @@ def _cell_bounds(georef, cell) -> dict:
 
 
 def export_city(out, protect, store, keys, sources, plan, georef, results, objects, tax, outcomes, stats, models,
-                catalogue, params, ply, timing, t_start, progress) -> dict:
+                catalogue, params, ply, timing, t_start, progress, reused: int = 0) -> dict:
     from ..pipeline import taxonomy_json
     from .report import write_city_report
 
@@ -73,8 +73,8 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
                                                         3),
                      "worker_s": {k[:-2]: round(stats[k], 3) for k in ("prefilter_s", "model_prep_s",
                                                                         "registration_s", "verification_s")}},
-        "grid": {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "n_cells": plan.n_cells,
-                 "origin": [0.0, 0.0]},
+        "grid": {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
+                 "n_cells": plan.n_cells, "n_cells_reused": int(reused), "origin": [0.0, 0.0]},
         "cells": cells,
         "timing_s": {},
     }

@@ -191,8 +191,9 @@ def city_models(library=None) -> tuple[list, list[str], str]:
 
 def simulate_city(out, models: list, names: list[str], km2: float = 0.01, density: float = 150.0,
                   tile: float = 100.0, seed: int = 0, crs: str = DEFAULT_CRS, origin=DEFAULT_ORIGIN,
-                  progress=None) -> dict:
-    """Write ``out/tile_<x>_<y>.laz`` (``tile`` metres square, ``crs`` in each header) and ``out/truth.json``.
+                  progress=None, copc: bool = False) -> dict:
+    """Write ``out/tile_<x>_<y>.laz`` (``tile`` metres square, ``crs`` in each header; ``.copc.laz`` files with
+    ``copc``) and ``out/truth.json``.
 
     models : (vertices, faces) of each car model (metres, Z up, front +X, footprint centred, bottom at z 0);
     names : their names, written in the truth. Returns the truth document.
@@ -223,9 +224,14 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
                     keep = (t_ij[:, 0] == tx) & (t_ij[:, 1] == ty)
                     parts.append(pts[keep])
             pts = np.vstack(parts) + [origin[0], origin[1], 0.0]
-            name = f"tile_{int(origin[0] + lo[0])}_{int(origin[1] + lo[1])}.laz"
+            name = f"tile_{int(origin[0] + lo[0])}_{int(origin[1] + lo[1])}" + (".copc.laz" if copc else ".laz")
             with atomic_path(out / name, ".laz") as tmp:
-                _write_laz(tmp, pts, crs)
+                if copc:
+                    from ..io.copc import write_copc
+
+                    write_copc(tmp, pts, crs)
+                else:
+                    _write_laz(tmp, pts, crs)
             files.append(name)
             n_points += len(pts)
             if progress:

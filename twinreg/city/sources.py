@@ -102,12 +102,18 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
         header_crs = header.parse_crs()
     except Exception as exc:
         header_error = exc
+    copc = _is_copc(header)
+    if copc and not any(getattr(v, "user_id", "") == "copc" and getattr(v, "record_id", 0) == 1000
+                        for v in (header.evlrs or [])):
+        # laspy reads a truncated COPC as an empty one: refuse it here rather than lose its points
+        raise SceneReadError(f"{path}: a COPC file without its octree hierarchy (truncated?); copy or download it "
+                             "again")
     info, unit_name, scale, z_scale = _crs_and_units(path, unit.lower(), crs, header_crs, header_error)
     mins, maxs = np.asarray(header.mins, dtype=np.float64), np.asarray(header.maxs, dtype=np.float64)
     s = np.array([scale, scale, z_scale])
     st = path.stat()
     return Source(path=str(path.resolve()), n_points=int(header.point_count), lo=tuple(mins * s), hi=tuple(maxs * s),
-                  copc=_is_copc(header), crs=info.crs if info else None, crs_name=info.name if info else None,
+                  copc=copc, crs=info.crs if info else None, crs_name=info.name if info else None,
                   unit=unit_name, scale=scale, z_scale=z_scale, size=st.st_size, mtime_ns=st.st_mtime_ns)
 
 

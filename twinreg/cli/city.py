@@ -21,6 +21,7 @@ def simulate_city_cmd(
     tile: Annotated[float, typer.Option(help="Tile side (m).")] = 100.0,
     seed: Annotated[int, typer.Option(help="Seed (the city is deterministic).")] = 0,
     crs: Annotated[str, typer.Option(help="Projected CRS written in the headers.")] = "EPSG:28992",
+    copc: Annotated[bool, typer.Option("--copc", help="Write COPC files (.copc.laz) instead of plain LAZ.")] = False,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -34,7 +35,7 @@ def simulate_city_cmd(
         info("the catalogue is empty: the city's cars are the project's parametric ones")
     with CityProgress() as bars, staged_folder(out) as stage:
         truth = simulate_city(stage, models, names, km2=km2, density=density, tile=tile, seed=seed, crs=crs,
-                              progress=bars.update)
+                              progress=bars.update, copc=copc)
     doc = {k: truth[k] for k in ("crs", "tile_m", "density", "seed", "side_m", "n_points", "tiles")}
     doc |= {"n_cars": len(truth["cars"]), "truth": str(out / "truth.json"), "models": source}
     if json_:

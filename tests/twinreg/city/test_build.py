@@ -1,0 +1,224 @@
+"""build-twin on tiles: the same twin as the merged scene, every car once, resumable, the same on an external
+Dask cluster, and COPC tiles read by bounds give the same twin as plain LAZ."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+CELL = 35.0  # cells that do not line up with the 40 m tiles: both kinds of seams cross cars
+
+BIN = Path(sys.executable).parent
+
+
+@pytest.fixture(scope="session")
+def small_city(tmp_path_factory, parametric_catalogue):
+    """2 x 2 tiles of 40 m (about 1M points, 67 parked cars of the 8 parametric models), LAZ and COPC."""
+    from twinreg.city.simulate import simulate_city
+
+    cat = parametric_catalogue
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    models = [cat.ge_mesh(r) for r in rows]
+    root = tmp_path_factory.mktemp("city")
+    laz = simulate_city(root / "laz", models, [r.name for r in rows], km2=0.0064, density=100.0, tile=40.0, seed=3)
+    simulate_city(root / "copc", models, [r.name for r in rows], km2=0.0064, density=100.0, tile=40.0, seed=3,
+                  copc=True)
+    return root, laz
+
+
+@pytest.fixture(scope="session")
+def city_twin(small_city, parametric_catalogue):
+    from twinreg.city.build import build_city_twin
+
+    root, _ = small_city
+    return build_city_twin([root / "laz"], parametric_catalogue, None, root / "out", cell=CELL, workers=2)
+
+
+def _merged(folder: Path, dst: Path) -> Path:
+    import laspy
+    import pyproj
+
+    pts = []
+    for f in sorted(folder.glob("*.laz")):
+        las = laspy.read(f)
+        pts.append(np.column_stack([las.x, las.y, las.z]))
+    pts = np.vstack(pts)
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales, header.offsets = [0.001] * 3, np.floor(pts.min(0) / 1000) * 1000
+    header.add_crs(pyproj.CRS("EPSG:28992"))
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = pts.T
+    las.write(dst)
+    return dst
+
+
+def _strip(twin: dict) -> dict:
+    """twin.json without what may change from run to run (timings, the reused-cell count, worker sums)."""
+    t = json.loads(json.dumps(twin))
+    t.pop("timing_s")
+    t["grid"].pop("n_cells_reused")
+    t["matching"].pop("worker_s"), t["matching"].pop("registration_ms_per_trial")
+    for c in t["cells"]:
+        c.pop("timing_s")
+    return t
+
+
+def test_tiles_give_the_merged_scenes_twin_with_every_car_once(small_city, city_twin, parametric_catalogue,
+                                                               tmp_path):
+    from scipy.spatial import cKDTree
+
+    from twinreg.pipeline import build_twin
+
+    root, truth = small_city
+    assert len(truth["tiles"]) == 4 and city_twin["grid"]["n_cells"] > 4
+    merged = build_twin(_merged(root / "laz", tmp_path / "merged.laz"), parametric_catalogue, None, tmp_path / "m")
+    a = sorted(merged["objects"], key=lambda o: o["centroid"][:2])
+    b = sorted(city_twin["objects"], key=lambda o: o["centroid"][:2])
+    assert len(a) == len(b) == len(truth["cars"])
+    for x, y in zip(a, b):  # the same objects, points, matches and poses (ids aside)
+        assert x["n_points"] == y["n_points"]
+        assert np.allclose(x["centroid"], y["centroid"], atol=1e-6, rtol=0)
+        assert abs(x["heading_rad"] - y["heading_rad"]) < 1e-9
+        assert (x["match"] or {}).get("name") == (y["match"] or {}).get("name")
+        assert x["match"]["rmse_m"] == y["match"]["rmse_m"] and x["size"] == y["size"]
+    # every car exactly once, those across seams too
+    cars = np.array([[c["x"], c["y"]] for c in truth["cars"]])
+    d, idx = cKDTree(cars).query(np.array([o["centroid"][:2] for o in b]))
+    assert d.max() < 0.1 and len(set(idx)) == len(cars)
+    names = [c["model"] for c in truth["cars"]]
+    assert sum(o["match"]["name"] == names[i] for o, i in zip(b, idx)) >= 0.95 * len(cars)
+
+    def straddles(step):  # cars across a seam of a grid of ``step`` metres (along x by length, along y by width)
+        r = cars % step
+        gap = np.minimum(r, step - r)
+        return (gap[:, 0] < 1.8) | (gap[:, 1] < 0.8)
+
+    assert straddles(40.0).sum() >= 10 and straddles(CELL).sum() >= 3  # across tile seams and cell seams
+    # ids: cell and index, the same from run to run
+    assert all(o["id"].startswith("c") and "-" in o["id"] for o in b)
+
+
+def test_city_output_is_complete_and_clean(small_city, city_twin):
+    root, _ = small_city
+    out = root / "out"
+    names = {p.name for p in out.iterdir()}
+    assert {"twin.json", "twin.kmz", "report.html", "map.png", "histograms.png", "taxonomy.png"} <= names
+    assert not [p for p in out.rglob("*") if p.name.startswith(".tmp-") or ".tmp-" in p.name]
+    stored = sorted(p.name for p in (out / ".cells").iterdir())
+    assert len(stored) == city_twin["grid"]["n_cells"] and not (out / ".cells" / "split").exists()
+    with zipfile.ZipFile(out / "twin.kmz") as z:
+        kml = z.read("doc.kml").decode()
+    import xml.etree.ElementTree as ET
+
+    ns = {"k": "http://www.opengis.net/kml/2.2"}
+    folders = ET.fromstring(kml).findall(".//k:Folder", ns)
+    assert len(folders) == sum(1 for c in city_twin["cells"] if c["n_objects"])
+    n_marks = 0
+    for f in folders:
+        box = {t: float(f.find(f"k:Region/k:LatLonAltBox/k:{t}", ns).text) for t in ("north", "south", "east",
+                                                                                     "west")}
+        for pm in f.findall("k:Placemark", ns):
+            lat = float(pm.find(".//k:latitude", ns).text)
+            lon = float(pm.find(".//k:longitude", ns).text)
+            assert box["south"] <= lat <= box["north"] and box["west"] <= lon <= box["east"]
+            n_marks += 1
+    assert n_marks == len(city_twin["objects"])
+    html = (out / "report.html").read_text()
+    assert "map.png" in html and "taxonomy.png" in html and f"{len(city_twin['objects'])} car-sized objects" in html
+
+
+def test_copc_tiles_read_by_bounds_give_the_same_twin(small_city, city_twin, parametric_catalogue):
+    from twinreg.city.build import build_city_twin
+    from twinreg.city.sources import open_sources
+
+    root, _ = small_city
+    assert all(s.copc for s in open_sources([root / "copc"]))
+    twin = build_city_twin([root / "copc"], parametric_catalogue, None, root / "out_copc", cell=CELL, workers=2)
+    a, b = _strip(city_twin), _strip(twin)
+    for t in (a, b):
+        t.pop("sources"), t.pop("scene"), t["georef"].pop("scan_centre")  # from the headers' bounds
+    assert a == b
+
+
+def _cli(*args, **kw):
+    return subprocess.Popen([str(BIN / "twinreg"), *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, **kw)
+
+
+def test_an_interrupted_run_resumes_with_the_same_twin(small_city, city_twin, parametric_catalogue, tmp_path):
+    root, _ = small_city
+    out = tmp_path / "out"
+    args = ["--library", parametric_catalogue.folder, "build-twin", root / "laz", "--cell", CELL, "--out", out,
+            "--workers", "1", "--json"]
+    p = _cli(*args)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and p.poll() is None:
+        if len(list((out / ".cells").glob("*.pkl"))) >= 2:
+            break
+        time.sleep(0.05)
+    assert p.poll() is None, p.communicate()
+    p.send_signal(signal.SIGINT)  # Ctrl-C
+    p.communicate(timeout=60)
+    assert p.returncode != 0
+    done = len(list((out / ".cells").glob("*.pkl")))
+    assert 2 <= done < city_twin["grid"]["n_cells"]
+    assert not (out / "twin.json").exists()
+    q = _cli(*args)
+    stdout, stderr = q.communicate(timeout=300)
+    assert q.returncode == 0, stderr
+    twin = json.loads(stdout)
+    assert twin["grid"]["n_cells_reused"] == done
+    assert _strip(twin) == _strip(city_twin)
+    assert not [p for p in out.rglob("*") if ".tmp-" in p.name]
+
+
+@pytest.fixture()
+def dask_cluster(tmp_path):
+    """A Dask scheduler and two workers as separate processes on 127.0.0.1."""
+    sched_file = tmp_path / "scheduler.json"
+    env = dict(os.environ)
+    procs = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+                               "--no-dashboard", "--scheduler-file", str(sched_file)], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while not sched_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(sched_file.read_text())["address"]
+        for _ in range(2):
+            procs.append(subprocess.Popen([sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
+                                           "--no-dashboard", "--host", "127.0.0.1", "--memory-limit", "3GiB"],
+                                          env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(address, timeout=30) as c:
+            c.wait_for_workers(2, timeout=60)
+            assert len(c.scheduler_info()["workers"]) == 2
+        yield address
+    finally:
+        for p in procs[::-1]:
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def test_an_existing_dask_cluster_gives_the_same_twin(small_city, city_twin, parametric_catalogue, tmp_path,
+                                                      dask_cluster):
+    root, _ = small_city
+    p = _cli("--library", parametric_catalogue.folder, "build-twin", root / "laz", "--cell", CELL, "--out",
+             tmp_path / "out", "--scheduler", dask_cluster, "--json")
+    stdout, stderr = p.communicate(timeout=300)
+    assert p.returncode == 0, stderr
+    assert _strip(json.loads(stdout)) == _strip(city_twin)

@@ -1,0 +1,83 @@
+"""Tiles as inputs: paths, folders and globs; headers that disagree are refused; reading by chunks and splitting a
+tile into cells lose and duplicate nothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.conftest import write_las
+from twinreg.city import sources
+from twinreg.city.grid import Grid
+from twinreg.city.sources import expand_paths, open_sources, read_box, read_split, split_tile
+from twinreg.errors import SceneReadError
+
+
+def _tiles(folder, crs="EPSG:28992", n=3000, seed=0):
+    rng = np.random.default_rng(seed)
+    folder.mkdir(exist_ok=True)
+    out = []
+    for k, (x0, y0) in enumerate([(121000, 487000), (121050, 487000)]):
+        pts = rng.uniform([x0, y0, 0], [x0 + 50, y0 + 50, 3], (n, 3))
+        out.append(write_las(folder / f"t{k}.laz", pts, crs=crs))
+    return out
+
+
+def test_paths_folders_and_globs(tmp_path):
+    a, b = _tiles(tmp_path / "tiles")
+    assert expand_paths([tmp_path / "tiles"]) == [a, b]
+    assert expand_paths([str(tmp_path / "tiles" / "*.laz"), a]) == [a, b]
+    with pytest.raises(SceneReadError, match="matches no file"):
+        expand_paths([str(tmp_path / "none" / "*.laz")])
+    with pytest.raises(SceneReadError, match="no .las or .laz"):
+        (tmp_path / "empty").mkdir()
+        expand_paths([tmp_path / "empty"])
+    srcs = open_sources([tmp_path / "tiles"])
+    assert [s.crs for s in srcs] == ["EPSG:28992", "EPSG:28992"] and sum(s.n_points for s in srcs) == 6000
+
+
+def test_tiles_whose_crs_or_unit_disagree_are_refused(tmp_path):
+    a, _ = _tiles(tmp_path / "rd")
+    b = write_las(tmp_path / "utm.laz", np.random.default_rng(1).uniform([5e5, 5e6, 0], [5e5 + 9, 5e6 + 9, 1],
+                                                                         (200, 3)), crs="EPSG:32631")
+    with pytest.raises(SceneReadError, match=r"utm\.laz: its CRS .*differs from that of .*t0\.laz"):
+        open_sources([a, b])
+    c = write_las(tmp_path / "feet.laz", np.random.default_rng(2).uniform(0, 9, (200, 3)), crs="EPSG:2994")
+    with pytest.raises(SceneReadError, match="feet.laz"):
+        open_sources([a, c])
+    none = write_las(tmp_path / "nocrs.laz", np.random.default_rng(3).uniform(0, 9, (200, 3)))
+    with pytest.raises(SceneReadError, match="none stated"):
+        open_sources([a, none])
+    ply = tmp_path / "scene.ply"
+    ply.write_text("ply\n")
+    with pytest.raises(SceneReadError, match="scene.ply: a tiled run reads LAS, LAZ or COPC"):
+        open_sources([a, ply])
+
+
+def test_reading_by_chunks_and_splitting_keep_every_point_once(tmp_path, monkeypatch):
+    monkeypatch.setattr(sources, "CHUNK_POINTS", 700)  # several chunks per tile
+    tiles = _tiles(tmp_path / "tiles", n=5000)
+    srcs = open_sources(tiles)
+    grid = Grid(30.0, 5.0, 12.0)
+    every = np.vstack([read_box(s, [-1e9, -1e9], [1e9, 1e9]) for s in srcs])
+    assert len(every) == 10000
+    cells = {}
+    for k, s in enumerate(srcs):
+        counts = split_tile(s, grid, tmp_path / "split" / str(k))
+        assert (tmp_path / "split" / str(k) / "split.json").is_file()
+        for name in counts:
+            cells.setdefault(name, []).append(tmp_path / "split" / str(k))
+    owned = []
+    for (ix, iy) in {tuple(map(int, n[1:].split("_"))) for n in cells}:
+        c = grid.cell(ix, iy)
+        pts = np.vstack([read_split(f, c.name) for f in cells[c.name]])
+        # what a cell reads is exactly the points in its read square, from both tiles
+        inside = ((every[:, :2] >= c.read_lo) & (every[:, :2] <= c.read_hi)).all(1)
+        assert len(pts) == inside.sum()
+        assert np.array_equal(np.unique(pts, axis=0), np.unique(every[inside], axis=0))
+        owned.append(pts[c.owns(pts[:, :2])])
+    owned = np.vstack(owned)
+    assert len(owned) == len(every)
+    assert np.array_equal(np.unique(owned, axis=0), np.unique(every, axis=0))
+    # a second split of the same tile reuses the finished folder
+    assert split_tile(srcs[0], grid, tmp_path / "split" / "0") == split_tile(srcs[0], grid, tmp_path / "split" / "0")
