@@ -71,14 +71,15 @@ def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None,
 def object_points(det: Detection, obj) -> np.ndarray:
     """An object's points, scene-local (n, 3), in a canonical order (sorted by x, y, z) so that what is computed
     from them does not depend on the order in which a file or a tile stored them."""
-    pts = det.scene.local[obj.indices]
+    pts = det.scene.points[obj.indices] - det.scene.offset  # not scene.local: that copies the whole scene
     return pts[np.lexsort((pts[:, 2], pts[:, 1], pts[:, 0]))]
 
 
 def object_ground(det: Detection, obj) -> float:
     """The ground level (m, scene-local) under an object: the median of its points' z minus their height above
     ground."""
-    return float(np.median(det.scene.local[obj.indices, 2] - det.hag[obj.indices]))
+    z = det.scene.points[obj.indices, 2] - det.scene.offset[2]
+    return float(np.median(z - det.hag[obj.indices]))
 
 
 def describe_detected(det: Detection, params: CoscoParams = DEFAULT, objects=None) -> list:

@@ -24,6 +24,10 @@ from .resume import CellStore, cell_key
 from .sources import Source, open_sources, split_key, split_tile
 
 
+#: a plain LAS/LAZ tile read by more cells than this is split once into them (else each cell reads it by chunks)
+SPLIT_MIN_READERS = 4
+
+
 class CityError(TwinregError):
     """Cells of a tiled run failed twice."""
 
@@ -199,10 +203,16 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
 
 
 def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellStore, params, progress, timing):
-    """Split the plain tiles that feed unfinished cells (when there is more than one cell), then run those
-    cells; each finished cell is stored at once. Failed cells raise :class:`CityError` after the others."""
+    """Split the plain tiles that feed many unfinished cells, then run those cells; each finished cell is stored
+    at once. Failed cells raise :class:`CityError` after the others."""
     t = time.perf_counter()
-    need = {s.path: s for n in todo for s in p.feeds[n] if not s.copc} if p.n_cells > 1 else {}
+    # a plain tile read by many cells is decompressed once and cut into them; one read by a few is read by each
+    readers: dict = {}
+    for n in todo:
+        for s in p.feeds[n]:
+            if not s.copc:
+                readers.setdefault(s.path, [s, 0])[1] += 1
+    need = {path: s for path, (s, k) in readers.items() if k > SPLIT_MIN_READERS}
     folders = {path: store.split_folder(split_key(s, p.grid)) for path, s in need.items()}
     jobs = [SplitJob(s, p.grid, str(folders[path])) for path, s in need.items()]
     if jobs:

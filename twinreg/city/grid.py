@@ -95,29 +95,29 @@ class Grid:
         return [self.cell(i, j) for j in range(a[1], b[1] + 1) for i in range(a[0], b[0] + 1)]
 
     def membership(self, xy: np.ndarray) -> dict[tuple[int, int], np.ndarray]:
-        """For (n, 2) points, the cells whose buffered squares hold them: ``{(ix, iy): indices}`` (a point within
-        :attr:`reach` of a seam belongs to up to four cells)."""
+        """For (n, 2) points, the cells whose read squares hold them: ``{(ix, iy): indices}`` (a point within
+        :attr:`reach` of a seam belongs to up to four cells). Vectorised: one sort per neighbour offset."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        base = self.index(xy)
-        frac = xy - base * self.size
+        r = self.reach
+        # cell ix reads x when ix * size - r <= x <= (ix + 1) * size + r
+        first = np.ceil((xy - r) / self.size - 1.0).astype(np.int64)
+        last = np.floor((xy + r) / self.size).astype(np.int64)
         out: dict[tuple[int, int], list] = {}
-        for dx in (-1, 0, 1):
-            r = self.reach
-            near_x = (frac[:, 0] <= r) if dx < 0 else (frac[:, 0] >= self.size - r) if dx > 0 \
-                else np.ones(len(xy), bool)
-            for dy in (-1, 0, 1):
-                near_y = (frac[:, 1] <= r) if dy < 0 else (frac[:, 1] >= self.size - r) \
-                    if dy > 0 else np.ones(len(xy), bool)
-                idx = np.flatnonzero(near_x & near_y)
+        for dx in range(3):
+            for dy in range(3):
+                idx = np.flatnonzero((first[:, 0] + dx <= last[:, 0]) & (first[:, 1] + dy <= last[:, 1]))
                 if not len(idx):
                     continue
-                keys = base[idx] + [dx, dy]
-                uniq, inv = np.unique(keys, axis=0, return_inverse=True)
-                order = np.argsort(inv.ravel(), kind="stable")
-                bounds = np.searchsorted(inv.ravel()[order], np.arange(len(uniq) + 1))
-                for k, (i, j) in enumerate(uniq):
-                    out.setdefault((int(i), int(j)), []).append(idx[order[bounds[k]:bounds[k + 1]]])
-        return {k: np.sort(np.concatenate(v)) for k, v in out.items()}
+                ij = first[idx] + [dx, dy]
+                key = (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+                order = np.argsort(key, kind="stable")
+                k = key[order]
+                starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+                ends = np.r_[starts[1:], len(k)]
+                for a0, a1 in zip(starts, ends):
+                    i, j = ij[order[a0]]
+                    out.setdefault((int(i), int(j)), []).append(idx[order[a0:a1]])
+        return {key: np.sort(np.concatenate(v)) for key, v in out.items()}
 
 
 def cell_size_for(n_points: int, area_m2: float, target: int = TARGET_POINTS, buffer: float = 10.0) -> float:

@@ -212,14 +212,17 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     tmp = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".tmp-{folder.name}-"))
     counts: dict[str, int] = {}
     handles: dict[str, object] = {}
+    cells = grid.cells_over(np.asarray(source.lo[:2]) - grid.reach, np.asarray(source.hi[:2]) + grid.reach)
     try:
         for pts in _chunks(source):
-            for (ix, iy), idx in grid.membership(pts[:, :2]).items():
-                name = grid.cell(ix, iy).name
-                if name not in handles:
-                    handles[name] = open(tmp / f"{name}.f64", "wb")
-                handles[name].write(np.ascontiguousarray(pts[idx]).tobytes())
-                counts[name] = counts.get(name, 0) + len(idx)
+            for c in cells:  # a few cells per tile: one vectorised bounds test each, no sort
+                inside = ((pts[:, :2] >= c.read_lo) & (pts[:, :2] <= c.read_hi)).all(1)
+                if not inside.any():
+                    continue
+                if c.name not in handles:
+                    handles[c.name] = open(tmp / f"{c.name}.f64", "wb")
+                handles[c.name].write(np.ascontiguousarray(pts[inside]).tobytes())
+                counts[c.name] = counts.get(c.name, 0) + int(inside.sum())
         for h in handles.values():
             h.close()
         (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts}))

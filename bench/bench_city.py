@@ -1,0 +1,212 @@
+"""City scale: build-twin on simulated cities of LAZ tiles (the 16 shared cars, about 160 points per m2, streets of
+parked cars, walls, trees, poles, slopes), timed from outside with the peak memory of the whole process tree (the
+command, the Dask scheduler and its workers), sampled every 0.1 s; and the 9.2M-point case of issue 9 (a car park
+repeated 6 x 6 in one LAS file).
+
+    python bench/bench_city.py [--points 10,30,100] [--cars 12,100,400] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import Row, machine  # noqa: E402
+
+#: points per km2 and cars per km2 of the simulated city at --density 150 (measured on 0.0144 km2)
+POINTS_PER_KM2 = 163e6
+CARS_PER_KM2 = 11_000
+
+
+def run_tree(cmd: list[str]) -> tuple[float, int, str]:
+    """Wall time (s), peak summed RSS (bytes) of the process and all its descendants, and stdout."""
+    import psutil
+
+    t = time.perf_counter()
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    proc = psutil.Process(p.pid)
+    peak = 0
+    while p.poll() is None:
+        try:
+            rss = proc.memory_info().rss + sum(c.memory_info().rss for c in proc.children(recursive=True))
+            peak = max(peak, rss)
+        except psutil.Error:
+            pass
+        time.sleep(0.1)
+    out = p.stdout.read()
+    if p.returncode:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode})")
+    return time.perf_counter() - t, peak, out
+
+
+def catalogue16(folder: Path):
+    from bench_twin import _catalogue
+
+    if (folder / "catalogue.sqlite").exists():
+        from twinreg.catalogue.repository import Catalogue
+
+        return Catalogue(folder, create=False)
+    cat = _catalogue(folder)
+    for r in cat.list():  # the twin meshes, cached once (as after a first build-twin)
+        cat.ge_mesh(r)
+    return cat
+
+
+def city(cat, folder: Path, km2: float, seed: int = 0, tile: float = 250.0) -> dict:
+    from twinreg.city.simulate import simulate_city
+
+    if (folder / "truth.json").exists():
+        return json.loads((folder / "truth.json").read_text())
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    return simulate_city(folder, [cat.ge_mesh(r) for r in rows], [r.name for r in rows], km2=km2, density=150.0,
+                         tile=tile, seed=seed)
+
+
+def score(truth: dict, twin: dict) -> tuple[int, int, float]:
+    """(cars with their own model, cars found once, max position error m)."""
+    from scipy.spatial import cKDTree
+
+    cars = truth["cars"]
+    xy = np.array([[c["x"], c["y"]] for c in cars])
+    objs = twin["objects"]
+    d, idx = cKDTree(xy).query(np.array([o["centroid"][:2] for o in objs]))
+    near = d < 1.0
+    right = sum(1 for o, i, ok in zip(objs, idx, near) if ok and o["match"] and o["match"]["name"] == cars[i]["model"])
+    return right, len(set(idx[near])), float(d[near].max()) if near.any() else float("nan")
+
+
+def build(lib: Path, inputs: list[str], out: Path, extra=()) -> tuple[float, int, dict]:
+    cmd = [sys.executable, "-m", "twinreg", "--library", str(lib), "build-twin", *inputs, "--out", str(out),
+           "--json", *extra]
+    secs, peak, stdout = run_tree(cmd)
+    return secs, peak, json.loads(stdout)
+
+
+def car_park_6x6(cat, path: Path) -> int:
+    """The bench_twin car park (seed 5, 12 cars) repeated 6 x 6 in one LAS file (EPSG:28992)."""
+    import laspy
+    import pyproj
+
+    from bench_twin import _scene
+
+    park, _ = _scene(cat, path.with_suffix(".ply"))
+    pts = park.points
+    span = np.ptp(pts[:, :2], axis=0) + 6.0
+    tiles = [pts + [121000 + i * span[0], 487000 + j * span[1], 0] for i in range(6) for j in range(6)]
+    allp = np.vstack(tiles)
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales, header.offsets = [0.001] * 3, np.floor(allp.min(0) / 1000) * 1000
+    header.add_crs(pyproj.CRS("EPSG:28992"))
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = allp.T
+    las.write(path)
+    return len(allp)
+
+
+def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None) -> list[Row]:
+    rows = []
+    root = keep or Path(tempfile.mkdtemp(prefix="twinreg-city-bench-"))
+    root.mkdir(parents=True, exist_ok=True)
+    lib = root / "lib16"
+    cat = catalogue16(lib)
+    per_object = []
+    # the 9.2M-point case of issue 9
+    park = root / "park6x6.las"
+    n = car_park_6x6(cat, park) if not park.exists() else None
+    secs, peak, twin = build(lib, [str(park)], root / "out_park")
+    n = n or twin["n_points"]
+    matched = sum(1 for o in twin["objects"] if o["match"])
+    rows.append(Row("build-twin, one LAS file, process start to files written", f"car park repeated 6 x 6, "
+                    f"{twin['n_points']:,} points, {len(twin['objects'])} objects, 16-model catalogue",
+                    f"{secs:.1f} s, peak {peak / 2**30:.2f} GiB (all processes), {matched} matched, "
+                    f"{twin['grid']['n_cells']} cells", "< 30 s (was 335 s and 15 GB)"))
+    curve = []
+    for kind, sizes in (("cars", cars), ("points", points)):
+        for size in sizes:
+            km2 = size / CARS_PER_KM2 if kind == "cars" else size * 1e6 / POINTS_PER_KM2
+            folder = root / f"city_{kind}_{size}"
+            truth = city(cat, folder, km2, tile=250.0 if km2 > 0.05 else 100.0)
+            secs, peak, twin = build(lib, [str(folder)], root / f"out_{kind}_{size}")
+            right, found, pos = score(truth, twin)
+            t = twin["timing_s"]
+            n_obj = len(twin["objects"])
+            per_object.append((n_obj, (t.get("matrix", 0) + t.get("matching", 0)) / max(n_obj, 1)))
+            data = (f"simulated city {truth['side_m']:.0f} m square, {len(truth['tiles'])} LAZ tiles, "
+                    f"{twin['n_points']:,} points, {len(truth['cars'])} cars")
+            rows.append(Row("build-twin on tiles, process start to files written", data,
+                            f"{secs:.1f} s, peak {peak / 2**30:.2f} GiB, {twin['grid']['n_cells']} cells of "
+                            f"{twin['grid']['cell_m']:g} m; {found}/{len(truth['cars'])} cars found once, {right} "
+                            f"with their own model, max position error {pos * 100:.1f} cm",
+                            "100M points: < 300 s, < 4 GB" if kind == "points" else ""))
+            rows.append(Row("build-twin on tiles, stages (wall s)", data,
+                            ", ".join(f"{k} {v:.1f}" for k, v in t.items() if k not in ("prefilter", "model_prep",
+                                                                                           "registration",
+                                                                                           "verification"))))
+            if kind == "points":
+                curve.append((twin["n_points"], secs, peak))
+    rows.append(Row("taxonomy + matching per object (wall, 2 workers)", "the cities above",
+                    ", ".join(f"{n:,} objects: {1000 * c:.1f} ms" for n, c in sorted(per_object)),
+                    "flat from 12 to 4,000 objects"))
+    if len(curve) >= 2:
+        pts, secs, peak = (np.array(v, dtype=float) for v in zip(*curve))
+        rows.append(Row("growth with points (time, memory)", "the cities of 10M, 30M, 100M points",
+                        "; ".join(f"{p / 1e6:.0f}M: {s:.0f} s, {m / 2**30:.2f} GiB" for p, s, m in curve) +
+                        f"; seconds per million points {', '.join(f'{s / p * 1e6:.2f}' for p, s in zip(pts, secs))}",
+                        "linear"))
+        _plot(curve, per_object, Path(__file__).resolve().parents[1] / "docs" / "city_scaling.png")
+    return rows
+
+
+def _plot(curve, per_object, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pts, secs, peak = (np.array(v, dtype=float) for v in zip(*curve))
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.6))
+    ax[0].plot(pts / 1e6, secs, "o-")
+    ax[0].plot([0, pts.max() / 1e6], [0, secs[-1] / pts[-1] * pts.max()], ":", color="0.5", label="linear")
+    ax[0].set_xlabel("points (millions)")
+    ax[0].set_ylabel("build-twin (s)")
+    ax[0].legend()
+    ax[1].plot(pts / 1e6, peak / 2**30, "o-", color="tab:red")
+    ax[1].axhline(4.0, color="0.5", ls=":")
+    ax[1].set_xlabel("points (millions)")
+    ax[1].set_ylabel("peak memory, all processes (GiB)")
+    n, c = (np.array(v, dtype=float) for v in zip(*sorted(per_object)))
+    ax[2].semilogx(n, c * 1000, "o-", color="tab:green")
+    ax[2].set_ylim(0, max(c * 1000) * 1.3)
+    ax[2].set_xlabel("objects")
+    ax[2].set_ylabel("taxonomy + matching per object (ms)")
+    fig.suptitle("twinreg build-twin on simulated cities (2-core VM)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--points", default="10,30,100", help="city sizes in millions of points")
+    ap.add_argument("--cars", default="12,100,400", help="small cities by number of cars")
+    ap.add_argument("--keep", type=Path, default=None, help="keep the cities and outputs here (reused)")
+    args = ap.parse_args()
+    pts = [int(v) for v in args.points.split(",") if v]
+    cars = [int(v) for v in args.cars.split(",") if v]
+    rows = run(pts, cars, args.keep)
+    print(f"machine: {machine()}")
+    for r in rows:
+        print(f"| {r['what']} | {r['data']} | {r['figure']} | {r['target']} |")
+
+
+if __name__ == "__main__":
+    main()
