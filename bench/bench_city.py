@@ -23,9 +23,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import Row, machine  # noqa: E402
 
-#: points per km2 and cars per km2 of the simulated city at --density 150 (measured on 0.0144 km2)
-POINTS_PER_KM2 = 163e6
-CARS_PER_KM2 = 11_000
+#: streets every 36 m; points per km2 and cars per km2 of that city at --density 150 (measured on 0.0144 km2)
+STREETS = 36.0
+POINTS_PER_KM2 = 160e6
+CARS_PER_KM2 = 7_300
 
 
 def run_tree(cmd: list[str]) -> tuple[float, int, str]:
@@ -33,7 +34,8 @@ def run_tree(cmd: list[str]) -> tuple[float, int, str]:
     import psutil
 
     t = time.perf_counter()
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    sink = tempfile.TemporaryFile(mode="w+")  # a pipe would fill up and stall the command
+    p = subprocess.Popen(cmd, stdout=sink, stderr=subprocess.DEVNULL, text=True)
     proc = psutil.Process(p.pid)
     peak = 0
     while p.poll() is None:
@@ -43,10 +45,12 @@ def run_tree(cmd: list[str]) -> tuple[float, int, str]:
         except psutil.Error:
             pass
         time.sleep(0.1)
-    out = p.stdout.read()
+    secs = time.perf_counter() - t
+    sink.seek(0)
+    out = sink.read()
     if p.returncode:
         raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode})")
-    return time.perf_counter() - t, peak, out
+    return secs, peak, out
 
 
 def catalogue16(folder: Path):
@@ -69,7 +73,7 @@ def city(cat, folder: Path, km2: float, seed: int = 0, tile: float = 250.0) -> d
         return json.loads((folder / "truth.json").read_text())
     rows = sorted(cat.list(), key=lambda r: r.name)
     return simulate_city(folder, [cat.ge_mesh(r) for r in rows], [r.name for r in rows], km2=km2, density=150.0,
-                         tile=tile, seed=seed)
+                         tile=tile, seed=seed, street_spacing=STREETS)
 
 
 def score(truth: dict, twin: dict) -> tuple[int, int, float]:

@@ -39,19 +39,14 @@ class _Grid:
     z: np.ndarray
 
     def height(self, points: np.ndarray) -> np.ndarray:
+        """Height (m) of (n, 3) points above the surface, bilinear between cell centres (the edge cells' values
+        beyond the window)."""
+        from scipy import ndimage
+
         pts = np.asarray(points, dtype=np.float64)
         g = (pts[:, :2] - self.origin) / self.cell - 0.5
-        gx = np.clip(g[:, 0], 0.0, self.z.shape[0] - 1.000001)
-        gy = np.clip(g[:, 1], 0.0, self.z.shape[1] - 1.000001)
-        if self.z.shape[0] == 1 or self.z.shape[1] == 1:
-            return pts[:, 2] - self.z[np.clip(gx.astype(int), 0, self.z.shape[0] - 1),
-                                      np.clip(gy.astype(int), 0, self.z.shape[1] - 1)]
-        i, j = gx.astype(np.int64), gy.astype(np.int64)
-        fx, fy = gx - i, gy - j
-        z = self.z
-        top = z[i, j] * (1 - fx) + z[i + 1, j] * fx
-        bottom = z[i, j + 1] * (1 - fx) + z[i + 1, j + 1] * fx
-        return pts[:, 2] - (top * (1 - fy) + bottom * fy)
+        z = ndimage.map_coordinates(self.z, g.T, order=1, mode="nearest", prefilter=False)
+        return pts[:, 2] - z
 
 
 @dataclass(frozen=True)
@@ -84,9 +79,36 @@ class Ground:
     def height(self, points: np.ndarray) -> np.ndarray:
         """Height above ground (m) of (n, 3) points, bilinear under each point (nearest stored cell beyond the
         edges of the stored blocks)."""
+        from scipy import ndimage
+
         pts = np.asarray(points, dtype=np.float64)
         g = (pts[:, :2] - self.origin) / self.cell - 0.5
         i, j = np.floor(g[:, 0]).astype(np.int64), np.floor(g[:, 1]).astype(np.int64)
+        b = self.block
+        key = (i // b) * self.n_block_cols + (j // b)
+        pos = np.clip(np.searchsorted(self.keys, key), 0, len(self.keys) - 1)
+        # a point whose four surrounding cells lie in one stored block: interpolated inside that block (C speed)
+        inner = (self.keys[pos] == key) & (i >= 0) & (j >= 0) & (i % b < b - 1) & (j % b < b - 1)
+        z = np.empty(len(pts))
+        idx = np.flatnonzero(inner)
+        if len(idx):
+            blocks = np.unique(pos[idx])
+            if len(blocks) > 1:
+                idx = idx[np.argsort(pos[idx], kind="stable")]
+            bounds = np.searchsorted(pos[idx], blocks) if len(blocks) > 1 else np.array([0])
+            for k, start in zip(blocks, bounds):
+                end = np.searchsorted(pos[idx], k, side="right") if len(blocks) > 1 else len(idx)
+                sel = idx[start:end]
+                bi, bj = divmod(int(self.keys[k]), self.n_block_cols)
+                local = g[sel] - [bi * b, bj * b]
+                z[sel] = ndimage.map_coordinates(self.tiles[k], local.T, order=1, prefilter=False)
+        rest = np.flatnonzero(~inner)
+        if len(rest):
+            z[rest] = self._bilinear(g[rest], i[rest], j[rest])
+        return pts[:, 2] - z
+
+    def _bilinear(self, g: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """The surface under grid positions ``g`` near block edges: the known corners' weights renormalised."""
         fx, fy = g[:, 0] - i, g[:, 1] - j
         corners = np.column_stack([self._z(i, j), self._z(i + 1, j), self._z(i, j + 1), self._z(i + 1, j + 1)])
         w = np.column_stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy])
@@ -97,7 +119,7 @@ class Ground:
         lost = ~np.isfinite(z)
         if lost.any():  # no stored cell around the point: the nearest stored cell's value
             z[lost] = self._nearest(g[lost])
-        return pts[:, 2] - z
+        return z
 
     def _nearest(self, g: np.ndarray) -> np.ndarray:
         from scipy.spatial import cKDTree

@@ -154,8 +154,17 @@ def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params:
             if r.length <= params.car_length[1] and r.width <= params.car_width[1]:
                 rects[lab] = r
     out = comp.copy()
+    if not rects:
+        return out
+    from scipy.spatial import cKDTree
+
+    # hosts by decreasing size (ties in label order); a host can only take a piece within its half-diagonal
+    hosts = sorted(rects, key=lambda h: -len(members[h]))
+    tree = cKDTree(np.array([rects[h].centre for h in hosts]))
+    reach = float(np.hypot(params.car_length[1] / 2 + margin, params.car_width[1] / 2 + margin))
     for lab, c in sorted(zip(labels, counts), key=lambda t: t[1]):
-        for host in sorted(rects, key=lambda h: -len(members[h])):
+        near = sorted(tree.query_ball_point(centres[lab], reach))
+        for host in (hosts[k] for k in near):
             if host == lab or c > share * len(members[host]) or lows[lab] > tops[host]:
                 continue  # too big to be a piece, or above the host's top (a branch over a car)
             r = rects[host]

@@ -57,6 +57,16 @@ class Plan:
     def n_cells(self) -> int:
         return len(self.cells)
 
+    def estimate(self, name: str) -> float:
+        """Points the cell reads, estimated from the tiles' headers (their densities times the overlap)."""
+        c = self.cells[name]
+        total = 0.0
+        for s in self.feeds[name]:
+            lo = np.maximum(np.asarray(s.lo[:2]), c.read_lo)
+            hi = np.minimum(np.asarray(s.hi[:2]), c.read_hi)
+            total += s.n_points * float(np.prod(np.clip(hi - lo, 0, None))) / s.area
+        return total
+
 
 def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0, margin: float = 0.0) -> Plan:
     """The processing grid over the tiles: ``cell`` metres (default: about
@@ -228,6 +238,8 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
             raise CityError("tiles failed to split: " + "; ".join(f"{f.name} ({f.error})" for f in fails))
     timing["split"] = time.perf_counter() - t
     t = time.perf_counter()
+    # the largest cells first (points estimated from the tiles' densities): the workers finish together
+    todo = sorted(todo, key=lambda n: -p.estimate(n))
     cell_jobs = []
     for n in todo:
         splits = tuple(str(folders[s.path]) for s in p.feeds[n] if s.path in folders)

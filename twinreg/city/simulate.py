@@ -70,12 +70,14 @@ def _tree(x, y, rng):
     return np.vstack([tv, cv]), np.vstack([tf, cf + len(tv)])
 
 
-def layout(models: list, side_x: float, side_y: float, seed: int) -> list[Placed]:
-    """Cars along streets, walls, trees and poles over ``[0, side_x) x [0, side_y)`` (metres, local)."""
+def layout(models: list, side_x: float, side_y: float, seed: int,
+           street_spacing: float = STREET_SPACING) -> list[Placed]:
+    """Cars along streets (one every ``street_spacing`` metres), walls, trees and poles over
+    ``[0, side_x) x [0, side_y)`` (metres, local)."""
     rng = np.random.default_rng(seed)
     placed: list[Placed] = []
     lengths = [float(np.ptp(v[:, 0])) for v, _ in models]
-    for yc in np.arange(STREET_SPACING / 2, side_y, STREET_SPACING):
+    for yc in np.arange(street_spacing / 2, side_y, street_spacing):
         for side in (-1.0, 1.0):
             y_row = yc + side * 3.6
             x = rng.uniform(1.0, 4.0)
@@ -93,7 +95,7 @@ def layout(models: list, side_x: float, side_y: float, seed: int) -> list[Placed
                                          lengths[m] / 2 + 0.5))
                 x += lengths[m] + rng.uniform(0.7, 2.5)
         # the block between this street and the next: a wall along it, trees, poles at the kerb
-        yb = yc + STREET_SPACING / 2
+        yb = yc + street_spacing / 2
         x = rng.uniform(0.0, 10.0)
         while x < side_x - 5.0:
             length = rng.uniform(8.0, 20.0)
@@ -191,7 +193,7 @@ def city_models(library=None) -> tuple[list, list[str], str]:
 
 def simulate_city(out, models: list, names: list[str], km2: float = 0.01, density: float = 150.0,
                   tile: float = 100.0, seed: int = 0, crs: str = DEFAULT_CRS, origin=DEFAULT_ORIGIN,
-                  progress=None, copc: bool = False) -> dict:
+                  progress=None, copc: bool = False, street_spacing: float = STREET_SPACING) -> dict:
     """Write ``out/tile_<x>_<y>.laz`` (``tile`` metres square, ``crs`` in each header; ``.copc.laz`` files with
     ``copc``) and ``out/truth.json``.
 
@@ -204,7 +206,7 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
     out.mkdir(parents=True, exist_ok=True)
     n_tiles = max(1, int(round(np.sqrt(km2 * 1e6) / tile)))
     side = n_tiles * tile
-    placed = layout(models, side, side, seed)
+    placed = layout(models, side, side, seed, street_spacing)
     centres = np.array([[p.x, p.y, p.radius] for p in placed]).reshape(-1, 3)
     origin = np.asarray(origin, dtype=np.float64)
     files, n_points = [], 0
@@ -239,6 +241,7 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
     cars = [{"model": names[p.model], "x": p.x + origin[0], "y": p.y + origin[1],
              "z": float(ground_height(p.x, p.y)), "heading": p.heading} for p in placed if p.kind == "car"]
     truth = {"crs": crs, "origin": origin.tolist(), "tile_m": tile, "density": density, "seed": seed,
+             "street_spacing_m": street_spacing,
              "side_m": side, "n_points": n_points, "tiles": files, "cars": cars,
              "others": [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]} for p in placed
                         if p.kind != "car"]}
