@@ -24,8 +24,9 @@ from .resume import CellStore, cell_key
 from .sources import Source, open_sources, split_key, split_tile
 
 
-#: a plain LAS/LAZ tile read by more cells than this is split once into them (else each cell reads it by chunks)
-SPLIT_MIN_READERS = 4
+#: a plain LAS/LAZ tile read by more cells than this is split once into them (else each cell reads it by chunks:
+#: reading a LAZ tile again costs about a sixth of splitting it, and the readers run in parallel)
+SPLIT_MIN_READERS = 8
 
 
 class CityError(TwinregError):

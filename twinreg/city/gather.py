@@ -18,8 +18,11 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     shapes = [o.shape for o in objects]
     sections = [s.sections for s in shapes]
 
+    n_workers = eng.n_workers
+
     def distances_of(pairs):
-        batches = pair_batches(sections, pairs, params)
+        # about four batches per worker: even finishing times, each object's sections sent a few times only
+        batches = pair_batches(sections, pairs, params, size=max(50, -(-len(pairs) // (4 * n_workers))))
         if progress:
             progress("taxonomy", 0, len(batches))
         out = eng.map(compare_pairs, batches, [f"pairs{k}" for k in range(len(batches))])
@@ -31,7 +34,8 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     noise_of = {r.name: r.noise for r in results}
     noise = np.array([noise_of[o.cell] for o in objects])
     t = time.perf_counter()
-    batches, members = match_batches(objects, tax.labels, noise, str(catalogue.folder), params)
+    batches, members = match_batches(objects, tax.labels, noise, str(catalogue.folder), params,
+                                     size=max(20, -(-len(objects) // (4 * n_workers))))
     done = [0]
     if progress:
         progress("matching", 0, len(objects))
