@@ -29,8 +29,8 @@ def compare_pairs(batch: PairBatch) -> np.ndarray:
 
 
 def pair_batches(sections: list, pairs: np.ndarray, params: CoscoParams, size: int = 400) -> list[PairBatch]:
-    """Batches of about ``size`` pairs, in the order of their first object (each object's sections are sent
-    with the few batches that need them)."""
+    """Consecutive batches of about ``size`` of the pairs, as given (order them so that an object's pairs are
+    together: each object is prepared once per batch that holds it)."""
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     out = []
     for a in range(0, len(pairs), size):

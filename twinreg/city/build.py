@@ -183,25 +183,32 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     if catalogue.count() == 0:
         raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
                              "`twinreg add-model MESH` or `twinreg import-models DIR`")
+    created = not out.exists()
     claim(out, protect)
     store = CellStore(out)
-    if restart:
-        store.clear()
-    _clean_work(store)
-    keys = {n: cell_key(n, p.feeds[n], p.grid, params, twinreg.__version__, p.offset) for n in p.cells}
-    todo = [n for n in p.cells if not store.has(n, keys[n])]
-    timing["plan"] = time.perf_counter() - t_start
-    with Engine(workers=workers, scheduler=scheduler) as eng:
-        _run_cells(eng, p, todo, keys, store, params, progress, timing)
-        results = [store.load(n, keys[n]) for n in p.cells]
-        objects = [o for r in results for o in r.objects]
-        if not objects:
-            raise SceneReadError(f"{sources[0].path}: no car-sized objects were found in the tiles; check --unit "
-                                 "and that the scan covers parked cars")
-        from .gather import classify_and_match
+    try:
+        if restart:
+            store.clear()
+        _clean_work(store)
+        keys = {n: cell_key(n, p.feeds[n], p.grid, params, twinreg.__version__, p.offset) for n in p.cells}
+        todo = [n for n in p.cells if not store.has(n, keys[n])]
+        timing["plan"] = time.perf_counter() - t_start
+        with Engine(workers=workers, scheduler=scheduler) as eng:
+            _run_cells(eng, p, todo, keys, store, params, progress, timing)
+            results = [store.load(n, keys[n]) for n in p.cells]
+            objects = [o for r in results for o in r.objects]
+            if not objects:
+                raise SceneReadError(f"{sources[0].path}: no car-sized objects were found in the tiles; check "
+                                     "--unit and that the scan covers parked cars")
+            from .gather import classify_and_match
 
-        tax, outcomes, stats, models = classify_and_match(eng, results, objects, catalogue, params, progress,
-                                                          timing)
+            tax, outcomes, stats, models = classify_and_match(eng, results, objects, catalogue, params, progress,
+                                                              timing)
+    except BaseException:
+        # a folder this run created and in which no cell finished goes again: OUT is as it was
+        if created and not any(store.folder.glob("*.pkl")):
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     from .export import export_city
 
     t = time.perf_counter()

@@ -58,10 +58,11 @@ class Engine:
                                             dashboard_address=None, silence_logs=logging.CRITICAL,
                                             host="127.0.0.1", scheduler_port=0)
                 self.client = Client(self.cluster)
-        except (OSError, TimeoutError) as exc:
+        except Exception as exc:  # unreachable, refused, a malformed address, no free port...
             self.__exit__(None, None, None)
             where = self.scheduler or "a local cluster"
-            raise EngineError(f"{where}: cannot start or reach the Dask cluster ({exc}); check the address "
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise EngineError(f"{where}: cannot start or reach the Dask cluster ({first}); check the address "
                               "(tcp://HOST:PORT) and that the scheduler runs") from exc
         return self
 

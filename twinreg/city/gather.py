@@ -19,16 +19,23 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     sections = [s.sections for s in shapes]
 
     n_workers = eng.n_workers
+    # objects ranked by length: an object's nearest neighbours by descriptor sit next to it
+    rank = np.argsort(np.argsort([s.size.length for s in shapes], kind="stable"), kind="stable")
 
     def distances_of(pairs):
         # about four batches per worker: even finishing times, each object's sections sent a few times only
-        batches = pair_batches(sections, pairs, params, size=max(50, -(-len(pairs) // (4 * n_workers))))
+        r = rank[np.asarray(pairs, dtype=np.int64).reshape(-1, 2)]
+        perm = np.lexsort((r.max(1), r.min(1))) if len(r) else np.zeros(0, dtype=np.int64)
+        batches = pair_batches(sections, np.asarray(pairs)[perm], params,
+                               size=max(50, -(-len(pairs) // (4 * n_workers))))
         if progress:
             progress("taxonomy", 0, len(batches))
         out = eng.map(compare_pairs, batches, [f"pairs{k}" for k in range(len(batches))])
         if progress:
             progress("taxonomy", len(batches), len(batches))
-        return np.concatenate(out) if out else np.zeros(0)
+        d = np.zeros(len(perm))
+        d[perm] = np.concatenate(out) if out else np.zeros(0)
+        return d
 
     tax = classify(shapes, params, timing, distances_of=distances_of)
     noise_of = {r.name: r.noise for r in results}

@@ -1,0 +1,73 @@
+"""The city commands as users type them: simulate-city writes tiles with a CRS and a truth file into a folder it
+may replace; build-twin refuses bad tiling options with one line and exit status 2."""
+
+from __future__ import annotations
+
+import json
+
+import laspy
+from typer.testing import CliRunner
+
+from twinreg.cli import app
+
+runner = CliRunner()
+
+
+def test_simulate_city_writes_tiles_with_a_crs_and_the_truth(tmp_path, parametric_catalogue):
+    out = tmp_path / "city"
+    args = ["--library", str(parametric_catalogue.folder), "simulate-city", str(out), "--km2", "0.0064", "--tile",
+            "40", "--density", "30", "--json"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["models"] == "catalogue" and doc["n_cars"] > 20 and len(doc["tiles"]) == 4
+    truth = json.loads((out / "truth.json").read_text())
+    names = {r.name for r in parametric_catalogue.list()}
+    assert {c["model"] for c in truth["cars"]} <= names
+    total = 0
+    for name in truth["tiles"]:
+        with laspy.open(out / name) as f:
+            assert f.header.parse_crs().to_epsg() == 28992
+            total += f.header.point_count
+    assert total == truth["n_points"] and truth["n_points"] > 150_000
+    # the same seed gives the same city, and the folder (marked as twinreg's) is replaced
+    again = runner.invoke(app, args)
+    assert again.exit_code == 0 and json.loads(again.stdout)["n_points"] == doc["n_points"]
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep me")
+    refused = runner.invoke(app, args[:3] + [str(tmp_path / "mine")] + args[4:])
+    assert refused.exit_code == 1 and "did not write" in refused.stderr
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
+
+
+def test_bad_tiling_options_are_refused_with_one_line(tmp_path, parametric_catalogue):
+    from tests.conftest import write_las
+
+    import numpy as np
+
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    write_las(tiles / "a.laz", np.random.default_rng(0).uniform([0, 0, 0], [50, 50, 2], (500, 3)), crs="EPSG:28992")
+    base = ["--library", str(parametric_catalogue.folder), "build-twin", str(tiles), "--out", str(tmp_path / "o")]
+    for extra, words in ((["--cell", "20"], "--cell must be more than"), (["--workers", "0"], "--workers must be"),
+                         (["--buffer", "-1"], "--buffer must be")):
+        res = runner.invoke(app, base + extra)
+        assert res.exit_code == 2, (extra, res.output)
+        assert words in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_unreachable_scheduler_is_one_line(tmp_path, parametric_catalogue):
+    from tests.conftest import write_las
+
+    import numpy as np
+
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    write_las(tiles / "a.laz", np.random.default_rng(0).uniform([0, 0, 0], [50, 50, 2], (500, 3)), crs="EPSG:28992")
+    res = runner.invoke(app, ["--library", str(parametric_catalogue.folder), "build-twin", str(tiles), "--out",
+                              str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9"])
+    assert res.exit_code == 1
+    assert "tcp://127.0.0.1:9: cannot start or reach the Dask cluster" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
