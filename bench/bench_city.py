@@ -139,7 +139,8 @@ def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None) -> 
         for size in sizes:
             km2 = size / CARS_PER_KM2 if kind == "cars" else size * 1e6 / POINTS_PER_KM2
             folder = root / f"city_{kind}_{size}"
-            truth = city(cat, folder, km2, tile=250.0 if km2 > 0.05 else 100.0)
+            side = np.sqrt(km2) * 1000.0
+            truth = city(cat, folder, km2, tile=250.0 if side >= 250.0 else float(np.ceil(side / 10.0) * 10.0))
             secs, peak, twin = build(lib, [str(folder)], root / f"out_{kind}_{size}")
             right, found, pos = score(truth, twin)
             t = twin["timing_s"]

@@ -25,8 +25,8 @@ from .sources import Source, open_sources, split_key, split_tile
 
 
 #: a plain LAS/LAZ tile read by more cells than this is split once into them (else each cell reads it by chunks:
-#: reading a LAZ tile again costs about a sixth of splitting it, and the readers run in parallel)
-SPLIT_MIN_READERS = 8
+#: measured on 250 m LAZ tiles of 9.4M points, a cell's full read of a tile costs about half of splitting it once)
+SPLIT_MIN_READERS = 2
 
 
 class CityError(TwinregError):
@@ -230,7 +230,9 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
         for s in p.feeds[n]:
             if not s.copc:
                 readers.setdefault(s.path, [s, 0])[1] += 1
-    need = {path: s for path, (s, k) in readers.items() if k > SPLIT_MIN_READERS}
+    many = {path: s for path, (s, k) in readers.items() if k > SPLIT_MIN_READERS}
+    # splitting is one task per tile: worth it when there are tiles enough to keep every worker busy
+    need = many if len(many) >= eng.n_workers else {}
     folders = {path: store.split_folder(split_key(s, p.grid)) for path, s in need.items()}
     jobs = [SplitJob(s, p.grid, str(folders[path])) for path, s in need.items()]
     if jobs:
