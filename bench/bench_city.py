@@ -23,10 +23,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import Row, machine  # noqa: E402
 
-#: streets every 36 m; points per km2 and cars per km2 of that city at --density 150 (measured on 0.0144 km2)
+#: streets every 36 m; points per km2 and cars per km2 of that city at --density 150 (measured on 0.56 km2)
 STREETS = 36.0
-POINTS_PER_KM2 = 160e6
-CARS_PER_KM2 = 7_300
+POINTS_PER_KM2 = 150e6
+CARS_PER_KM2 = 7_500
 
 
 def run_tree(cmd: list[str]) -> tuple[float, int, str]:
@@ -140,7 +140,8 @@ def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None) -> 
             km2 = size / CARS_PER_KM2 if kind == "cars" else size * 1e6 / POINTS_PER_KM2
             folder = root / f"city_{kind}_{size}"
             side = np.sqrt(km2) * 1000.0
-            truth = city(cat, folder, km2, tile=250.0 if side >= 250.0 else float(np.ceil(side / 10.0) * 10.0))
+            n = int(np.ceil(side / 250.0))  # tiles of at most 250 m that make up the side
+            truth = city(cat, folder, km2, tile=float(np.ceil(side / n / 5.0) * 5.0))
             secs, peak, twin = build(lib, [str(folder)], root / f"out_{kind}_{size}")
             right, found, pos = score(truth, twin)
             t = twin["timing_s"]

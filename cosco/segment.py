@@ -111,7 +111,7 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
     ([500], [500])
     """
     pts = as_points(points)
-    ijk = np.floor((pts - pts.min(0)) / params.outlier_voxel).astype(np.int64)
+    ijk = ((pts - pts.min(0)) / params.outlier_voxel).astype(np.int64)  # non-negative: truncation is floor
     dims = ijk.max(0) + 1
     if np.prod(dims.astype(np.float64)) > dense_limit:
         # a huge extent (a stray point kilometres away): sparse voxel keys, memory by points

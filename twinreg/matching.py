@@ -137,15 +137,18 @@ def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams, poli
 
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
                   params: CoscoParams = DEFAULT, share: int = 4, progress=None, clouds: list | None = None,
-                  noise=None, cache: ModelCache | None = None,
-                  spacings: list | None = None) -> tuple[list[ObjectMatch], dict]:
+                  noise=None, cache: ModelCache | None = None, spacings: list | None = None,
+                  leaders: dict | None = None) -> tuple[list[ObjectMatch], dict]:
     """Match every object; returns the per-object outcomes and statistics (trials, timings).
 
     labels : cluster label per object (objects of one cluster share work), or None. clouds : each object's points
     ((n, 3) metres, the frame of its shape) and noise : the scan's range noise (m), to verify the best candidates
     against all the points (:mod:`twinreg.acceptance`); without them the lowest RMSE wins unverified. noise may
     be one value or one per object (tiles of a city); spacings : each object's point spacing (m) when ``clouds``
-    are samples of the objects' points, else None (measured on the clouds). cache : a
+    are samples of the objects' points, else None (measured on the clouds). leaders : ``{label: (ranking,
+    best RMSE)}`` of clusters whose leader was matched in another call (``stats["leaders"]`` of that call): all
+    the objects given for those labels are members, so one cluster's members can be matched in several batches
+    with exactly the outcome of one call. cache : a
     :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
     """
     tol = params.size_tol
@@ -175,12 +178,15 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
         groups.setdefault(int(labels[i]) if labels is not None else -1 - i, []).append(i)
     results: list[ObjectMatch | None] = [None] * len(shapes)
     t = time.perf_counter()
-    for members in groups.values():
-        ranked_by_leader: list[int] = []
-        leader_best = np.inf
+    stats["leaders"] = {}
+    for label, members in groups.items():
+        # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
+        known = leaders is not None and labels is not None and label in leaders
+        ranked_by_leader, leader_best = (list(leaders[label][0]), float(leaders[label][1])) if known else ([], np.inf)
         for k, i in enumerate(members):
+            leads = k == 0 and not known
             ids = cands[i]
-            if k > 0 and share and ranked_by_leader:
+            if not leads and share and ranked_by_leader:
                 preferred = [m for m in ranked_by_leader[:share] if m in ids]
                 ids = preferred or ids
             regs = []
@@ -190,7 +196,7 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
                 if progress:
                     progress(1)
             regs.sort(key=lambda r: r[0].rmse)
-            if k > 0 and regs and regs[0][0].rmse > leader_best + params.share_margin:
+            if not leads and regs and regs[0][0].rmse > leader_best + params.share_margin:
                 # this member fits the leader's favourites clearly worse than the leader did: not the same kind
                 # of car after all, so it tries the rest of its own candidates too
                 for mid in [m for m in cands[i] if m not in ids]:
@@ -199,9 +205,11 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
                 regs.sort(key=lambda r: r[0].rmse)
             if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
                 regs[0] = (_trial(pairs[i], cache, regs[0][1], params, polish=True), regs[0][1])
-            if k == 0:
+            if leads:
                 ranked_by_leader = [m for _, m in regs]
                 leader_best = regs[0][0].rmse if regs else np.inf
+                if labels is not None:
+                    stats["leaders"][label] = (ranked_by_leader, leader_best)
             cloud = clouds[i] if clouds is not None else None
             noise_i = noise if noise is None or np.ndim(noise) == 0 else float(noise[i])
             t_v = time.perf_counter()

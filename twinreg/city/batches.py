@@ -1,5 +1,6 @@
 """The worker side of a city run's global stages: the taxonomy's pair comparisons and the matching, each cut into
-batches (whole clusters for the matching, so that objects of one cluster still share work)."""
+batches. The matching runs the clusters' leaders first, then the members in batches of any cut, each with its
+leader's ranking: exactly what one call over all objects would give, with the work spread evenly."""
 
 from __future__ import annotations
 
@@ -52,6 +53,7 @@ class MatchBatch:
     noise: np.ndarray
     spacings: list
     params: CoscoParams = DEFAULT
+    leaders: dict | None = None
 
 
 _CACHES: dict = {}
@@ -79,27 +81,30 @@ def match_batch(batch: MatchBatch):
 
     cat, cache = _models(batch.folder, batch.params)
     return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params, clouds=batch.clouds,
-                         noise=batch.noise, cache=cache, spacings=batch.spacings)
+                         noise=batch.noise, cache=cache, spacings=batch.spacings, leaders=batch.leaders)
+
+
+def leader_indices(labels: np.ndarray) -> np.ndarray:
+    """The first object of each cluster (its leader), in object order."""
+    _, first = np.unique(np.asarray(labels), return_index=True)
+    return np.sort(first)
 
 
 def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: str, params: CoscoParams,
-                  size: int = 200) -> tuple[list[MatchBatch], list[np.ndarray]]:
-    """Whole clusters packed into batches of about ``size`` objects; returns the batches and, for each, the
-    indices of its objects."""
+                  indices: np.ndarray, size: int = 200, leaders: dict | None = None
+                  ) -> tuple[list[MatchBatch], list[np.ndarray]]:
+    """The objects ``indices`` cut into batches of about ``size`` (in label order, so that a batch holds few
+    clusters); ``leaders``: the leaders' rankings when ``indices`` are members. Returns the batches and, for
+    each, the indices of its objects."""
     labels = np.asarray(labels)
-    order = np.argsort(labels, kind="stable")
-    cuts = np.flatnonzero(np.diff(labels[order])) + 1
-    groups = np.split(order, cuts) if len(order) else []
-    batches, members, current = [], [], []
-    for g in groups:
-        current.append(g)
-        if sum(len(c) for c in current) >= size:
-            members.append(np.sort(np.concatenate(current)))
-            current = []
-    if current:
-        members.append(np.sort(np.concatenate(current)))
-    for idx in members:
-        batches.append(MatchBatch(folder, [objects[i].shape for i in idx], labels[idx],
-                                  [objects[i].cloud for i in idx], noise[idx],
-                                  [objects[i].spacing for i in idx], params))
-    return batches, members
+    idx = np.asarray(indices, dtype=np.int64)
+    idx = idx[np.lexsort((idx, labels[idx]))]
+    members = [idx[a:a + size] for a in range(0, len(idx), size)]
+    batches = []
+    for m in members:
+        m = np.sort(m)
+        batches.append(MatchBatch(folder, [objects[i].shape for i in m], labels[m], [objects[i].cloud for i in m],
+                                  noise[m], [objects[i].spacing for i in m], params,
+                                  None if leaders is None else {int(k): leaders[int(k)]
+                                                                for k in np.unique(labels[m])}))
+    return batches, [np.sort(m) for m in members]

@@ -234,27 +234,28 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
     # splitting is one task per tile: worth it when there are tiles enough to keep every worker busy
     need = many if len(many) >= eng.n_workers else {}
     folders = {path: store.split_folder(split_key(s, p.grid)) for path, s in need.items()}
-    jobs = [SplitJob(s, p.grid, str(folders[path])) for path, s in need.items()]
-    if jobs:
-        done = [0]
-        _say(progress, "split tiles", 0, len(jobs))
+    # every split at once; each cell waits only for the splits of its own tiles (no barrier between the stages)
+    splits = {path: eng.submit(run_split, SplitJob(s, p.grid, str(folders[path])), name=Path(path).name)
+              for path, s in need.items()}
+    if splits:
+        n_split = [0]
+        _say(progress, "split tiles", 0, len(splits))
 
-        def split_done(name, result):
-            done[0] += 1
-            _say(progress, "split tiles", done[0], len(jobs))
+        def split_done(_future):
+            n_split[0] += 1
+            _say(progress, "split tiles", n_split[0], len(splits))
 
-        fails = eng.run(run_split, jobs, [Path(j.source.path).name for j in jobs], on_result=split_done)
-        if fails:
-            raise CityError("tiles failed to split: " + "; ".join(f"{f.name} ({f.error})" for f in fails))
-    timing["split"] = time.perf_counter() - t
+        for f in splits.values():
+            f.add_done_callback(split_done)
     t = time.perf_counter()
     # the largest cells first (points estimated from the tiles' densities): the workers finish together
     todo = sorted(todo, key=lambda n: -p.estimate(n))
-    cell_jobs = []
+    cell_jobs, deps = [], {}
     for n in todo:
-        splits = tuple(str(folders[s.path]) for s in p.feeds[n] if s.path in folders)
+        reads = tuple(str(folders[s.path]) for s in p.feeds[n] if s.path in folders)
         boxes = tuple(s for s in p.feeds[n] if s.path not in folders)
-        cell_jobs.append(CellJob(p.cells[n], splits, boxes, params, keys[n], p.offset))
+        cell_jobs.append(CellJob(p.cells[n], reads, boxes, params, keys[n], p.offset))
+        deps[n] = [splits[s.path] for s in p.feeds[n] if s.path in splits]
     done = [p.n_cells - len(todo)]
     _say(progress, "cells", done[0], p.n_cells)
 
@@ -263,8 +264,15 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
         done[0] += 1
         _say(progress, "cells", done[0], p.n_cells)
 
-    fails = eng.run(process_cell, cell_jobs, todo, on_result=cell_done)
-    timing["cells"] = time.perf_counter() - t
+    fails = eng.run(process_cell, cell_jobs, todo, on_result=cell_done, deps=deps)
+    timing["cells"] = time.perf_counter() - t  # the splits included
+    broken = [f"{Path(path).name} ({type(f.exception()).__name__}: {f.exception()})" for path, f in splits.items()
+              if f.status == "error"]
+    for f in splits.values():
+        f.release()
+    if broken:
+        raise CityError("tiles failed to split: " + "; ".join(broken[:3]) + "; the finished cells are kept: fix "
+                        "or remove the tiles and rerun")
     if fails:
         shown = "; ".join(f"{f.name} ({f.error})" for f in fails[:5]) + (" ..." if len(fails) > 5 else "")
         raise CityError(f"{len(fails)} of {p.n_cells} cells failed twice: {shown}; the {done[0]} finished cells are "

@@ -92,9 +92,10 @@ def _image(cell: Cell, points: np.ndarray, hag: np.ndarray, is_ground: np.ndarra
     return img.reshape(n, n)
 
 
-def process_cell(job: CellJob) -> CellResult:
+def process_cell(job: CellJob, *ready) -> CellResult:
     """Read, ground, detection and description of one cell; the objects whose footprint centre lies in the
-    cell's half-open core (see :mod:`twinreg.city.grid`)."""
+    cell's half-open core (see :mod:`twinreg.city.grid`). ``ready``: the results of the tile splits it reads
+    (the engine passes them so that the cell starts as soon as its own tiles are split)."""
     from cosco.footprint import min_area_rectangle
     from cosco.segment import point_spacing
 

@@ -79,9 +79,15 @@ class Engine:
     def n_workers(self) -> int:
         return max(len(self.client.scheduler_info(n_workers=-1)["workers"]), 1) if self.client else 1
 
-    def run(self, fn, jobs: list, names: list[str], on_result=None, window: int | None = None) -> list[Failure]:
-        """Run ``fn(job)`` for every job, at most ``window`` at a time (default ``per_worker`` per worker);
-        ``on_result(name, result)`` is called in this process as each finishes. Returns the failures."""
+    def submit(self, fn, *args, name: str):
+        """One task now (retried once), e.g. one whose result later tasks wait for; returns its future."""
+        return self.client.submit(fn, *args, key=f"{fn.__name__}-{name}-{os.getpid()}", retries=1, pure=False)
+
+    def run(self, fn, jobs: list, names: list[str], on_result=None, window: int | None = None,
+            deps: dict | None = None) -> list[Failure]:
+        """Run ``fn(job, *deps[name])`` for every job, at most ``window`` at a time (default ``per_worker`` per
+        worker); ``deps``: futures a job waits for (their results are passed after it). ``on_result(name,
+        result)`` is called in this process as each finishes. Returns the failures."""
         from distributed import as_completed
 
         window = window or self.per_worker * self.n_workers
@@ -91,7 +97,9 @@ class Engine:
 
         def submit():
             name, job = pending.pop()
-            f = self.client.submit(fn, job, key=f"{fn.__name__}-{name}-{os.getpid()}", retries=1, pure=False)
+            extra = (deps or {}).get(name, ())
+            f = self.client.submit(fn, job, *extra, key=f"{fn.__name__}-{name}-{os.getpid()}", retries=1,
+                                   pure=False)
             futures[f] = name
             return f
 

@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from .batches import compare_pairs, match_batch, match_batches, pair_batches
+from .batches import compare_pairs, leader_indices, match_batch, match_batches, pair_batches
 
 
 def classify_and_match(eng, results, objects, catalogue, params, progress, timing):
@@ -41,34 +41,41 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     noise_of = {r.name: r.noise for r in results}
     noise = np.array([noise_of[o.cell] for o in objects])
     t = time.perf_counter()
-    batches, members = match_batches(objects, tax.labels, noise, str(catalogue.folder), params,
-                                     size=max(20, -(-len(objects) // (4 * n_workers))))
-    done = [0]
     if progress:
         progress("matching", 0, len(objects))
     outcomes = [None] * len(objects)
     stats = {"prefilter_s": 0.0, "model_prep_s": 0.0, "registration_s": 0.0, "verification_s": 0.0,
              "n_trials": 0, "n_pairs_without_prefilter": 0, "n_trials_saved_by_clusters": 0}
-
-    def batch_done(name, result):
-        k = int(name[5:])
-        res, st = result
-        for i, r in zip(members[k], res):
-            outcomes[i] = r
-        for key in stats:
-            stats[key] += st.get(key, 0)
-        done[0] += len(res)
-        if progress:
-            progress("matching", done[0], len(objects))
-
+    leaders: dict = {}
+    done = [0]
+    folder = str(catalogue.folder)
+    first = leader_indices(tax.labels)
+    rest = np.setdiff1d(np.arange(len(objects)), first)
+    phases = [(first, None), (rest, leaders)]
     from .engine import EngineError
 
-    fails = eng.run(match_batch, batches, [f"batch{k}" for k in range(len(batches))], on_result=batch_done)
-    if fails:
-        raise EngineError(f"matching failed twice for {fails[0].name} ({fails[0].error})")
-    timing["matching"] = time.perf_counter() - t
-    for key in ("prefilter_s", "model_prep_s", "registration_s", "verification_s"):
-        timing[key[:-2]] = stats[key]
+    for indices, known in phases:
+        if not len(indices):
+            continue
+        batches, members = match_batches(objects, tax.labels, noise, folder, params, indices,
+                                         size=max(10, -(-len(indices) // (4 * n_workers))), leaders=known)
+
+        def batch_done(name, result, members=members):
+            k = int(name[5:])
+            res, st = result
+            for i, r in zip(members[k], res):
+                outcomes[i] = r
+            for key in stats:
+                stats[key] += st.get(key, 0)
+            leaders.update(st.get("leaders", {}))
+            done[0] += len(res)
+            if progress:
+                progress("matching", done[0], len(objects))
+
+        fails = eng.run(match_batch, batches, [f"batch{k}" for k in range(len(batches))], on_result=batch_done)
+        if fails:
+            raise EngineError(f"matching failed twice for {fails[0].name} ({fails[0].error})")
+    timing["matching"] = time.perf_counter() - t  # the workers' own sums are in twin.json's matching.worker_s
     models = ModelCache(catalogue, params)
     models.add_rows(catalogue.list())
     return tax, outcomes, stats, models
