@@ -18,6 +18,20 @@ import numpy as np
 TARGET_POINTS = 6_000_000
 
 
+def in_box(xy: np.ndarray, lo, hi, closed: bool = True) -> np.ndarray:
+    """(n,) bool: which of the (n, 2) points lie in the box ``[lo, hi]`` (``[lo, hi)`` when not ``closed``).
+    Column by column: several times faster than comparing (n, 2) arrays and reducing them.
+
+    >>> in_box(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.5]]), (0.0, 0.0), (1.0, 1.0), closed=False).tolist()
+    [True, False, False]
+    """
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    x, y = xy[:, 0], xy[:, 1]
+    if closed:
+        return (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1])
+    return (x >= lo[0]) & (x < hi[0]) & (y >= lo[1]) & (y < hi[1])
+
+
 @dataclass(frozen=True)
 class Cell:
     """One cell of a :class:`Grid`: ``ix, iy`` its indices; ``lo, hi`` (2,) its core (metres, half-open)."""
@@ -44,14 +58,12 @@ class Cell:
 
     def owns(self, xy: np.ndarray) -> np.ndarray:
         """(n,) bool: which of the (n, 2) points lie in this cell's half-open core."""
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        return ((xy >= self.lo) & (xy < self.hi)).all(1)
+        return in_box(xy, self.lo, self.hi, closed=False)
 
     def searches(self, xy: np.ndarray) -> np.ndarray:
         """(n,) bool: which of the (n, 2) points lie in the square where this cell looks for objects (the core and
         its buffer, closed)."""
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        return ((xy >= np.asarray(self.lo) - self.buffer) & (xy <= np.asarray(self.hi) + self.buffer)).all(1)
+        return in_box(xy, np.asarray(self.lo) - self.buffer, np.asarray(self.hi) + self.buffer)
 
 
 @dataclass(frozen=True)

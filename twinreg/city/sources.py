@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneReadError
-from .grid import Grid
+from .grid import Grid, in_box
 
 TILE_SUFFIXES = (".las", ".laz")
 #: points read at a time from a plain LAS/LAZ file
@@ -183,12 +183,10 @@ def read_box(source: Source, lo, hi) -> np.ndarray:
         except Exception as exc:
             raise SceneReadError(f"{source.path}: reading the COPC file failed ({type(exc).__name__}: {exc})") \
                 from exc
-        keep = ((pts[:, :2] >= lo) & (pts[:, :2] <= hi)).all(1)
-        return pts[keep]
+        return pts[in_box(pts[:, :2], lo, hi)]
     parts = []
     for pts in _chunks(source):
-        keep = ((pts[:, :2] >= lo) & (pts[:, :2] <= hi)).all(1)
-        parts.append(pts[keep])
+        parts.append(pts[in_box(pts[:, :2], lo, hi)])
     return np.vstack(parts) if parts else np.zeros((0, 3))
 
 
@@ -215,14 +213,15 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     cells = grid.cells_over(np.asarray(source.lo[:2]) - grid.reach, np.asarray(source.hi[:2]) + grid.reach)
     try:
         for pts in _chunks(source):
+            xy = np.ascontiguousarray(pts[:, :2])
             for c in cells:  # a few cells per tile: one vectorised bounds test each, no sort
-                inside = ((pts[:, :2] >= c.read_lo) & (pts[:, :2] <= c.read_hi)).all(1)
-                if not inside.any():
+                inside = np.flatnonzero(in_box(xy, c.read_lo, c.read_hi))
+                if not len(inside):
                     continue
                 if c.name not in handles:
                     handles[c.name] = open(tmp / f"{c.name}.f64", "wb")
                 handles[c.name].write(np.ascontiguousarray(pts[inside]).tobytes())
-                counts[c.name] = counts.get(c.name, 0) + int(inside.sum())
+                counts[c.name] = counts.get(c.name, 0) + len(inside)
         for h in handles.values():
             h.close()
         (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts}))
