@@ -204,7 +204,7 @@ class CoscoParams:
     accept_max_points: int = 1500
 
     taxonomy_full_max: int = 32
-    taxonomy_neighbours: int = 4
+    taxonomy_neighbours: int = 3
 
     @property
     def ground_reach(self) -> float:
