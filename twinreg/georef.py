@@ -139,13 +139,20 @@ class Georef:
 
     def bearing(self, point, heading: float) -> float:
         """Degrees clockwise from true north of the scene direction ``heading`` (rad CCW from +X) at ``point``."""
+        return float(self.placements(np.asarray(point, dtype=np.float64)[None, :3], np.array([heading]))[1][0])
+
+    def placements(self, points, headings) -> tuple[np.ndarray, np.ndarray]:
+        """For (n, 3) scene points and (n,) headings (rad): their (n, 3) WGS84 longitude, latitude, height and
+        (n,) bearings (degrees clockwise from true north), in two vectorised transformations."""
         from pyproj import Geod
 
-        p = np.asarray(point, dtype=np.float64)[:3]
-        ahead = p + np.array([np.cos(heading), np.sin(heading), 0.0])
-        a, b = self.to_wgs84(np.vstack([p, ahead]))
-        az, _, _ = Geod(ellps="WGS84").inv(a[0], a[1], b[0], b[1])
-        return float(np.mod(az, 360.0))
+        p = np.atleast_2d(np.asarray(points, dtype=np.float64))[:, :3]
+        h = np.asarray(headings, dtype=np.float64).ravel()
+        ahead = p + np.column_stack([np.cos(h), np.sin(h), np.zeros(len(h))])
+        both = self.to_wgs84(np.vstack([p, ahead]))
+        a, b = both[:len(p)], both[len(p):]
+        az, _, _ = Geod(ellps="WGS84").inv(a[:, 0], a[:, 1], b[:, 0], b[:, 1])
+        return a, np.mod(np.asarray(az, dtype=np.float64), 360.0)
 
 
 def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: str | None = None,

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..export.kmz import write_kmz
-from ..export.objects import object_output
+from ..export.objects import object_output, pose
 from ..export.twin_ply import write_twin_ply
 from ..outdir import staged_folder
 from .resume import WORK
@@ -35,8 +35,13 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
     out = Path(out)
     docs, kmz_objects, meshes, per_cell_ply = [], [], {}, {}
     t = time.perf_counter()
-    for o, res, label in zip(objects, outcomes, tax.labels):
-        item = object_output(o.id, o.n_points, res, int(label), o.offset, georef, models)
+    # every object's lat/lon and bearing in two vectorised transformations (one per object took 8 s at 5,000)
+    poses = [pose(res) for res in outcomes]
+    centres = np.array([c + o.offset for (c, _), o in zip(poses, objects)]).reshape(-1, 3)
+    lonlat, bearings = georef.placements(centres, [h for _, h in poses])
+    for k, (o, res, label) in enumerate(zip(objects, outcomes, tax.labels)):
+        where = (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k]))
+        item = object_output(o.id, o.n_points, res, int(label), o.offset, georef, models, where=where)
         docs.append(item.doc)
         kmz_objects.append(item.kmz)
         meshes.setdefault(item.mesh_key, item.mesh)

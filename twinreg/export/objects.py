@@ -41,10 +41,21 @@ def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration
     return {"lon": lon, "tra": tra}
 
 
-def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, georef, models) -> ObjectOutput:
+def pose(res) -> tuple[np.ndarray, float]:
+    """(centre (3,) in the object's local frame, heading rad) of an outcome: the placed model's, else the
+    object's own."""
+    if res.match is not None:
+        return np.asarray(res.match.centre, dtype=np.float64), float(res.match.heading)
+    return np.asarray(res.shape.centroid, dtype=np.float64), float(res.shape.heading)
+
+
+def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, georef, models,
+                  where=None) -> ObjectOutput:
     """The exports of one matched (or unmatched) object. ``res``: its :class:`~twinreg.matching.ObjectMatch`;
     ``offset``: (3,) added to the object's local frame gives the scene frame; ``models``: the matcher's
-    :class:`~twinreg.matching.ModelCache` (rows, twin meshes and sections read once per model)."""
+    :class:`~twinreg.matching.ModelCache` (rows, twin meshes and sections read once per model). ``where``:
+    ``(lon, lat, bearing)`` computed for many objects at once (:meth:`~twinreg.georef.Georef.placements`), or
+    None to compute them here."""
     shape, m = res.shape, res.match
     rgb = cluster_color(label)
     if m is not None:
@@ -73,8 +84,11 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
         sections = {"title": f"{oid}: no match ({res.reason})",
                     "object": {"lon": shape.sections.longitudinal, "tra": shape.sections.transverse}}
     centre_scene = np.asarray(centre_local) + offset
-    lon, lat, _ = georef.to_wgs84(centre_scene[None])[0]
-    bearing = georef.bearing(centre_scene, heading)
+    if where is None:
+        ll, b = georef.placements(centre_scene[None], [heading])
+        lon, lat, bearing = float(ll[0, 0]), float(ll[0, 1]), float(b[0])
+    else:
+        lon, lat, bearing = where
     doc = {"id": oid, "n_points": int(n_points), "centroid": [float(v) for v in centre_scene],
            "heading_rad": float(heading), "size": {k: round(float(v), 3) for k, v in size.items()},
            "measured_size": shape.size.as_dict(),

@@ -90,6 +90,8 @@ def test_tiles_give_the_merged_scenes_twin_with_every_car_once(small_city, city_
         assert abs(x["heading_rad"] - y["heading_rad"]) < 1e-9
         assert (x["match"] or {}).get("name") == (y["match"] or {}).get("name")
         assert x["match"]["rmse_m"] == y["match"]["rmse_m"] and x["size"] == y["size"]
+        assert np.allclose([x["lat"], x["lon"], x["bearing_deg"]], [y["lat"], y["lon"], y["bearing_deg"]],
+                           rtol=0, atol=1e-9)
     # every car exactly once, those across seams too
     cars = np.array([[c["x"], c["y"]] for c in truth["cars"]])
     d, idx = cKDTree(cars).query(np.array([o["centroid"][:2] for o in b]))
