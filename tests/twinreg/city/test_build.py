@@ -1,5 +1,5 @@
-"""build-twin on tiles: the same twin as the merged scene, every car once, resumable, the same on an external
-Dask cluster, and COPC tiles read by bounds give the same twin as plain LAZ."""
+"""build-twin on tiles: the same twin as the merged scene, every car once, resumable after the run is killed, the
+same on an external Dask cluster, and COPC tiles read by bounds give the same twin as plain LAZ."""
 
 from __future__ import annotations
 
@@ -156,19 +156,19 @@ def _cli(*args, **kw):
                             text=True, **kw)
 
 
-def test_an_interrupted_run_resumes_with_the_same_twin(small_city, city_twin, parametric_catalogue, tmp_path):
+def test_a_killed_run_resumes_with_the_same_twin(small_city, city_twin, parametric_catalogue, tmp_path):
     root, _ = small_city
     out = tmp_path / "out"
     args = ["--library", parametric_catalogue.folder, "build-twin", root / "laz", "--cell", CELL, "--out", out,
             "--workers", "1", "--json"]
-    p = _cli(*args)
+    p = _cli(*args, start_new_session=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and p.poll() is None:
         if len(list((out / ".cells").glob("*.pkl"))) >= 2:
             break
         time.sleep(0.05)
     assert p.poll() is None, p.communicate()
-    p.send_signal(signal.SIGINT)  # Ctrl-C
+    os.killpg(p.pid, signal.SIGKILL)  # the command, its Dask scheduler and workers, at once
     p.communicate(timeout=60)
     assert p.returncode != 0
     done = len(list((out / ".cells").glob("*.pkl")))
