@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -98,22 +97,15 @@ def build(lib: Path, inputs: list[str], out: Path, extra=()) -> tuple[float, int
 
 def car_park_6x6(cat, path: Path) -> int:
     """The bench_twin car park (seed 5, 12 cars) repeated 6 x 6 in one LAS file (EPSG:28992)."""
-    import laspy
-    import pyproj
-
     from bench_twin import _scene
+
+    from twinreg.city.simulate import write_laz
 
     park, _ = _scene(cat, path.with_suffix(".ply"))
     pts = park.points
     span = np.ptp(pts[:, :2], axis=0) + 6.0
-    tiles = [pts + [121000 + i * span[0], 487000 + j * span[1], 0] for i in range(6) for j in range(6)]
-    allp = np.vstack(tiles)
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    header.scales, header.offsets = [0.001] * 3, np.floor(allp.min(0) / 1000) * 1000
-    header.add_crs(pyproj.CRS("EPSG:28992"))
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = allp.T
-    las.write(path)
+    allp = np.vstack([pts + [121000 + i * span[0], 487000 + j * span[1], 0] for i in range(6) for j in range(6)])
+    write_laz(path, allp, "EPSG:28992")
     return len(allp)
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..raycast import cast, direction
-from ..simulate import pose_matrix, transform
+from ..simulate import _box, pose_matrix, transform
 
 BLOCK = 25.0
 MARGIN = 4.0
@@ -46,15 +46,6 @@ class Placed:
     heading: float
     mesh: tuple
     radius: float
-
-
-def _box(size, centre, yaw=0.0):
-    import trimesh
-
-    m = trimesh.creation.box(size)
-    m.apply_transform(trimesh.transformations.euler_matrix(0, 0, yaw))
-    m.apply_translation(centre)
-    return np.asarray(m.vertices), np.asarray(m.faces)
 
 
 def _tree(x, y, rng):
@@ -160,7 +151,8 @@ def scan_block(bx: int, by: int, placed: list[Placed], centres: np.ndarray, dens
     return np.vstack(pts), np.concatenate(labels)
 
 
-def _write_laz(path: Path, points: np.ndarray, crs: str, copc: bool = False):
+def write_laz(path, points: np.ndarray, crs: str):
+    """A LAS 1.4 / LAZ file (by its suffix) of (n, 3) metre points, millimetre scale, with ``crs`` in its header."""
     import laspy
     import pyproj
 
@@ -233,7 +225,7 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
 
                     write_copc(tmp, pts, crs)
                 else:
-                    _write_laz(tmp, pts, crs)
+                    write_laz(tmp, pts, crs)
             files.append(name)
             n_points += len(pts)
             if progress:

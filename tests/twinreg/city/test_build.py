@@ -45,19 +45,14 @@ def city_twin(small_city, parametric_catalogue):
 
 def _merged(folder: Path, dst: Path) -> Path:
     import laspy
-    import pyproj
+
+    from twinreg.city.simulate import write_laz
 
     pts = []
     for f in sorted(folder.glob("*.laz")):
         las = laspy.read(f)
         pts.append(np.column_stack([las.x, las.y, las.z]))
-    pts = np.vstack(pts)
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    header.scales, header.offsets = [0.001] * 3, np.floor(pts.min(0) / 1000) * 1000
-    header.add_crs(pyproj.CRS("EPSG:28992"))
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = pts.T
-    las.write(dst)
+    write_laz(dst, np.vstack(pts), "EPSG:28992")
     return dst
 
 
