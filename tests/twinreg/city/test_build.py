@@ -1,4 +1,4 @@
-"""build-twin on tiles: the same twin as the merged scene, every car once, resumable after the run is killed, the
+"""build-twin on tiles: the same twin as the merged scene, every car once, resumable after Ctrl-C or a kill, the
 same on an external Dask cluster, and COPC tiles read by bounds give the same twin as plain LAZ."""
 
 from __future__ import annotations
@@ -151,21 +151,27 @@ def _cli(*args, **kw):
                             text=True, **kw)
 
 
-def test_a_killed_run_resumes_with_the_same_twin(small_city, city_twin, parametric_catalogue, tmp_path):
+@pytest.mark.parametrize("stop", ["ctrl-c", "kill"])
+def test_an_interrupted_run_resumes_with_the_same_twin(small_city, city_twin, parametric_catalogue, tmp_path, stop):
     root, _ = small_city
     out = tmp_path / "out"
     args = ["--library", parametric_catalogue.folder, "build-twin", root / "laz", "--cell", CELL, "--out", out,
             "--workers", "1", "--json"]
-    p = _cli(*args, start_new_session=True)
+    # Ctrl-C as in a terminal (a shell's background job would inherit SIGINT ignored), or the whole process group
+    # (the command, its Dask scheduler and workers) killed at once
+    p = _cli(*args, start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and p.poll() is None:
         if len(list((out / ".cells").glob("*.pkl"))) >= 2:
             break
         time.sleep(0.05)
     assert p.poll() is None, p.communicate()
-    os.killpg(p.pid, signal.SIGKILL)  # the command, its Dask scheduler and workers, at once
+    if stop == "ctrl-c":
+        p.send_signal(signal.SIGINT)
+    else:
+        os.killpg(p.pid, signal.SIGKILL)
     p.communicate(timeout=60)
-    assert p.returncode != 0
+    assert p.returncode == (130 if stop == "ctrl-c" else -signal.SIGKILL)
     done = len(list((out / ".cells").glob("*.pkl")))
     assert 2 <= done < city_twin["grid"]["n_cells"]
     assert not (out / "twin.json").exists()
