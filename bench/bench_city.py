@@ -152,6 +152,8 @@ def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None) -> 
                                                                                            "verification"))))
             if kind == "points":
                 curve.append((twin["n_points"], secs, peak))
+    if len(per_object) < 2:
+        return rows
     n_obj = np.array([n for n, _ in per_object], dtype=float)
     secs_obj = np.array([n * c for n, c in per_object])
     fixed, slope = np.polynomial.polynomial.polyfit(n_obj, secs_obj, 1)

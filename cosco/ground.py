@@ -28,6 +28,7 @@ import numpy as np
 
 from .footprint import as_points
 from .params import DEFAULT, CoscoParams
+from .sorting import group_by_key, group_medians
 
 
 @dataclass(frozen=True)
@@ -44,9 +45,29 @@ class _Grid:
         from scipy import ndimage
 
         pts = np.asarray(points, dtype=np.float64)
-        g = (pts[:, :2] - self.origin) / self.cell - 0.5
-        z = ndimage.map_coordinates(self.z, g.T, order=1, mode="nearest", prefilter=False)
-        return pts[:, 2] - z
+        z = ndimage.map_coordinates(self.z, _grid_positions(pts, self.origin, self.cell), order=1, mode="nearest",
+                                    prefilter=False)
+        return np.subtract(pts[:, 2], z, out=z)
+
+
+def _grid_positions(pts: np.ndarray, origin, cell: float, shift: float = 0.5) -> np.ndarray:
+    """(2, n) positions of points on a grid of ``cell`` squares at ``origin``, in cells from the first cell's
+    centre: ``(pts[:, :2] - origin) / cell - shift``, one row at a time (no (n, 2) temporaries)."""
+    g = np.empty((2, len(pts)))
+    for k in (0, 1):
+        np.subtract(pts[:, k], origin[k], out=g[k])
+        g[k] /= cell
+        g[k] -= shift
+    return g
+
+
+def _cell_index(pts: np.ndarray, origin, cell: float, shape) -> np.ndarray:
+    """(n,) int64 C-order index into a grid of ``shape`` cells at ``origin`` of points inside it (truncation is
+    floor: the offsets are non-negative)."""
+    flat = ((pts[:, 0] - origin[0]) / cell).astype(np.int64)
+    flat *= shape[1]
+    flat += ((pts[:, 1] - origin[1]) / cell).astype(np.int64)
+    return flat
 
 
 @dataclass(frozen=True)
@@ -82,14 +103,21 @@ class Ground:
         from scipy import ndimage
 
         pts = np.asarray(points, dtype=np.float64)
-        g = (pts[:, :2] - self.origin) / self.cell - 0.5
-        i, j = np.floor(g[:, 0]).astype(np.int64), np.floor(g[:, 1]).astype(np.int64)
+        g = _grid_positions(pts, self.origin, self.cell)
+        i, j = np.floor(g[0]).astype(np.int64), np.floor(g[1]).astype(np.int64)
         b = self.block
         key = (i // b) * self.n_block_cols + (j // b)
         pos = np.clip(np.searchsorted(self.keys, key), 0, len(self.keys) - 1)
         # a point whose four surrounding cells lie in one stored block: interpolated inside that block (C speed)
         inner = (self.keys[pos] == key) & (i >= 0) & (j >= 0) & (i % b < b - 1) & (j % b < b - 1)
+        del key
         z = np.empty(len(pts))
+        if len(self.keys) == 1 and inner.all():  # one block holds every point (a scene, a city cell)
+            bi, bj = divmod(int(self.keys[0]), self.n_block_cols)
+            g[0] -= bi * b
+            g[1] -= bj * b
+            ndimage.map_coordinates(self.tiles[0], g, order=1, prefilter=False, output=z)
+            return np.subtract(pts[:, 2], z, out=z)
         idx = np.flatnonzero(inner)
         if len(idx):
             blocks = np.unique(pos[idx])
@@ -100,12 +128,12 @@ class Ground:
                 end = np.searchsorted(pos[idx], k, side="right") if len(blocks) > 1 else len(idx)
                 sel = idx[start:end]
                 bi, bj = divmod(int(self.keys[k]), self.n_block_cols)
-                local = g[sel] - [bi * b, bj * b]
-                z[sel] = ndimage.map_coordinates(self.tiles[k], local.T, order=1, prefilter=False)
+                local = g[:, sel] - np.array([[bi * b], [bj * b]])
+                z[sel] = ndimage.map_coordinates(self.tiles[k], local, order=1, prefilter=False)
         rest = np.flatnonzero(~inner)
         if len(rest):
-            z[rest] = self._bilinear(g[rest], i[rest], j[rest])
-        return pts[:, 2] - z
+            z[rest] = self._bilinear(g[:, rest].T, i[rest], j[rest])
+        return np.subtract(pts[:, 2], z, out=z)
 
     def _bilinear(self, g: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The surface under grid positions ``g`` near block edges: the known corners' weights renormalised."""
@@ -160,8 +188,7 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
     from scipy import ndimage
 
     cell = params.ground_cell
-    ij = ((pts[:, :2] - origin) / cell).astype(np.int64)  # non-negative: truncation is floor, and 5x faster
-    flat = ij[:, 0] * shape[1] + ij[:, 1]
+    flat = _cell_index(pts, origin, cell, shape)
     zmin = np.full(shape[0] * shape[1], np.inf)
     np.minimum.at(zmin, flat, pts[:, 2])
     zmin = zmin.reshape(shape)
@@ -187,15 +214,16 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
     # the lowest point of a cell sits a few range-noise sigmas under the true ground: a second pass takes the
     # median of the points near that first surface in each ground cell
     first = _Grid(origin=origin, cell=cell, z=z)
-    near = np.abs(first.height(pts)) < params.ground_tol
+    h = first.height(pts)
+    near = np.abs(h, out=h) < params.ground_tol
+    del h
     near &= ground.ravel()[flat]
     if near.any():
         zmed = np.full(shape[0] * shape[1], np.nan)
-        order = np.lexsort((pts[near, 2], flat[near]))
-        keys, zs = flat[near][order], pts[near, 2][order]
-        starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-        ends = np.r_[starts[1:], len(keys)]
-        zmed[keys[starts]] = 0.5 * (zs[(starts + ends - 1) // 2] + zs[(starts + ends) // 2])
+        flat = flat[near]
+        keys, medians = group_medians(flat, pts[near, 2])
+        del flat
+        zmed[keys] = medians
         zmed = zmed.reshape(shape)
         known = np.isfinite(zmed)
         z = _fill_smooth(np.where(known, zmed, 0.0), known, sigma_cells=max(1.0, 2.0 / cell))
@@ -212,25 +240,37 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     cell, b, h = params.ground_cell, params.ground_block, params.ground_halo
     # blocks on a lattice anchored at the frame's origin: a tile of a larger scene (same frame) gets the same blocks
     origin = (np.floor(pts[:, :2].min(0) / (cell * b)) * (cell * b)).astype(np.float64)
-    ij = ((pts[:, :2] - origin) / cell).astype(np.int64)  # non-negative: truncation is floor
-    extent = ij.max(0) + 1
+    # cell indices: truncation is floor (the offsets are non-negative) and monotonic, so the largest index is the
+    # largest coordinate's
+    extent = ((pts[:, :2].max(0) - origin) / cell).astype(np.int64) + 1
     n_cols = int(extent[1] // b + 1)
-    bkey = (ij[:, 0] // b) * n_cols + ij[:, 1] // b
-    order = np.argsort(bkey, kind="stable")
-    keys, starts = np.unique(bkey[order], return_index=True)
-    ends = np.r_[starts[1:], len(order)]
+    if (extent <= b).all():  # one block (a scene or a city cell of up to 512 m): no grouping of the points
+        keys, order, starts, ends = np.zeros(1, dtype=np.int64), None, None, None
+    else:
+        bkey = ((pts[:, 0] - origin[0]) / cell).astype(np.int64) // b * n_cols
+        bkey += ((pts[:, 1] - origin[1]) / cell).astype(np.int64) // b
+        order, keys, starts = group_by_key(bkey)
+        del bkey
+        ends = np.r_[starts[1:], len(order)]
     tiles = np.empty((len(keys), b, b))
     for k, key in enumerate(keys):
         bi, bj = divmod(int(key), n_cols)
         lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
         hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
-        wanted = np.array([(bi + di) * n_cols + bj + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)
-                           if 0 <= bi + di and 0 <= bj + dj < n_cols])
-        pos = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
-        idx = np.concatenate([order[starts[n]:ends[n]] for n in pos[keys[pos] == wanted]])
-        inside = np.all((ij[idx] >= lo) & (ij[idx] < hi), axis=1)
-        idx = idx[inside]
-        z = _window_ground(pts[idx], origin + lo * cell, tuple(hi - lo), params)
+        if order is None:
+            window = pts
+        else:
+            wanted = np.array([(bi + di) * n_cols + bj + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)
+                               if 0 <= bi + di and 0 <= bj + dj < n_cols])
+            pos = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
+            idx = np.concatenate([order[starts[n]:ends[n]] for n in pos[keys[pos] == wanted]])
+            i = ((pts[idx, 0] - origin[0]) / cell).astype(np.int64)
+            j = ((pts[idx, 1] - origin[1]) / cell).astype(np.int64)
+            idx = idx[(i >= lo[0]) & (i < hi[0]) & (j >= lo[1]) & (j < hi[1])]
+            del i, j
+            window = pts[idx]
+            del idx
+        z = _window_ground(window, origin + lo * cell, tuple(hi - lo), params)
         core = np.full((b, b), np.nan)
         a0, a1 = bi * b - lo[0], bj * b - lo[1]
         part = z[a0:a0 + b, a1:a1 + b]

@@ -16,8 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points, min_area_rectangle
+from .footprint import as_points, cell_keys, min_area_rectangle
 from .params import DEFAULT, CoscoParams
+from .sorting import stable_argsort
 
 
 @dataclass(frozen=True)
@@ -111,17 +112,21 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
     ([500], [500])
     """
     pts = as_points(points)
-    ijk = ((pts - pts.min(0)) / params.outlier_voxel).astype(np.int64)  # non-negative: truncation is floor
-    dims = ijk.max(0) + 1
+    lo, v = pts.min(0), params.outlier_voxel
+    # voxel indices are non-negative (truncation is floor) and monotonic: the largest is the largest coordinate's
+    dims = ((pts.max(0) - lo) / v).astype(np.int64) + 1
     if np.prod(dims.astype(np.float64)) > dense_limit:
         # a huge extent (a stray point kilometres away): sparse voxel keys, memory by points
-        comp, _, _ = voxel_components(pts - pts.min(0), params.outlier_voxel)
+        comp, _, _ = voxel_components(pts - lo, v)
         sizes = np.bincount(comp)
     else:
         # the usual case: a small grid of coarse voxels, counted and labelled densely in O(n)
         from scipy import ndimage
 
-        flat = np.ravel_multi_index(ijk.T, dims)
+        flat = ((pts[:, 0] - lo[0]) / v).astype(np.int64)  # the C-order index of each point's voxel
+        for c in (1, 2):
+            flat *= dims[c]
+            flat += ((pts[:, c] - lo[c]) / v).astype(np.int64)
         counts = np.bincount(flat, minlength=int(np.prod(dims)))
         labels, _ = ndimage.label((counts > 0).reshape(dims), structure=np.ones((3, 3, 3)))
         comp = labels.ravel()[flat]
@@ -140,7 +145,7 @@ def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params:
     labels, counts = np.unique(comp, return_counts=True)
     if len(labels) < 2:
         return comp
-    order = np.argsort(comp, kind="stable")
+    order = stable_argsort(comp)
     starts = np.r_[0, np.cumsum(counts)[:-1]]
     members = {lab: order[s:s + c] for lab, s, c in zip(labels, starts, counts)}
     centres = {lab: xy[idx].mean(0) for lab, idx in members.items()}
@@ -209,8 +214,7 @@ def _describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosc
     """Sizes of one object; its footprint area counts occupied ``cell`` squares (no finer than the spacing)."""
     p = points[idx]
     rect = min_area_rectangle(p[:, :2]) if len(p) >= 3 else None
-    cells = np.unique(np.floor(p[:, :2] / cell).astype(np.int64), axis=0)
-    area = len(cells) * cell * cell
+    area = n_cells(p, cell) * cell * cell
     length = rect.length if rect else 0.0
     width = rect.width if rect else 0.0
     height = float(np.quantile(hag[idx], 0.99))
@@ -264,7 +268,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
         comp = np.r_[comp, comp[nearest[near]]]
     cand = core
     comp = _absorb_fragments(pts[cand, :2], hag[cand], comp, params)
-    order = np.argsort(comp, kind="stable")
+    order = stable_argsort(comp)
     bounds = np.flatnonzero(np.r_[True, comp[order][1:] != comp[order][:-1], True])
     objects = []
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -296,6 +300,14 @@ def point_spacing(local: np.ndarray, cell: float = 0.5) -> float:
     """
     if len(local) < 3:
         return 0.0
-    cells = np.unique(np.floor(local[:, :2] / cell).astype(np.int64), axis=0)
-    density = len(local) / (len(cells) * cell * cell)
+    density = len(local) / (n_cells(local, cell) * cell * cell)
     return float(1.0 / np.sqrt(density))
+
+
+def n_cells(points: np.ndarray, cell: float) -> int:
+    """How many ``cell`` squares (m) of the x/y grid anchored at 0 the (n, 2+) points occupy.
+
+    >>> n_cells(np.array([[0.05, 0.0], [0.09, 0.01], [-0.01, 0.0], [0.3, 0.2]]), 0.1)
+    3
+    """
+    return len(np.unique(cell_keys(np.floor(np.asarray(points)[:, :2] / cell).astype(np.int64))))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosco.ground import Ground, remove_ground
+from cosco.ground import Ground, estimate_ground
 from cosco.params import DEFAULT, CoscoParams
 from cosco.segment import Segmentation, far_outliers, segment_objects
 
@@ -43,17 +43,20 @@ def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None,
     the (n,) mask of those to search for objects after the ground is computed on all of them (a tile read wider
     for its ground), or None for all."""
     t0 = time.perf_counter()
-    outliers = far_outliers(scene.local, params)
+    local = scene.local
+    outliers = far_outliers(local, params)
     if outliers.any():
         scene = scene.without(outliers)
-    local = scene.local
-    is_ground, hag, ground = remove_ground(local, params)
-    if keep is not None:
+        local = local[~outliers]
+    ground = estimate_ground(local, params)
+    if keep is not None:  # the heights only where objects are searched
         inside = np.asarray(keep(scene.points), dtype=bool)
         from dataclasses import replace
 
         scene = replace(scene, points=scene.points[inside])
-        local, is_ground, hag = local[inside], is_ground[inside], hag[inside]
+        local = local[inside]
+    hag = ground.height(local)
+    is_ground = hag < params.ground_tol
     t1 = time.perf_counter()
     if progress:
         progress("ground")

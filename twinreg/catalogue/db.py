@@ -98,6 +98,22 @@ def head_revision() -> str:
     return heads.pop()
 
 
+def _upgrade_to_head(engine: Engine, folder: Path) -> None:
+    """Upgrade when the schema is not the head one, checking again under the writer lock: another process may be
+    creating or upgrading the same catalogue at this moment (its first read can then even see a locked file)."""
+    from sqlalchemy.exc import OperationalError
+
+    head = head_revision()
+    try:
+        if current_revision(engine) == head:
+            return
+    except OperationalError:
+        pass
+    with writer_lock(folder):
+        if current_revision(engine) != head:
+            upgrade(engine)
+
+
 def open_engine(folder: Path, create: bool = True) -> Engine:
     """The engine of the catalogue in ``folder``, upgraded to the newest schema.
 
@@ -113,9 +129,7 @@ def open_engine(folder: Path, create: bool = True) -> Engine:
         raise CatalogueError(f"{folder}: cannot create the catalogue folder ({exc.strerror})") from exc
     engine = make_engine(db_file)
     try:
-        if current_revision(engine) != head_revision():
-            with writer_lock(folder):
-                upgrade(engine)
+        _upgrade_to_head(engine, folder)
     except CatalogueError:
         raise
     except Exception as exc:

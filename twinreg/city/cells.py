@@ -16,7 +16,7 @@ import numpy as np
 from cosco.params import DEFAULT, CoscoParams
 
 from .grid import Cell
-from .sources import read_box, read_split
+from .sources import read_box, read_splits
 
 #: height-above-ground image of each cell for the report: pixel (m) and the value of a pixel with no points
 IMAGE_PIXEL = 1.0
@@ -75,10 +75,8 @@ class CellResult:
 
 def read_cell(job: CellJob) -> np.ndarray:
     """The (n, 3) float64 metre points of the cell's buffered square, from every tile that feeds it."""
-    parts = [read_split(folder, job.cell.name) for folder in job.splits]
-    parts += [read_box(src, job.cell.read_lo, job.cell.read_hi) for src in job.boxes]
-    parts = [p for p in parts if len(p)]
-    return np.vstack(parts) if parts else np.zeros((0, 3))
+    boxes = [read_box(src, job.cell.read_lo, job.cell.read_hi) for src in job.boxes]
+    return read_splits(job.splits, job.cell.name, boxes)
 
 
 def _image(cell: Cell, points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
@@ -96,6 +94,15 @@ def process_cell(job: CellJob, *ready) -> CellResult:
     """Read, ground, detection and description of one cell; the objects whose footprint centre lies in the
     cell's half-open core (see :mod:`twinreg.city.grid`). ``ready``: the results of the tile splits it reads
     (the engine passes them so that the cell starts as soon as its own tiles are split)."""
+    from ..memory import release_freed_memory
+
+    try:
+        return _process_cell(job)
+    finally:  # the worker keeps what it frees while it works on a cell (twinreg.memory), not between cells
+        release_freed_memory()
+
+
+def _process_cell(job: CellJob) -> CellResult:
     from cosco.footprint import min_area_rectangle
     from cosco.segment import point_spacing
 
@@ -106,15 +113,15 @@ def process_cell(job: CellJob, *ready) -> CellResult:
     cell, params = job.cell, job.params
     out = CellResult(cell.name, job.key, cell.lo, cell.hi)
     t0 = time.perf_counter()
-    pts = read_cell(job)
-    out.n_read = len(pts)
+    pts = [read_cell(job)]  # held in a list, so that the scene alone holds the points (and lets go of the margin)
+    out.n_read = len(pts[0])
     out.timing_s["read"] = time.perf_counter() - t0
-    if len(pts) < 100:
+    if out.n_read < 100:
         return out
     offset = np.asarray(job.offset, dtype=np.float64)
-    scene = PointSet(path=Path(cell.name), points=pts, offset=offset, unit="m")
     # the ground from everything read (the filter's reach), the objects from the core and its buffer
-    det = detect_points(scene, params, keep=lambda p: cell.searches(p[:, :2]))
+    det = detect_points(PointSet(path=Path(cell.name), points=pts.pop(), offset=offset, unit="m"), params,
+                        keep=lambda p: cell.searches(p[:, :2]))
     out.timing_s.update(det.timing_s)
     pts = det.scene.points
     own = cell.owns(pts[:, :2])

@@ -54,9 +54,16 @@ class Engine:
                     memory = min(WORKER_MEMORY, int(psutil.virtual_memory().total * 0.8 / n))
                 except ImportError:  # pragma: no cover - psutil comes with distributed
                     memory = WORKER_MEMORY
-                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, memory_limit=memory,
-                                            dashboard_address=None, silence_logs=logging.CRITICAL,
-                                            host="127.0.0.1", scheduler_port=0)
+                # the workers keep the memory they free for the next cell (twinreg.memory), set before they start
+                import dask
+
+                from ..memory import WORKER_ENV
+
+                environ = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENV}
+                with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+                    self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                memory_limit=memory, dashboard_address=None,
+                                                silence_logs=logging.CRITICAL, host="127.0.0.1", scheduler_port=0)
                 self.client = Client(self.cluster)
         except Exception as exc:  # unreachable, refused, a malformed address, no free port...
             self.__exit__(None, None, None)

@@ -234,9 +234,19 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     return counts
 
 
-def read_split(folder, cell_name: str) -> np.ndarray:
-    """The points a split tile gave one cell ((n, 3) float64 metres; empty when it gave none)."""
-    f = Path(folder) / f"{cell_name}.f64"
-    if not f.is_file():
-        return np.zeros((0, 3))
-    return np.fromfile(f, dtype=np.float64).reshape(-1, 3)
+def read_splits(folders, cell_name: str, extra=()) -> np.ndarray:
+    """The points split tiles gave one cell, followed by the ``extra`` (n, 3) arrays: (n, 3) float64 metres, read
+    straight into one array (no second copy of a cell's points)."""
+    files = [Path(f) / f"{cell_name}.f64" for f in folders]
+    files = [f for f in files if f.is_file()]
+    sizes = [f.stat().st_size // 24 for f in files]
+    out = np.empty((sum(sizes) + sum(len(e) for e in extra), 3))
+    at = 0
+    for f, n in zip(files, sizes):
+        with open(f, "rb") as fh:
+            fh.readinto(memoryview(out[at:at + n]).cast("B"))
+        at += n
+    for e in extra:
+        out[at:at + len(e)] = e
+        at += len(e)
+    return out

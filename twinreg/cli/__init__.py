@@ -45,6 +45,9 @@ def main() -> None:
     import os
     import sys
 
+    from ..memory import keep_freed_memory
+
+    keep_freed_memory()
     code = 0
     try:
         app()
