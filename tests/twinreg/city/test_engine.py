@@ -32,6 +32,20 @@ def test_a_task_failing_twice_is_reported_by_name_while_the_others_finish(tmp_pa
     assert attempts.count("3-0") == 1 and "3-1" in attempts and "2-1" in attempts and "1-1" not in attempts
 
 
+def test_embedded_workers_start_with_the_allocator_settings():
+    """The workers' C library reads MALLOC_* when the process starts: they must be in its environment then."""
+    from twinreg.city.engine import Engine
+    from twinreg.memory import WORKER_ENV
+
+    def environ(_):
+        import os
+
+        return {k: os.environ.get(k) for k in WORKER_ENV}
+
+    with Engine(workers=1) as eng:
+        assert eng.map(environ, [0], ["env"]) == [WORKER_ENV]
+
+
 def test_a_broken_tile_fails_its_cells_only_and_a_rerun_resumes(tmp_path, parametric_catalogue):
     from tests.twinreg.city.test_build import CELL
     from twinreg.city.build import CityError, build_city_twin
