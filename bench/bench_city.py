@@ -89,6 +89,10 @@ def score(truth: dict, twin: dict) -> tuple[int, int, float]:
 
 
 def build(lib: Path, inputs: list[str], out: Path, extra=()) -> tuple[float, int, dict]:
+    """One build-twin from scratch (an earlier run's OUT, whose finished cells a rerun would reuse, is removed)."""
+    import shutil
+
+    shutil.rmtree(out, ignore_errors=True)
     cmd = [sys.executable, "-m", "twinreg", "--library", str(lib), "build-twin", *inputs, "--out", str(out),
            "--json", *extra]
     secs, peak, stdout = run_tree(cmd)

@@ -83,5 +83,6 @@ def _run(out: Path, seed: int, n_cars: int, progress) -> dict:
     return {"seed": seed, "n_cars": n_cars, "n_points": twin["n_points"], "objects": rows_out,
             "n_correct": sum(r["correct"] for r in rows_out), "files": {
                 "scan": "scan.ply", "library": "library", "twin_json": "twin/twin.json", "twin_ply": "twin/twin.ply",
-                "twin_kmz": "twin/twin.kmz", "report": "twin/report.html"},
+                "twin_kmz": "twin/twin.kmz", "report": "twin/report.html", "tiles": "twin/tiles/tileset.json",
+                "twin_glb": "twin/twin.glb", "cityjson": "twin/twin.city.json", "geojson": "twin/twin.geojson"},
             "timing_s": {"total": round(time.perf_counter() - t0, 2), "build_twin": twin["timing_s"]["total"]}}

@@ -14,10 +14,12 @@ from .acceptance import scene_noise
 from .catalogue.repository import Catalogue
 from .detect import describe_detected, detect_file, object_points
 from .errors import CatalogueError, SceneReadError
+from .export.formats import write_formats
 from .export.kmz import write_kmz
 from .export.objects import object_output
 from .export.painter import HELPER_TIMEOUT_S, HelperError, Painter
 from .export.report import plot_taxonomy, warm_up, write_report
+from .export.tiles3d import SCAN_POINTS, scan_colours, thin
 from .export.twin_ply import write_twin_ply
 from .georef import Georef, scene_georef
 from .matching import ModelCache, match_objects
@@ -143,7 +145,7 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
 
     _say(progress, "export")
     t = time.perf_counter()
-    objects, ply_parts, kmz_objects, meshes, footprints, section_items = [], [], [], {}, [], []
+    objects, ply_parts, kmz_objects, meshes, footprints, section_items, outs = [], [], [], {}, [], [], []
     for k, (o, res) in enumerate(zip(targets, results)):
         label = int(clusters.labels[k])
         out = object_output(f"obj{k + 1}", o.n_points, res, label, offset, georef, models)
@@ -153,6 +155,7 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
         ply_parts.append((out.placed, out.faces, label))
         footprints.append(out.footprint)
         section_items.append(out.sections)
+        outs.append(out)
 
     twin = {
         "scene": scene_path.name, "n_points": int(len(det.scene.points)), "n_outliers": det.scene.n_outliers,
@@ -176,6 +179,11 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     if ply:
         write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
     write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
+    keep = thin(len(local), SCAN_POINTS)
+    twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
+                                  [("scene", det.scene.points[keep], scan_colours(det.hag[keep],
+                                                                                  det.is_ground[keep]))],
+                                  f"twinreg: {scene_path.name}")
     try:
         if painter is None:
             raise HelperError("no helper process")

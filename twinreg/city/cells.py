@@ -56,7 +56,9 @@ class CellObject:
 @dataclass
 class CellResult:
     """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings
-    and a height-above-ground image of its core (uint8 decimetres, :data:`IMAGE_EMPTY` where no point fell)."""
+    a height-above-ground image of its core (uint8 decimetres, :data:`IMAGE_EMPTY` where no point fell) and a
+    thinned sample of its core's points for the 3D tiles: ``(points (n, 3) float32 scene-local, colours (n, 3)
+    uint8)``."""
 
     name: str
     key: str
@@ -71,6 +73,7 @@ class CellResult:
     objects: list = field(default_factory=list)
     timing_s: dict = field(default_factory=dict)
     image: np.ndarray | None = None
+    scan: tuple | None = None
 
 
 def read_cell(job: CellJob) -> np.ndarray:
@@ -108,6 +111,7 @@ def _process_cell(job: CellJob) -> CellResult:
 
     from ..acceptance import sample_cloud, scene_noise
     from ..detect import describe_detected, detect_points, object_ground, object_points
+    from ..export.tiles3d import SCAN_POINTS, scan_colours, thin
     from ..io.points import PointSet
 
     cell, params = job.cell, job.params
@@ -130,6 +134,9 @@ def _process_cell(job: CellJob) -> CellResult:
     out.n_outliers = int(det.scene.n_outliers)
     out.noise = scene_noise(det.hag, det.is_ground)
     out.image = _image(cell, pts, det.hag, det.is_ground)
+    core = np.flatnonzero(own)
+    core = core[thin(len(core), SCAN_POINTS)]
+    out.scan = ((pts[core] - offset).astype(np.float32), scan_colours(det.hag[core], det.is_ground[core]))
     t = time.perf_counter()
     owned, centres = [], []
     for o in det.segmentation.objects:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..export.formats import write_formats
 from ..export.kmz import write_kmz
 from ..export.objects import object_output, pose
 from ..export.twin_ply import write_twin_ply
@@ -33,7 +34,7 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
     from .report import write_city_report
 
     out = Path(out)
-    docs, kmz_objects, meshes, per_cell_ply = [], [], {}, {}
+    docs, kmz_objects, meshes, per_cell_ply, outs = [], [], {}, {}, []
     t = time.perf_counter()
     # every object's lat/lon and bearing in two vectorised transformations (one per object took 8 s at 5,000)
     poses = [pose(res) for res in outcomes]
@@ -43,6 +44,7 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
         where = (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k]))
         item = object_output(o.id, o.n_points, res, int(label), o.offset, georef, models, where=where)
         docs.append(item.doc)
+        outs.append(item)
         kmz_objects.append(item.kmz)
         meshes.setdefault(item.mesh_key, item.mesh)
         if ply:
@@ -92,6 +94,17 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
                 write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset),
                                georef.to_json(), f"{twin['scene']}, cell {name}")
         write_city_report(stage, twin, results, objects, outcomes, plan)
+        t3 = time.perf_counter()
+        rows: dict = {}
+        for k, o in enumerate(objects):
+            rows.setdefault(o.cell, []).append(k)
+        off = np.asarray(plan.offset)
+        scans = [(r.name, r.scan[0].astype(np.float64) + off, r.scan[1]) for r in results
+                 if getattr(r, "scan", None) is not None and len(r.scan[0])]
+        twin["tiles"] = write_formats(stage, outs, [o.offset for o in objects], georef,
+                                      [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
+                                      f"twinreg: {twin['scene']}")
+        timing["formats"] = time.perf_counter() - t3
         timing["total"] = time.perf_counter() - t_start
         twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
         (stage / "twin.json").write_text(json.dumps(twin, indent=2), encoding="utf-8")

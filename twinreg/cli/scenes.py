@@ -164,3 +164,29 @@ def demo(
                       f"report: {f['report']}\nscan: {f['scan']}   catalogue: {f['library']}\n"
                       f"done in {summary['timing_s']['total']:.1f} s (build-twin {summary['timing_s']['build_twin']:.1f} s)",
                       highlight=False)
+    out_console.print(f"3D: twinreg view {out / 'twin'}", highlight=False)
+
+
+@app.command("view")
+@handled
+def view(
+    folder: Annotated[Path, typer.Argument(help="A twin folder (the OUT of build-twin).")],
+    port: Annotated[int, typer.Option("--port", help="Port on 127.0.0.1 (0: a free one).")] = 8765,
+    no_open: Annotated[bool, typer.Option("--no-open", help="Print the URL only; do not open a browser.")] = False,
+):
+    """Serve a twin folder on 127.0.0.1 and open the offline 3D viewer (Ctrl-C stops it)."""
+    import time
+    import webbrowser
+
+    from ..viewer import serve
+
+    server, url = serve(folder, port)
+    print(url, flush=True)
+    info(f"serving {folder} at {url} (Ctrl-C to stop)")
+    if not no_open:
+        webbrowser.open(url)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        server.shutdown()

@@ -19,7 +19,9 @@ from .twin_ply import cluster_color
 class ObjectOutput:
     """``doc`` (twin.json), ``kmz`` (placemark fields), ``placed`` (n, 3) vertices (object's local frame) with
     ``faces``, ``mesh_key`` and ``mesh`` (vertices, faces, rgb in model coordinates), ``footprint`` and
-    ``sections`` (report items)."""
+    ``sections`` (report items); ``origin`` (3,) where the mesh's origin is placed (object's local frame),
+    ``bearing`` (degrees clockwise from true north) of the mesh's +X, ``scale`` (L, W, H) of a unit box (an object
+    with no model) or None."""
 
     doc: dict
     kmz: dict
@@ -29,6 +31,9 @@ class ObjectOutput:
     mesh: tuple
     footprint: dict
     sections: dict
+    origin: np.ndarray = None
+    bearing: float = 0.0
+    scale: tuple | None = None
 
 
 def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration) -> dict:
@@ -61,6 +66,7 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
     if m is not None:
         row, (mv, mf) = models.row(m.model_id), models.mesh(m.model_id)
         placed = mv @ m.transform[:3, :3].T + m.transform[:3, 3]
+        origin = m.transform[:3, 3]
         faces, heading, centre_local = mf, m.heading, m.centre
         size = {"length": row.length, "width": row.width, "height": row.height}
         mesh_key, mesh = f"model{m.model_id}", (mv, mf, tuple(rgb / 255.0))
@@ -77,7 +83,8 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
         bv, faces = box_mesh(s.length, s.width, s.height)
         c, sn = np.cos(shape.heading), np.sin(shape.heading)
         rot = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1.0]])
-        placed = bv @ rot.T + shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]
+        origin = shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]
+        placed = bv @ rot.T + origin
         heading, centre_local, size = shape.heading, shape.centroid, s.as_dict()
         mesh_key, mesh = f"box_{oid}", (bv, faces, (0.9, 0.2, 0.2))
         match_doc = None
@@ -113,4 +120,5 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
     footprint = {"corners": rect.corners(), "color": rgb / 255.0, "centre": ctr,
                  "front": ctr + 1.5 * np.array([np.cos(heading), np.sin(heading)]),
                  "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1]) + ("" if m else "?")}
-    return ObjectOutput(doc, kmz, placed, faces, mesh_key, mesh, footprint, sections)
+    return ObjectOutput(doc, kmz, placed, faces, mesh_key, mesh, footprint, sections, np.asarray(origin, float),
+                        float(bearing), None if m is not None else (s.length, s.width, s.height))

@@ -1,0 +1,192 @@
+"""The twin as OGC 3D Tiles 1.1 (``tiles/tileset.json``) and as one glTF (``twin.glb``).
+
+- The root tile's ``transform`` takes the twin's east-north-up frame (:class:`~twinreg.export.earth.EnuFrame`,
+  about the objects' centre) to ECEF; ``refine: ADD``.
+- One child per processing cell (one for a scene), placed by a translation to its centre, with a box bounding
+  volume and a GLB: every catalogue model the cell uses is one mesh on one node drawn with
+  ``EXT_mesh_gpu_instancing`` (translations relative to the cell centre, unit-quaternion rotations), objects with
+  no model are one unit box scaled per instance; ``EXT_instance_features`` + ``EXT_structural_metadata`` give each
+  instance its row: object id, model, make, confidence, matched, sizes.
+- The scan beside it: ``tiles/scan/tileset.json`` (an external tileset referenced from the root, so a viewer shows
+  both), one point GLB per cell, thinned to at most ``SCAN_POINTS`` points each, coloured by height above ground.
+- ``twin.glb``: every instance in one GLB in the root's east-north-up frame (origin and CRS in ``asset.extras``).
+
+glTF content is Y-up and tiles are Z-up; :mod:`twinreg.export.gltf` writes ``(x, y, z)`` as ``(x, z, -y)`` once,
+and 3D Tiles viewers turn it back.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .earth import EnuFrame, enu_angles
+from .gltf import Glb
+from .kmz import box_mesh
+
+#: points of the scan kept per cell (thinned evenly)
+SCAN_POINTS = 200_000
+#: metres added around instances' origins for their bounding boxes (half a car's length and its height)
+REACH = (3.5, 3.5, 3.5)
+
+
+@dataclass
+class Instance:
+    """One object as the 3D formats place it: ``mesh`` (a key of the meshes), ``origin`` (3,) scene frame (where
+    the mesh's origin goes), ``bearing`` (degrees clockwise from north, of the mesh's +X), ``scale`` (L, W, H)
+    for a unit box or None, and its metadata row ``props``."""
+
+    id: str
+    mesh: str
+    origin: np.ndarray
+    bearing: float
+    scale: tuple | None
+    props: dict
+
+
+def instance_of(out, offset, confidence=None) -> Instance:
+    """An :class:`Instance` from an :class:`~twinreg.export.objects.ObjectOutput`."""
+    doc = out.doc
+    m = doc["match"]
+    props = {"id": doc["id"], "model": m["name"] if m else "", "make": (m or {}).get("make") or "",
+             "matched": m is not None, "confidence": (m or {}).get("confidence", confidence),
+             "length": doc["size"]["length"], "width": doc["size"]["width"], "height": doc["size"]["height"],
+             "cluster": float(doc["cluster"])}
+    return Instance(doc["id"], "box" if out.scale is not None else out.mesh_key, np.asarray(out.origin) + offset,
+                    out.bearing, out.scale, props)
+
+
+UNIT_BOX = box_mesh(1.0, 1.0, 1.0)
+BOX_COLOUR = (0.9, 0.2, 0.2)
+DESCRIPTIONS = {"id": "object id in twin.json", "model": "catalogue model (empty: no model fits)",
+                "confidence": "0-1 from the margin over the runner-up (-1: not known)",
+                "matched": "a catalogue model was placed (else a box of the measured size)"}
+
+
+def instances_glb(instances: list[Instance], positions: np.ndarray, angles: np.ndarray, meshes: dict,
+                  extras: dict | None = None) -> bytes:
+    """One GLB drawing ``instances`` at Z-up ``positions`` (n, 3) turned by ``angles`` (rad CCW about up): one
+    mesh and one instanced node per distinct mesh; feature ids are the instances' rows of one property table."""
+    g = Glb(extras)
+    table = g.property_table("car", {k: [i.props[k] for i in instances] for k in instances[0].props},
+                             DESCRIPTIONS)
+    groups: dict = {}
+    for k, inst in enumerate(instances):
+        groups.setdefault(inst.mesh, []).append(k)
+    for key, rows in groups.items():
+        rows = np.asarray(rows)
+        if key == "box":
+            mesh = g.mesh(*UNIT_BOX, BOX_COLOUR, "box")
+            scales = np.array([instances[r].scale for r in rows], dtype=np.float64)
+        else:
+            v, f, rgb = meshes[key]
+            mesh = g.mesh(v, f, rgb, key)
+            scales = None
+        g.instanced(mesh, key, positions[rows], angles[rows], scales=scales, feature_ids=rows, property_table=table,
+                    ids=[instances[r].id for r in rows])
+    return g.to_bytes()
+
+
+def _box(lo: np.ndarray, hi: np.ndarray) -> list[float]:
+    c, h = (lo + hi) / 2, np.maximum((hi - lo) / 2, 0.01)
+    return [*map(float, c), float(h[0]), 0.0, 0.0, 0.0, float(h[1]), 0.0, 0.0, 0.0, float(h[2])]
+
+
+def _translation(c: np.ndarray) -> list[float]:
+    m = np.eye(4)
+    m[:3, 3] = c
+    return [float(v) for v in m.T.ravel()]
+
+
+def scan_colours(hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
+    """(n, 3) uint8: ground grey, the rest from blue (low) to yellow (4 m and more) by height above ground."""
+    t = np.clip(np.asarray(hag, dtype=np.float64) / 4.0, 0.0, 1.0)[:, None]
+    rgb = (1 - t) * np.array([40, 90, 200]) + t * np.array([250, 210, 40])
+    rgb[np.asarray(is_ground, dtype=bool)] = (150, 150, 150)
+    return rgb.astype(np.uint8)
+
+
+def thin(n: int, keep: int) -> np.ndarray:
+    """Indices of an even thinning of ``n`` points to at most ``keep``."""
+    return np.arange(n) if n <= keep else np.linspace(0, n - 1, keep).astype(np.int64)
+
+
+def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, groups: list[tuple[str, list[int]]],
+                scans: list[tuple[str, np.ndarray, np.ndarray]] | None = None, glb: bool = True) -> dict:
+    """Write ``out/tiles/`` (tileset.json, one GLB per group, the scan tileset) and ``out/twin.glb``.
+
+    instances : every object; groups : (name, indices into instances) per cell; meshes : key -> (vertices,
+    faces, rgb) in model coordinates (metres, Z up, front +X); scans : (name, (n, 3) scene points, (n, 3) uint8
+    colours) per cell, or None. Returns a summary (the frame's origin, counts)."""
+    out = Path(out)
+    (out / "tiles" / "cells").mkdir(parents=True, exist_ok=True)
+    origins = np.array([i.origin for i in instances], dtype=np.float64).reshape(-1, 3)
+    lo, hi = origins.min(0), origins.max(0)
+    frame = EnuFrame.at(georef, [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    enu = frame.from_scene(georef, origins)
+    angles = enu_angles([i.bearing for i in instances])
+    reach = np.asarray(REACH)
+    children, all_lo, all_hi = [], [], []
+    for name, rows in groups:
+        rows = np.asarray(rows, dtype=np.int64)
+        if not len(rows):
+            continue
+        p = enu[rows]
+        c = (p.min(0) + p.max(0)) / 2
+        data = instances_glb([instances[r] for r in rows], p - c, angles[rows], meshes)
+        (out / "tiles" / "cells" / f"{name}.glb").write_bytes(data)
+        blo, bhi = p.min(0) - c - reach, p.max(0) - c + reach
+        all_lo.append(blo + c)
+        all_hi.append(bhi + c)
+        children.append({"transform": _translation(c), "boundingVolume": {"box": _box(blo, bhi)},
+                         "geometricError": 0.0, "content": {"uri": f"cells/{name}.glb"}})
+    n_scan = 0
+    if scans:
+        n_scan = _write_scan(out / "tiles" / "scan", frame, georef, scans, all_lo, all_hi)
+        children.append({"boundingVolume": {"box": _box(np.min(all_lo, 0), np.max(all_hi, 0))},
+                         "geometricError": 1.0, "content": {"uri": "scan/tileset.json"}})
+    root_lo, root_hi = np.min(all_lo, 0), np.max(all_hi, 0)
+    size = float(np.linalg.norm(root_hi - root_lo))
+    tileset = {"asset": {"version": "1.1", "generator": "twinreg",
+                         "extras": {"origin": {"lon": frame.lon, "lat": frame.lat, "h": frame.h},
+                                    "crs": georef.crs, "frame": "east-north-up metres about origin"}},
+               "geometricError": size,
+               "root": {"transform": [float(v) for v in frame.to_ecef_matrix().T.ravel()],
+                        "boundingVolume": {"box": _box(root_lo, root_hi)}, "geometricError": size / 2,
+                        "refine": "ADD", "children": children}}
+    (out / "tiles" / "tileset.json").write_text(json.dumps(tileset, indent=1), encoding="utf-8")
+    if glb:
+        extras = {"origin": {"lon": frame.lon, "lat": frame.lat, "h": frame.h}, "crs": georef.crs,
+                  "frame": "east-north-up metres about origin (glTF Y-up: x east, y up, -z north)"}
+        (out / "twin.glb").write_bytes(instances_glb(instances, enu, angles, meshes, extras))
+    return {"origin": {"lon": frame.lon, "lat": frame.lat, "h": frame.h}, "n_tiles": len(groups),
+            "n_scan_points": n_scan}
+
+
+def _write_scan(folder: Path, frame: EnuFrame, georef, scans, all_lo: list, all_hi: list) -> int:
+    folder.mkdir(parents=True, exist_ok=True)
+    children, total = [], 0
+    for name, pts, rgb in scans:
+        if not len(pts):
+            continue
+        centre = (pts.min(0) + pts.max(0)) / 2
+        a, b = frame.affine_near(georef, centre)
+        p = (pts - centre) @ a.T + b
+        c = (p.min(0) + p.max(0)) / 2
+        g = Glb()
+        g.node(g.points(p - c, rgb, f"scan {name}"), f"scan {name}")
+        (folder / f"{name}.glb").write_bytes(g.to_bytes())
+        children.append({"transform": _translation(c), "boundingVolume": {"box": _box(p.min(0) - c, p.max(0) - c)},
+                         "geometricError": 0.0, "content": {"uri": f"{name}.glb"}})
+        all_lo.append(p.min(0))
+        all_hi.append(p.max(0))
+        total += len(p)
+    lo, hi = np.min(all_lo, 0), np.max(all_hi, 0)
+    doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": 1.0,
+           "root": {"boundingVolume": {"box": _box(lo, hi)}, "geometricError": 1.0, "refine": "ADD",
+                    "children": children}}
+    (folder / "tileset.json").write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    return total

@@ -1,0 +1,198 @@
+// The twin viewer: reads tiles/tileset.json (children, transforms, external tilesets, GLB content with
+// EXT_mesh_gpu_instancing) with three.js, shows the scan and the placed models, a click on a car shows its
+// twin.json record and sections, the search box finds cars by model name. Everything comes from 127.0.0.1.
+import * as THREE from "three";
+import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+
+const view = document.getElementById("view");
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+renderer.setSize(view.clientWidth, view.clientHeight);
+view.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x20242b);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x555555, 2.2));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+sun.position.set(0.4, 1.0, 0.3);
+scene.add(sun);
+const camera = new THREE.PerspectiveCamera(45, view.clientWidth / view.clientHeight, 0.5, 50000);
+const controls = new OrbitControls(camera, renderer.domElement);
+
+// tiles are Z-up (east, north, up); three.js is Y-up
+const world = new THREE.Group();
+world.rotation.x = -Math.PI / 2;
+scene.add(world);
+const loader = new GLTFLoader();
+const cars = [];        // instanced meshes of the models, each with userData.ids
+const stats = { tiles: 0, instances: 0, points: 0 };
+
+function matrixOf(tile) {
+  const m = new THREE.Matrix4();
+  if (tile.transform) m.fromArray(tile.transform);   // column-major, as 3D Tiles stores it
+  return m;
+}
+
+async function loadTile(tile, base, parent) {
+  const group = new THREE.Group();
+  group.matrixAutoUpdate = false;
+  group.matrix.copy(matrixOf(tile));
+  parent.add(group);
+  if (tile.content) {
+    const uri = new URL(tile.content.uri, base);
+    if (uri.pathname.endsWith(".json")) {
+      const ext = await (await fetch(uri)).json();
+      await loadTile(ext.root, uri, group);
+    } else {
+      const gltf = await loader.loadAsync(uri.href);
+      gltf.scene.rotation.x = Math.PI / 2;   // glTF Y-up -> the tile's Z-up
+      group.add(gltf.scene);
+      stats.tiles += 1;
+      gltf.scene.traverse((o) => {
+        if (o.isInstancedMesh) {
+          let p = o; while (p && !p.userData.ids) p = p.parent;
+          o.userData.ids = p ? p.userData.ids : [];
+          cars.push(o);
+          stats.instances += o.count;
+        } else if (o.isPoints) {
+          o.material.size = 1.5; o.material.sizeAttenuation = false;
+          stats.points += o.geometry.attributes.position.count;
+        }
+      });
+    }
+  }
+  await Promise.all((tile.children || []).map((c) => loadTile(c, base, group)));
+}
+
+let twin = null, sections = {};
+const byId = new Map();
+
+function showObject(id) {
+  const o = byId.get(id);
+  const d = document.getElementById("details");
+  if (!o) { d.innerHTML = ""; return; }
+  const m = o.match;
+  const rows = [["id", o.id], ["model", m ? `${m.name} (${m.make || ""} ${m.model || ""})` : "none: " + (o.reason || "")],
+    ["confidence", m && m.confidence != null ? m.confidence.toFixed(2) : "-"],
+    ["RMSE", m ? (m.rmse_m * 100).toFixed(1) + " cm" : "-"],
+    ["size", `${o.size.length} x ${o.size.width} x ${o.size.height} m`],
+    ["measured", o.measured_size ? `${o.measured_size.length.toFixed(2)} x ${o.measured_size.width.toFixed(2)} x ${o.measured_size.height.toFixed(2)} m` : "-"],
+    ["lat, lon", `${o.lat.toFixed(7)}, ${o.lon.toFixed(7)}`], ["bearing", `${o.bearing_deg.toFixed(1)} deg`],
+    ["points", o.n_points], ["cluster", o.cluster]];
+  d.innerHTML = "<table>" + rows.map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join("") + "</table>";
+  const s = sections[id];
+  if (s) {
+    const c = document.createElement("canvas");
+    c.className = "sections"; c.width = 540; c.height = 200;
+    d.appendChild(c);
+    drawSections(c, s);
+  }
+}
+
+function drawSections(c, s) {
+  const g = c.getContext("2d");
+  const panels = [["longitudinal", s.lon, s.model_lon], ["transverse", s.tra, s.model_tra]];
+  panels.forEach(([name, pts, model], k) => {
+    const x0 = k * 270, all = (pts || []).concat(model || []);
+    if (!all.length) return;
+    const us = all.map((p) => p[0]), zs = all.map((p) => p[1]);
+    const umin = Math.min(...us), umax = Math.max(...us), zmin = Math.min(...zs), zmax = Math.max(...zs);
+    const sc = Math.min(250 / (umax - umin || 1), 170 / (zmax - zmin || 1));
+    const at = (p) => [x0 + 10 + (p[0] - umin) * sc, 190 - (p[1] - zmin) * sc];
+    g.fillStyle = "#333"; g.fillText(name, x0 + 10, 12);
+    g.fillStyle = "#1f77b4"; (pts || []).forEach((p) => { const [x, y] = at(p); g.fillRect(x - 1, y - 1, 2, 2); });
+    g.fillStyle = "#d62728"; (model || []).forEach((p) => { const [x, y] = at(p); g.fillRect(x, y, 1, 1); });
+  });
+}
+
+function search(text) {
+  const hits = document.getElementById("hits");
+  const q = text.trim().toLowerCase();
+  if (!q) { hits.innerHTML = ""; return; }
+  const found = twin.objects.filter((o) => o.match && o.match.name.toLowerCase().includes(q)).slice(0, 200);
+  hits.innerHTML = `<div>${found.length} found</div>` +
+    found.map((o) => `<div data-id="${o.id}">${o.id}: ${o.match.name}</div>`).join("");
+  hits.querySelectorAll("div[data-id]").forEach((el) => el.onclick = () => focusOn(el.dataset.id));
+}
+
+function carPosition(id) {
+  for (const mesh of cars) {
+    const k = mesh.userData.ids.indexOf(id);
+    if (k >= 0) {
+      const m = new THREE.Matrix4();
+      mesh.getMatrixAt(k, m);
+      return new THREE.Vector3().setFromMatrixPosition(m.premultiply(mesh.matrixWorld));
+    }
+  }
+  return null;
+}
+
+function focusOn(id) {
+  const p = carPosition(id);
+  showObject(id);
+  if (!p) return;
+  const offset = camera.position.clone().sub(controls.target).setLength(25);
+  controls.target.copy(p);
+  camera.position.copy(p).add(offset);
+  controls.update();
+}
+
+const ray = new THREE.Raycaster();
+renderer.domElement.addEventListener("click", (ev) => {
+  const r = renderer.domElement.getBoundingClientRect();
+  ray.setFromCamera(new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1), camera);
+  const hit = ray.intersectObjects(cars, false)[0];
+  if (hit && hit.instanceId !== undefined) showObject(hit.object.userData.ids[hit.instanceId]);
+});
+
+// screen positions of the cars (for tests and scripts): [{id, x, y, model}]
+window.twinViewerProbe = () => {
+  const out = [], r = renderer.domElement.getBoundingClientRect();
+  for (const mesh of cars) {
+    const m = new THREE.Matrix4(), colour = mesh.material.color ? mesh.material.color.getHexString() : "";
+    for (let k = 0; k < mesh.count; k++) {
+      mesh.getMatrixAt(k, m);
+      const box = mesh.geometry.boundingBox || (mesh.geometry.computeBoundingBox(), mesh.geometry.boundingBox);
+      const centre = box.getCenter(new THREE.Vector3()).applyMatrix4(m).applyMatrix4(mesh.matrixWorld);
+      const v = centre.clone().project(camera);
+      out.push({ id: mesh.userData.ids[k], x: (v.x + 1) / 2 * r.width, y: (1 - v.y) / 2 * r.height, colour });
+    }
+  }
+  return out;
+};
+
+async function main() {
+  const t0 = performance.now();
+  twin = await (await fetch("/twin/twin.json")).json();
+  twin.objects.forEach((o) => byId.set(o.id, o));
+  try { sections = await (await fetch("/twin/sections.json")).json(); } catch (e) { sections = {}; }
+  const tilesetUrl = new URL("/twin/tiles/tileset.json", window.location.href);
+  const tileset = await (await fetch(tilesetUrl)).json();
+  const root = Object.assign({}, tileset.root, { transform: undefined });  // the local frame: no ECEF
+  await loadTile(root, tilesetUrl, world);
+  world.updateMatrixWorld(true);
+  const box = new THREE.Box3().setFromObject(world);
+  const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3());
+  const span = Math.max(size.x, size.z, 20);
+  controls.target.copy(centre);
+  camera.position.set(centre.x + span * 0.15, centre.y + span * 0.75, centre.z + span * 0.55);
+  camera.far = span * 20; camera.updateProjectionMatrix();
+  controls.update();
+  const matched = twin.objects.filter((o) => o.match).length;
+  document.getElementById("title").textContent = `twinreg: ${twin.scene}`;
+  document.getElementById("summary").textContent =
+    `${twin.objects.length} objects, ${matched} with a model; ${stats.instances} instances in ${stats.tiles} tiles, ` +
+    `${stats.points.toLocaleString()} scan points`;
+  document.getElementById("search").oninput = (e) => search(e.target.value);
+  renderer.render(scene, camera);
+  stats.ms = performance.now() - t0;
+  window.twinViewerStats = stats;
+  window.twinViewerReady = true;
+}
+
+function animate() { requestAnimationFrame(animate); controls.update(); renderer.render(scene, camera); }
+window.addEventListener("resize", () => {
+  camera.aspect = view.clientWidth / view.clientHeight; camera.updateProjectionMatrix();
+  renderer.setSize(view.clientWidth, view.clientHeight);
+});
+main().then(animate).catch((e) => { console.error("viewer failed: " + e); document.getElementById("summary").textContent = "error: " + e; });
