@@ -3,32 +3,48 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
+NPM_STAMP := node_modules/.installed-stamp
+SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: demo test install bench clean
 
-# system library open3d needs, a virtual environment, the package with its test extras
+# system packages: libusb for open3d, Node.js and npm for the viewer's JavaScript (when the machine has no node)
+define apt_install
+	$(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $(1)
+endef
+
+# a virtual environment with the package and its test extras
 $(STAMP): pyproject.toml
 	@if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then \
-		echo "installing libusb-1.0-0 (needed by open3d)"; \
-		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
-		$$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq libusb-1.0-0; \
-	fi
+		echo "installing libusb-1.0-0 (needed by open3d)"; $(call apt_install,libusb-1.0-0); fi
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e ".[test]"
 	@touch $(STAMP)
 
-install: $(STAMP)
+# three.js for the viewer, the Khronos glTF validator and playwright-core for the tests: exactly the locked
+# versions from the npm registry (no browser download: the tests drive the system's Chromium)
+$(NPM_STAMP): package.json package-lock.json
+	@command -v npm >/dev/null || { echo "installing nodejs and npm"; $(call apt_install,nodejs npm); }
+	npm ci --no-audit --no-fund --loglevel=error
+	@touch $(NPM_STAMP)
 
-demo: $(STAMP)
+# headless Chromium from Debian's packages, for the viewer's browser test
+/usr/bin/chromium:
+	@echo "installing chromium (the viewer's browser test)"
+	$(call apt_install,chromium)
+
+install: $(STAMP) $(NPM_STAMP)
+
+demo: $(STAMP) $(NPM_STAMP)
 	$(BIN)/twinreg demo
 
 # the suite fails (instead of skipping) when ../shared/data is missing; plain `pytest` may skip, with a count
-test: $(STAMP)
+test: $(STAMP) $(NPM_STAMP) /usr/bin/chromium
 	TWINREG_REQUIRE_SHARED_DATA=1 $(BIN)/python -m pytest
 
-bench: $(STAMP)
+bench: $(STAMP) $(NPM_STAMP)
 	$(BIN)/python bench/run.py
 
 clean:
-	rm -rf $(VENV) *.egg-info .pytest_cache
+	rm -rf $(VENV) *.egg-info .pytest_cache node_modules

@@ -33,7 +33,17 @@ try {
   const stats = await page.evaluate(() => window.twinViewerStats || null);
   const cars = ready ? await page.evaluate(() => window.twinViewerProbe()) : [];
   await page.screenshot({ path: shot });
-  console.log(JSON.stringify({ ready, ms, stats, errors, blocked, cars }));
+  // a click on the first car shows its record and its sections; the search finds cars by model name
+  let clicked = null, found = null;
+  if (cars.length) {
+    await page.mouse.click(cars[0].x, cars[0].y);
+    clicked = await page.evaluate(() => ({ text: document.getElementById("details").innerText,
+      sections: document.querySelectorAll("#details canvas.sections").length }));
+    const model = (clicked.text.match(/model\s+(\S+)/) || [])[1] || "";
+    await page.fill("#search", model);
+    found = { model, hits: await page.evaluate(() => document.querySelectorAll("#hits div[data-id]").length) };
+  }
+  console.log(JSON.stringify({ ready, ms, stats, errors, blocked, cars, clicked, found }));
 } finally {
   await browser.close();
 }

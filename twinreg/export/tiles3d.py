@@ -59,6 +59,20 @@ def instance_of(out, offset, confidence=None) -> Instance:
                     out.bearing, out.scale, props)
 
 
+#: model colours (matplotlib's tab10 without its red, kept for objects with no model, and its grey, the scan's
+#: ground), chosen by the model's key
+PALETTE = [(0.122, 0.467, 0.706), (1.0, 0.498, 0.055), (0.173, 0.627, 0.173), (0.580, 0.404, 0.741),
+           (0.549, 0.337, 0.294), (0.890, 0.467, 0.761), (0.737, 0.741, 0.133),
+           (0.090, 0.745, 0.812)]
+
+
+def model_colour(key: str) -> tuple:
+    """The colour a model is drawn in, the same in every tile and file (from a checksum of its key)."""
+    import zlib
+
+    return PALETTE[zlib.crc32(key.encode()) % len(PALETTE)]
+
+
 UNIT_BOX = box_mesh(1.0, 1.0, 1.0)
 BOX_COLOUR = (0.9, 0.2, 0.2)
 DESCRIPTIONS = {"id": "object id in twin.json", "model": "catalogue model (empty: no model fits)",
@@ -82,8 +96,8 @@ def instances_glb(instances: list[Instance], positions: np.ndarray, angles: np.n
             mesh = g.mesh(*UNIT_BOX, BOX_COLOUR, "box")
             scales = np.array([instances[r].scale for r in rows], dtype=np.float64)
         else:
-            v, f, rgb = meshes[key]
-            mesh = g.mesh(v, f, rgb, key)
+            v, f, _ = meshes[key]
+            mesh = g.mesh(v, f, model_colour(key), key)
             scales = None
         g.instanced(mesh, key, positions[rows], angles[rows], scales=scales, feature_ids=rows, property_table=table,
                     ids=[instances[r].id for r in rows])

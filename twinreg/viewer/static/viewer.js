@@ -173,10 +173,12 @@ async function main() {
   world.updateMatrixWorld(true);
   const box = new THREE.Box3().setFromObject(world);
   const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3());
+  // the whole twin in view, seen from the south and above
   const span = Math.max(size.x, size.z, 20);
+  const dist = 0.62 * span / Math.tan(THREE.MathUtils.degToRad(camera.fov / 2));
   controls.target.copy(centre);
-  camera.position.set(centre.x + span * 0.15, centre.y + span * 0.75, centre.z + span * 0.55);
-  camera.far = span * 20; camera.updateProjectionMatrix();
+  camera.position.copy(centre).add(new THREE.Vector3(0.1, 0.85, 0.52).normalize().multiplyScalar(dist));
+  camera.far = dist * 20; camera.updateProjectionMatrix();
   controls.update();
   const matched = twin.objects.filter((o) => o.match).length;
   document.getElementById("title").textContent = `twinreg: ${twin.scene}`;

@@ -1,0 +1,101 @@
+"""The offline viewer in a real browser: the system's headless Chromium (Debian package, driven by playwright-core)
+opens `twinreg view` on the demo's twin with every non-loopback request refused, becomes ready with no console
+error, and its screenshot shows each car in its model's colour where the car is; the server serves nothing
+outside its folders."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
+CHROMIUM = Path("/usr/bin/chromium")
+
+
+@pytest.fixture(scope="module")
+def demo_twin(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("demo") / "demo"
+    proc = subprocess.run([str(BIN / "twinreg"), "demo", "--out", str(out)], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert f"twinreg view {out / 'twin'}" in proc.stdout  # the demo ends with the command that opens it
+    return out / "twin"
+
+
+@pytest.fixture()
+def served(demo_twin):
+    p = subprocess.Popen([str(BIN / "twinreg"), "view", str(demo_twin), "--port", "0", "--no-open"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        url = p.stdout.readline().strip()
+        assert url.startswith("http://127.0.0.1:"), p.stderr.read()
+        yield url
+    finally:
+        p.terminate()
+        p.wait(timeout=30)
+
+
+def _chroma(rgb: np.ndarray) -> np.ndarray:
+    rgb = np.asarray(rgb, dtype=np.float64)
+    return rgb[..., :2] / np.maximum(rgb.sum(-1, keepdims=True), 1e-9)
+
+
+def test_the_viewer_shows_the_demo_cars_in_a_real_browser_offline(demo_twin, served):
+    if not CHROMIUM.exists() or not (ROOT / "node_modules" / "playwright-core").is_dir():
+        pytest.fail("chromium or the npm packages are missing: run `make install`")
+    shot = demo_twin.parent / "viewer.png"
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "shoot_viewer.mjs"), served, str(shot)],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["ready"] and got["errors"] == [] and got["blocked"] == [], got
+    twin = json.loads((demo_twin / "twin.json").read_text())
+    assert got["stats"]["instances"] == len(twin["objects"]) and got["stats"]["points"] > 10_000
+    assert got["ms"] < 30_000
+    import matplotlib.image
+
+    img = matplotlib.image.imread(str(shot))[..., :3] * 255.0
+    h, w = img.shape[:2]
+    shown = 0
+    for car in got["cars"]:
+        x, y = int(round(car["x"])), int(round(car["y"]))
+        assert 0 <= x < w and 0 <= y < h, car  # every car is in the picture
+        patch = img[max(y - 4, 0):y + 5, max(x - 4, 0):x + 5].reshape(-1, 3)
+        want = _chroma([int(car["colour"][k:k + 2], 16) for k in (0, 2, 4)])
+        near = np.linalg.norm(_chroma(patch) - want, axis=1) < 0.05
+        shown += near.mean() >= 0.3
+    assert shown >= 0.8 * len(got["cars"]), (shown, len(got["cars"]))
+    # the click on the first car (nearest the camera among those drawn there) shows its record and sections
+    first = got["cars"][0]["id"]
+    assert got["clicked"]["text"].split("\n")[0].split()[-1] == first or first in got["clicked"]["text"]
+    assert got["clicked"]["sections"] == 1
+    model = got["found"]["model"]
+    assert model and got["found"]["hits"] == sum(1 for o in twin["objects"] if o["match"]
+                                                 and model.lower() in o["match"]["name"].lower())
+    shutil.copy(shot, ROOT / "docs" / "viewer_demo.png")
+
+
+def test_the_server_serves_only_its_folders(demo_twin, served):
+    with urllib.request.urlopen(served + "twin/twin.json") as r:
+        assert json.loads(r.read())["objects"]
+    with urllib.request.urlopen(served + "vendor/three/build/three.module.js") as r:
+        assert r.status == 200
+    for bad in ("twin/../../../../etc/passwd", "twin/%2e%2e/%2e%2e/etc/passwd", "nothing-here.js"):
+        with pytest.raises(urllib.error.HTTPError) as e:
+            urllib.request.urlopen(served + bad)
+        assert e.value.code == 404
+
+
+def test_view_refuses_a_folder_that_is_not_a_twin(tmp_path):
+    proc = subprocess.run([str(BIN / "twinreg"), "view", str(tmp_path), "--no-open"], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 1 and proc.stderr.startswith("error:") and str(tmp_path) in proc.stderr
