@@ -90,6 +90,13 @@ class ModelCache:
             self._meshes[model_id] = self.catalogue.ge_mesh(self._rows[model_id])
         return self._meshes[model_id]
 
+    def light_mesh(self, model_id: int, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+        """The model's mesh decimated to ``max_faces`` triangles (a city's tiles), cached in the catalogue."""
+        key = (model_id, max_faces)
+        if key not in self._meshes:
+            self._meshes[key] = self.catalogue.ge_mesh(self._rows[model_id], max_faces)
+        return self._meshes[key]
+
     def surface(self, model_id: int):
         """The twin's mesh of the model as a :class:`~twinreg.acceptance.SurfaceIndex` (distance queries)."""
         if model_id not in self._surfaces:

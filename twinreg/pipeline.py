@@ -183,7 +183,7 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
                                   [("scene", det.scene.points[keep], scan_colours(det.hag[keep],
                                                                                   det.is_ground[keep]))],
-                                  f"twinreg: {scene_path.name}")
+                                  f"twinreg: {scene_path.name}", models)
     try:
         if painter is None:
             raise HelperError("no helper process")

@@ -103,7 +103,7 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
                  if getattr(r, "scan", None) is not None and len(r.scan[0])]
         twin["tiles"] = write_formats(stage, outs, [o.offset for o in objects], georef,
                                       [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
-                                      f"twinreg: {twin['scene']}")
+                                      f"twinreg: {twin['scene']}", models)
         timing["formats"] = time.perf_counter() - t3
         timing["total"] = time.perf_counter() - t_start
         twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}

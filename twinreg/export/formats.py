@@ -10,24 +10,27 @@ import numpy as np
 
 from .cityjson import write_cityjson
 from .geojson import write_geojson
-from .tiles3d import instance_of, write_tiles
+from .tiles3d import TILE_MAX_TRIANGLES, instance_of, write_tiles
 
 
 def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: list, scans: list | None,
-                  title: str) -> dict:
+                  title: str, models) -> dict:
     """``outputs``: the objects' :class:`~twinreg.export.objects.ObjectOutput`; ``offsets``: (3,) each, from
     its local frame to the scene frame; ``groups``: (tile name, indices into outputs); ``scans``: (tile name,
-    (n, 3) scene points, (n, 3) uint8 colours), or None. Returns the tiles' summary."""
+    (n, 3) scene points, (n, 3) uint8 colours), or None; ``models``: the matcher's
+    :class:`~twinreg.matching.ModelCache` (the tiles' lighter meshes). Returns the tiles' summary."""
     stage = Path(stage)
     instances = [instance_of(o, np.asarray(off)) for o, off in zip(outputs, offsets)]
     meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
+    light = {key: (*models.light_mesh(int(key[len("model"):]), TILE_MAX_TRIANGLES), rgb)
+             for key, (_, _, rgb) in meshes.items()}
     docs = [o.doc for o in outputs]
     feet = [np.asarray(o.footprint["corners"]) + np.asarray(off)[:2] for o, off in zip(outputs, offsets)]
     with ThreadPoolExecutor(2) as pool:  # pyproj, zlib-free JSON and numpy share the two cores
         side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, meshes, docs,
                             [d["heading_rad"] for d in docs], georef, title),
                 pool.submit(write_geojson, stage / "twin.geojson", docs, feet, georef)]
-        summary = write_tiles(stage, instances, meshes, georef, groups, scans)
+        summary = write_tiles(stage, instances, meshes, georef, groups, scans, tile_meshes=light)
         write_sections(stage / "sections.json", outputs)
         for f in side:
             f.result()

@@ -29,6 +29,9 @@ from .kmz import box_mesh
 
 #: points of the scan kept per cell (thinned evenly)
 SCAN_POINTS = 200_000
+#: triangles of a model in the tiles (a city of thousands of cars must draw in a browser; twin.glb and the KMZ
+#: keep Google Earth's 21,845)
+TILE_MAX_TRIANGLES = 2_000
 #: metres added around instances' origins for their bounding boxes (half a car's length and its height)
 REACH = (3.5, 3.5, 3.5)
 
@@ -129,12 +132,15 @@ def thin(n: int, keep: int) -> np.ndarray:
 
 
 def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, groups: list[tuple[str, list[int]]],
-                scans: list[tuple[str, np.ndarray, np.ndarray]] | None = None, glb: bool = True) -> dict:
+                scans: list[tuple[str, np.ndarray, np.ndarray]] | None = None, glb: bool = True,
+                tile_meshes: dict | None = None) -> dict:
     """Write ``out/tiles/`` (tileset.json, one GLB per group, the scan tileset) and ``out/twin.glb``.
 
     instances : every object; groups : (name, indices into instances) per cell; meshes : key -> (vertices,
-    faces, rgb) in model coordinates (metres, Z up, front +X); scans : (name, (n, 3) scene points, (n, 3) uint8
+    faces, rgb) in model coordinates (metres, Z up, front +X), for twin.glb, and ``tile_meshes`` the same with
+    lighter meshes for the tiles (None: ``meshes``); scans : (name, (n, 3) scene points, (n, 3) uint8
     colours) per cell, or None. Returns a summary (the frame's origin, counts)."""
+    tile_meshes = meshes if tile_meshes is None else tile_meshes
     out = Path(out)
     (out / "tiles" / "cells").mkdir(parents=True, exist_ok=True)
     origins = np.array([i.origin for i in instances], dtype=np.float64).reshape(-1, 3)
@@ -150,7 +156,7 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
             continue
         p = enu[rows]
         c = (p.min(0) + p.max(0)) / 2
-        data = instances_glb([instances[r] for r in rows], p - c, angles[rows], meshes)
+        data = instances_glb([instances[r] for r in rows], p - c, angles[rows], tile_meshes)
         (out / "tiles" / "cells" / f"{name}.glb").write_bytes(data)
         blo, bhi = p.min(0) - c - reach, p.max(0) - c + reach
         all_lo.append(blo + c)

@@ -135,6 +135,7 @@ function focusOn(id) {
   controls.target.copy(p);
   camera.position.copy(p).add(offset);
   controls.update();
+  redraw();
 }
 
 const ray = new THREE.Raycaster();
@@ -192,9 +193,17 @@ async function main() {
   window.twinViewerReady = true;
 }
 
-function animate() { requestAnimationFrame(animate); controls.update(); renderer.render(scene, camera); }
+// drawn on demand (a city of thousands of cars is heavy for a laptop's GPU, and for a software one)
+let pending = false;
+function redraw() {
+  if (pending) return;
+  pending = true;
+  requestAnimationFrame(() => { pending = false; renderer.render(scene, camera); });
+}
+controls.addEventListener("change", redraw);
 window.addEventListener("resize", () => {
   camera.aspect = view.clientWidth / view.clientHeight; camera.updateProjectionMatrix();
   renderer.setSize(view.clientWidth, view.clientHeight);
+  redraw();
 });
-main().then(animate).catch((e) => { console.error("viewer failed: " + e); document.getElementById("summary").textContent = "error: " + e; });
+main().then(redraw).catch((e) => { console.error("viewer failed: " + e); document.getElementById("summary").textContent = "error: " + e; });
