@@ -1,6 +1,6 @@
 """twin.city.json (CityJSON 2.0): one ``CityFurniture`` (function: vehicle) per object, drawn by a
-``GeometryInstance`` of a geometry template (one template per catalogue model, plus a unit box for objects with no
-model), with the object's twin.json record as attributes.
+``GeometryInstance`` of a geometry template (one template per catalogue model, the tiles' mesh of at most
+2,000 triangles, plus a unit box for objects with no model), with the object's twin.json record as attributes.
 
 Coordinates are in the scene's CRS and its units (``metadata.referenceSystem``); a template is the model's mesh
 in metres (Z up, front +X, footprint centred, lowest point at 0) and each instance's ``transformationMatrix``
@@ -43,8 +43,8 @@ def write_cityjson(path, instances: list, meshes: dict, docs: list[dict], headin
         v, f = (UNIT_BOX if key == "box" else meshes[key][:2])
         base = sum(len(t) for t in tverts)
         tverts.append(np.round(np.asarray(v, dtype=np.float64), 4))
-        templates.append({"type": "MultiSurface", "lod": "2",
-                          "boundaries": [[[int(a) + base, int(b) + base, int(c) + base]] for a, b, c in f]})
+        faces = (np.asarray(f, dtype=np.int64) + base).reshape(-1, 1, 3)
+        templates.append({"type": "MultiSurface", "lod": "2", "boundaries": faces.tolist()})
         index[key] = len(templates) - 1
     ref = np.array([i.origin for i in instances], dtype=np.float64).reshape(-1, 3) @ to_crs
     translate = np.floor(ref.min(0)) if len(ref) else np.zeros(3)

@@ -8,6 +8,8 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from .gltf import vertex_normals
+
 #: Google Earth's limit of triangles per mesh
 GE_MAX_TRIANGLES = 21_845
 
@@ -44,15 +46,6 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, max_faces: int = GE_MAX_TR
     return m.vertex_matrix().astype(np.float64), m.face_matrix().astype(np.int64)
 
 
-def _vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    vn = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(vn, f[:, k], fn)
-    n = np.linalg.norm(vn, axis=1, keepdims=True)
-    return vn / np.where(n > 0, n, 1.0)
-
-
 def _floats(a: np.ndarray, fmt: str) -> str:
     flat = np.asarray(a).ravel()
     if fmt == "%d":
@@ -68,7 +61,7 @@ def write_collada(path, vertices: np.ndarray, faces: np.ndarray, color=(0.6, 0.6
     """
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
-    n = _vertex_normals(v, f)
+    n = vertex_normals(v, f)
     r, g, b = (float(c) for c in color[:3])
     nm = escape(name)
     xml = f"""<?xml version="1.0" encoding="utf-8"?>

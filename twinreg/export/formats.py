@@ -27,7 +27,7 @@ def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: lis
     docs = [o.doc for o in outputs]
     feet = [np.asarray(o.footprint["corners"]) + np.asarray(off)[:2] for o, off in zip(outputs, offsets)]
     with ThreadPoolExecutor(2) as pool:  # pyproj, zlib-free JSON and numpy share the two cores
-        side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, meshes, docs,
+        side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, light, docs,
                             [d["heading_rad"] for d in docs], georef, title),
                 pool.submit(write_geojson, stage / "twin.geojson", docs, feet, georef)]
         summary = write_tiles(stage, instances, meshes, georef, groups, scans, tile_meshes=light)

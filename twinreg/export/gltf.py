@@ -43,13 +43,13 @@ def turn_quaternions(angles) -> np.ndarray:
 
 def vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """(n, 3) unit normals of a triangle mesh's vertices (area-weighted face normals; +Z where undefined)."""
+    v = np.asarray(v, dtype=np.float64)
+    f = np.asarray(f, dtype=np.int64)
     fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    vn = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(vn, f[:, k], fn)
+    corner = f.ravel()  # each face's normal goes to its three vertices (bincount: many times faster than add.at)
+    vn = np.column_stack([np.bincount(corner, weights=np.repeat(fn[:, c], 3), minlength=len(v)) for c in range(3)])
     n = np.linalg.norm(vn, axis=1, keepdims=True)
-    vn = np.where(n > 0, vn / np.where(n > 0, n, 1.0), [0.0, 0.0, 1.0])
-    return vn
+    return np.where(n > 0, vn / np.where(n > 0, n, 1.0), [0.0, 0.0, 1.0])
 
 
 class Glb:
