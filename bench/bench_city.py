@@ -99,6 +99,23 @@ def build(lib: Path, inputs: list[str], out: Path, extra=()) -> tuple[float, int
     return secs, peak, json.loads(stdout)
 
 
+def viewer_open(out: Path) -> dict:
+    """Serve a twin with `twinreg view` and open it in the system's headless Chromium (tests/js/shoot_viewer.mjs):
+    the time from loading the page to the viewer's ready flag, and what it drew."""
+    root = Path(__file__).resolve().parents[1]
+    p = subprocess.Popen([sys.executable, "-m", "twinreg", "view", str(out), "--port", "0", "--no-open"],
+                         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        url = p.stdout.readline().strip()
+        shot = Path(tempfile.mkdtemp()) / "viewer.png"
+        got = subprocess.run(["node", str(root / "tests" / "js" / "shoot_viewer.mjs"), url, str(shot)],
+                             capture_output=True, text=True, check=True, cwd=root)
+        return json.loads(got.stdout.strip().splitlines()[-1]) | {"screenshot": str(shot)}
+    finally:
+        p.terminate()
+        p.wait()
+
+
 def car_park_6x6(cat, path: Path) -> int:
     """The bench_twin car park (seed 5, 12 cars) repeated 6 x 6 in one LAS file (EPSG:28992)."""
     from bench_twin import _scene
@@ -156,6 +173,14 @@ def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None) -> 
                                                                                            "verification"))))
             if kind == "points":
                 curve.append((twin["n_points"], secs, peak))
+            if n_obj >= 4000:
+                v = viewer_open(root / f"out_{kind}_{size}")
+                rows.append(Row("the twin's formats (3D Tiles with the scan, twin.glb, CityJSON, GeoJSON) and the "
+                                "viewer", data, f"written in {t['formats']:.1f} s ({twin['tiles']['n_tiles']} model "
+                                f"tiles, {twin['tiles']['n_scan_points']:,} scan points); opens in headless Chromium "
+                                f"in {v['ms'] / 1000:.1f} s ({v['stats']['instances']:,} instances, "
+                                f"{v['stats']['points']:,} points, {len(v['errors'])} console errors)",
+                                "tiles of 4,000 cars < 10 s; open < 30 s"))
     if len(per_object) < 2:
         return rows
     n_obj = np.array([n for n, _ in per_object], dtype=float)

@@ -230,3 +230,25 @@ def test_an_existing_dask_cluster_gives_the_same_twin(small_city, city_twin, par
     stdout, stderr = p.communicate(timeout=300)
     assert p.returncode == 0, stderr
     assert _strip(json.loads(stdout)) == _strip(city_twin)
+
+
+def test_the_citys_formats_have_a_tile_per_cell_and_its_crs(small_city, city_twin):
+    """The tiles of a city run: one model tile per cell holding objects and the scan's tileset beside them, every
+    object once; CityJSON in the tiles' CRS (EPSG:28992) valid against the schema; GLBs valid."""
+    import jsonschema
+
+    from tests.twinreg.test_formats import ROOT, _instances, _node
+
+    root, _ = small_city
+    out = root / "out"
+    ts = json.loads((out / "tiles" / "tileset.json").read_text())
+    uris = [c["content"]["uri"] for c in ts["root"]["children"]]
+    cells_with_objects = {c["name"] for c in city_twin["cells"] if c["n_objects"]}
+    assert sorted(u for u in uris if u.endswith(".glb")) == sorted(f"cells/{n}.glb" for n in cells_with_objects)
+    assert "scan/tileset.json" in uris and city_twin["tiles"]["n_scan_points"] > 100_000
+    assert set(_instances(out)) == {o["id"] for o in city_twin["objects"]}
+    cj = json.loads((out / "twin.city.json").read_text())
+    jsonschema.validate(cj, json.loads((ROOT / "docs" / "schemas" / "cityjson-2.0-twin.schema.json").read_text()))
+    assert cj["metadata"]["referenceSystem"].endswith("/EPSG/0/28992")
+    for r in _node("validate_gltf.mjs", *map(str, sorted((out / "tiles").rglob("*.glb")))):
+        assert r["errors"] == 0, r
