@@ -21,11 +21,18 @@ BIN = Path(sys.executable).parent
 CHROMIUM = Path("/usr/bin/chromium")
 
 
+def _env() -> dict:
+    """The environment for the commands, without what an in-process CLI test may have left (--json, --library)."""
+    import os
+
+    return {k: v for k, v in os.environ.items() if k not in ("TWINREG_JSON", "TWINREG_LIBRARY")}
+
+
 @pytest.fixture(scope="module")
 def demo_twin(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("demo") / "demo"
     proc = subprocess.run([str(BIN / "twinreg"), "demo", "--out", str(out)], capture_output=True, text=True,
-                          timeout=600)
+                          timeout=600, env=_env())
     assert proc.returncode == 0, proc.stderr
     assert f"twinreg view {out / 'twin'}" in proc.stdout  # the demo ends with the command that opens it
     return out / "twin"
@@ -34,7 +41,7 @@ def demo_twin(tmp_path_factory) -> Path:
 @pytest.fixture()
 def served(demo_twin):
     p = subprocess.Popen([str(BIN / "twinreg"), "view", str(demo_twin), "--port", "0", "--no-open"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
     try:
         url = p.stdout.readline().strip()
         assert url.startswith("http://127.0.0.1:"), p.stderr.read()
@@ -97,5 +104,5 @@ def test_the_server_serves_only_its_folders(demo_twin, served):
 
 def test_view_refuses_a_folder_that_is_not_a_twin(tmp_path):
     proc = subprocess.run([str(BIN / "twinreg"), "view", str(tmp_path), "--no-open"], capture_output=True,
-                          text=True, timeout=60)
+                          text=True, timeout=60, env=_env())
     assert proc.returncode == 1 and proc.stderr.startswith("error:") and str(tmp_path) in proc.stderr
