@@ -20,6 +20,8 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e ".[test]"
+	@# byte-code once: a command then starts without compiling the package (also where PYTHONDONTWRITEBYTECODE is set)
+	$(BIN)/python -m compileall -q twinreg cosco
 	@touch $(STAMP)
 
 # three.js for the viewer, the Khronos glTF validator and playwright-core for the tests: exactly the locked
