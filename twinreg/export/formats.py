@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .cityjson import write_cityjson
-from .geojson import write_geojson
+from .geojson import footprints_lonlat, write_geojson
 from .tiles3d import TILE_MAX_TRIANGLES, instance_of, write_tiles
 
 
@@ -25,11 +25,13 @@ def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: lis
     light = {key: (*models.light_mesh(int(key[len("model"):]), TILE_MAX_TRIANGLES), rgb)
              for key, (_, _, rgb) in meshes.items()}
     docs = [o.doc for o in outputs]
-    feet = [np.asarray(o.footprint["corners"]) + np.asarray(off)[:2] for o, off in zip(outputs, offsets)]
-    with ThreadPoolExecutor(2) as pool:  # pyproj, zlib-free JSON and numpy share the two cores
+    # pyproj's transformations stay in this thread (its objects are not shared between threads)
+    ll = footprints_lonlat([np.asarray(o.footprint["corners"]) + np.asarray(off)[:2]
+                            for o, off in zip(outputs, offsets)], georef)
+    with ThreadPoolExecutor(2) as pool:  # JSON encoding beside the tiles' numpy work
         side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, light, docs,
                             [d["heading_rad"] for d in docs], georef, title),
-                pool.submit(write_geojson, stage / "twin.geojson", docs, feet, georef)]
+                pool.submit(write_geojson, stage / "twin.geojson", docs, ll)]
         summary = write_tiles(stage, instances, meshes, georef, groups, scans, tile_meshes=light)
         write_sections(stage / "sections.json", outputs)
         for f in side:

@@ -31,13 +31,18 @@ def _flat(doc: dict) -> dict:
     return props
 
 
-def write_geojson(path, docs: list[dict], footprints: list[np.ndarray], georef) -> Path:
-    """``docs``: the objects' twin.json records; ``footprints``: each one's (4, 2) footprint corners in the scene
-    frame (x, y) with its ground height as a third column or not."""
+def footprints_lonlat(footprints: list[np.ndarray], georef) -> np.ndarray:
+    """(4n, 2) WGS84 longitude, latitude of the objects' (4, 2) footprint corners (scene frame), in one call."""
+    if not footprints:
+        return np.zeros((0, 2))
+    corners = np.vstack([np.c_[np.asarray(f)[:, :2], np.zeros(len(f))] for f in footprints])
+    return georef.to_wgs84(corners)[:, :2]
+
+
+def write_geojson(path, docs: list[dict], ll: np.ndarray) -> Path:
+    """``docs``: the objects' twin.json records; ``ll``: their footprints' corners in WGS84, four rows each
+    (:func:`footprints_lonlat`)."""
     feats = []
-    if docs:
-        corners = np.vstack([np.c_[np.asarray(f)[:, :2], np.zeros(len(f))] for f in footprints])
-        ll = georef.to_wgs84(corners)[:, :2]
     for k, doc in enumerate(docs):
         ring = ll[4 * k:4 * k + 4]
         # counter-clockwise exterior ring (signed area > 0 in lon/lat), closed

@@ -55,7 +55,8 @@ def instance_of(out, offset, confidence=None) -> Instance:
     doc = out.doc
     m = doc["match"]
     props = {"id": doc["id"], "model": m["name"] if m else "", "make": (m or {}).get("make") or "",
-             "matched": m is not None, "confidence": (m or {}).get("confidence", confidence),
+             "matched": m is not None,
+             "confidence": float(c) if (c := (m or {}).get("confidence", confidence)) is not None else -1.0,
              "length": doc["size"]["length"], "width": doc["size"]["width"], "height": doc["size"]["height"],
              "cluster": float(doc["cluster"])}
     return Instance(doc["id"], "box" if out.scale is not None else out.mesh_key, np.asarray(out.origin) + offset,
