@@ -69,3 +69,28 @@ def test_real_cars_keep_their_models(street):
     assert 0.01 < doc["noise_m"] < 0.03  # the 2 cm simulated range noise, read from the ground points
     kml = (out / "twin.kmz").read_bytes()
     assert len(doc["objects"]) == 6 and kml  # unmatched objects are still exported, as boxes
+
+
+def test_objects_without_a_model_are_scaled_boxes_in_the_tiles(street):
+    """An object with no model is one instance of the unit box, scaled to its measured size, in a GLB the Khronos
+    validator accepts; CityJSON and GeoJSON carry it too."""
+    from tests.twinreg.test_formats import _node
+    from twinreg.export.gltf import accessor_array, read_glb
+
+    doc, _, out = street
+    unmatched = {o["id"]: o for o in doc["objects"] if o["match"] is None}
+    assert unmatched
+    gltf, binary = read_glb((out / "tiles" / "cells" / "scene.glb").read_bytes())
+    (box,) = [n for n in gltf["nodes"] if n["name"] == "box"]
+    attrs = box["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]
+    scale = accessor_array(gltf, binary, attrs["SCALE"])
+    assert sorted(box["extras"]["ids"]) == sorted(unmatched)
+    for oid, (sx, sy, sz) in zip(box["extras"]["ids"], scale):  # glTF (x, y, z) = (length, height, width)
+        size = unmatched[oid]["size"]
+        assert np.allclose([sx, sz, sy], [size["length"], size["width"], size["height"]], atol=1e-3)
+    for r in _node("validate_gltf.mjs", str(out / "tiles" / "cells" / "scene.glb"), str(out / "twin.glb")):
+        assert r["errors"] == 0, r
+    cj = json.loads((out / "twin.city.json").read_text())
+    assert all(cj["CityObjects"][oid]["attributes"].get("model") is None for oid in unmatched)
+    gj = json.loads((out / "twin.geojson").read_text())
+    assert {f["id"] for f in gj["features"]} >= set(unmatched)
