@@ -19,7 +19,7 @@ from .export.kmz import write_kmz
 from .export.objects import object_output
 from .export.painter import HELPER_TIMEOUT_S, HelperError, Painter
 from .export.report import plot_taxonomy, warm_up, write_report
-from .export.tiles3d import SCAN_POINTS, scan_colours, thin
+from .export.tiles3d import scan_sample
 from .export.twin_ply import write_twin_ply
 from .georef import Georef, scene_georef
 from .matching import ModelCache, match_objects
@@ -179,11 +179,9 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
     if ply:
         write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
     write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
-    keep = thin(len(local), SCAN_POINTS)
+    rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
     twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
-                                  [("scene", det.scene.points[keep], scan_colours(det.hag[keep],
-                                                                                  det.is_ground[keep]))],
-                                  f"twinreg: {scene_path.name}", models)
+                                  [("scene", det.scene.points[rows], colours)], f"twinreg: {scene_path.name}", models)
     try:
         if painter is None:
             raise HelperError("no helper process")

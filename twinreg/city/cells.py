@@ -111,7 +111,7 @@ def _process_cell(job: CellJob) -> CellResult:
 
     from ..acceptance import sample_cloud, scene_noise
     from ..detect import describe_detected, detect_points, object_ground, object_points
-    from ..export.tiles3d import SCAN_POINTS, scan_colours, thin
+    from ..export.tiles3d import scan_sample
     from ..io.points import PointSet
 
     cell, params = job.cell, job.params
@@ -134,9 +134,8 @@ def _process_cell(job: CellJob) -> CellResult:
     out.n_outliers = int(det.scene.n_outliers)
     out.noise = scene_noise(det.hag, det.is_ground)
     out.image = _image(cell, pts, det.hag, det.is_ground)
-    core = np.flatnonzero(own)
-    core = core[thin(len(core), SCAN_POINTS)]
-    out.scan = ((pts[core] - offset).astype(np.float32), scan_colours(det.hag[core], det.is_ground[core]))
+    rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
+    out.scan = ((pts[rows] - offset).astype(np.float32), colours)
     t = time.perf_counter()
     owned, centres = [], []
     for o in det.segmentation.objects:

@@ -123,13 +123,10 @@ class Glb:
         self.doc["meshes"].append({"name": name, "primitives": [prim]})
         return len(self.doc["meshes"]) - 1
 
-    def node(self, mesh: int, name: str, translation=None, extensions: dict | None = None,
-             extras: dict | None = None) -> int:
+    def node(self, mesh: int, name: str, extensions: dict | None = None, extras: dict | None = None) -> int:
         node = {"name": name, "mesh": mesh}
         if extras:
             node["extras"] = extras
-        if translation is not None:
-            node["translation"] = [float(x) for x in yup(translation)[0]]
         if extensions:
             node["extensions"] = extensions
         self.doc["nodes"].append(node)

@@ -50,13 +50,13 @@ class Instance:
     props: dict
 
 
-def instance_of(out, offset, confidence=None) -> Instance:
+def instance_of(out, offset) -> Instance:
     """An :class:`Instance` from an :class:`~twinreg.export.objects.ObjectOutput`."""
     doc = out.doc
     m = doc["match"]
     props = {"id": doc["id"], "model": m["name"] if m else "", "make": (m or {}).get("make") or "",
              "matched": m is not None,
-             "confidence": float(c) if (c := (m or {}).get("confidence", confidence)) is not None else -1.0,
+             "confidence": float(c) if (c := (m or {}).get("confidence")) is not None else -1.0,
              "length": doc["size"]["length"], "width": doc["size"]["width"], "height": doc["size"]["height"],
              "cluster": float(doc["cluster"])}
     return Instance(doc["id"], "box" if out.scale is not None else out.mesh_key, np.asarray(out.origin) + offset,
@@ -132,15 +132,23 @@ def thin(n: int, keep: int) -> np.ndarray:
     return np.arange(n) if n <= keep else np.linspace(0, n - 1, keep).astype(np.int64)
 
 
+def scan_sample(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, rows=None) -> tuple:
+    """The scan as the tiles carry it: the points ``rows`` (all when None) thinned evenly to at most
+    :data:`SCAN_POINTS`, and their colours: ``(indices into points, (m, 3) uint8)``."""
+    rows = np.arange(len(points)) if rows is None else np.asarray(rows)
+    rows = rows[thin(len(rows), SCAN_POINTS)]
+    return rows, scan_colours(hag[rows], is_ground[rows])
+
+
 def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, groups: list[tuple[str, list[int]]],
-                scans: list[tuple[str, np.ndarray, np.ndarray]] | None = None, glb: bool = True,
+                scans: list[tuple[str, np.ndarray, np.ndarray]] | None = None,
                 tile_meshes: dict | None = None) -> dict:
     """Write ``out/tiles/`` (tileset.json, one GLB per group, the scan tileset) and ``out/twin.glb``.
 
     instances : every object; groups : (name, indices into instances) per cell; meshes : key -> (vertices,
     faces, rgb) in model coordinates (metres, Z up, front +X), for twin.glb, and ``tile_meshes`` the same with
     lighter meshes for the tiles (None: ``meshes``); scans : (name, (n, 3) scene points, (n, 3) uint8
-    colours) per cell, or None. Returns a summary (the frame's origin, counts)."""
+    colours) per cell, or None. Also writes ``out/twin.glb``. Returns a summary (the frame's origin, counts)."""
     tile_meshes = meshes if tile_meshes is None else tile_meshes
     out = Path(out)
     (out / "tiles" / "cells").mkdir(parents=True, exist_ok=True)
@@ -171,20 +179,18 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
                          "geometricError": 1.0, "content": {"uri": "scan/tileset.json"}})
     root_lo, root_hi = np.min(all_lo, 0), np.max(all_hi, 0)
     size = float(np.linalg.norm(root_hi - root_lo))
+    origin = {"lon": frame.lon, "lat": frame.lat, "h": frame.h}
     tileset = {"asset": {"version": "1.1", "generator": "twinreg",
-                         "extras": {"origin": {"lon": frame.lon, "lat": frame.lat, "h": frame.h},
-                                    "crs": georef.crs, "frame": "east-north-up metres about origin"}},
+                         "extras": {"origin": origin, "crs": georef.crs, "frame": "east-north-up metres about origin"}},
                "geometricError": size,
                "root": {"transform": [float(v) for v in frame.to_ecef_matrix().T.ravel()],
                         "boundingVolume": {"box": _box(root_lo, root_hi)}, "geometricError": size / 2,
                         "refine": "ADD", "children": children}}
     (out / "tiles" / "tileset.json").write_text(json.dumps(tileset, indent=1), encoding="utf-8")
-    if glb:
-        extras = {"origin": {"lon": frame.lon, "lat": frame.lat, "h": frame.h}, "crs": georef.crs,
-                  "frame": "east-north-up metres about origin (glTF Y-up: x east, y up, -z north)"}
-        (out / "twin.glb").write_bytes(instances_glb(instances, enu, angles, meshes, extras))
-    return {"origin": {"lon": frame.lon, "lat": frame.lat, "h": frame.h}, "n_tiles": len(groups),
-            "n_scan_points": n_scan}
+    extras = {"origin": origin, "crs": georef.crs,
+              "frame": "east-north-up metres about origin (glTF Y-up: x east, y up, -z north)"}
+    (out / "twin.glb").write_bytes(instances_glb(instances, enu, angles, meshes, extras))
+    return {"origin": origin, "n_tiles": len(groups), "n_scan_points": n_scan}
 
 
 def _write_scan(folder: Path, frame: EnuFrame, georef, scans, all_lo: list, all_hi: list) -> int:
