@@ -182,6 +182,137 @@ def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params:
     return out
 
 
+def _join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, gap: float = 1.5,
+                  min_cover: float = 0.5, widen: float = 0.3, offset: float = 0.25,
+                  max_length: float = 6.0) -> np.ndarray:
+    """A piece shorter than the target class (a bonnet or a boot that the glass drop-out of a windscreen cut off
+    the roof) joins a larger component it continues in line: its centre within ``offset`` of that one's width from
+    its long axis, within ``gap`` (m) of its end, spanning at least ``min_cover`` of its width, and their union at
+    most ``widen`` (m) wider than the wider of the two and at most ``max_length`` (m) long (a long car; two cars
+    nose to tail, of which a scan saw one only in part, are longer). A bin or a bollard by a car is narrower than
+    the car and stays apart; two cars side by side are off each other's axis."""
+    labels, counts = np.unique(comp, return_counts=True)
+    if len(labels) < 2:
+        return comp
+    order = stable_argsort(comp)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    members = {lab: order[s:s + c] for lab, s, c in zip(labels, starts, counts) if c >= 3}
+    rects = {lab: min_area_rectangle(xy[idx]) for lab, idx in members.items()}
+    pieces = [lab for lab in members if rects[lab].length < params.car_length[0]]
+    if not pieces:
+        return comp
+    from scipy.spatial import cKDTree
+
+    labs = list(members)
+    tree = cKDTree(np.array([rects[h].centre for h in labs]))
+    reach = params.car_length[1] / 2 + gap
+    group = {lab: [lab] for lab in labs}  # the components each surviving one has taken in
+    owner = {lab: lab for lab in labs}
+    out = comp.copy()
+    for lab in sorted(pieces, key=lambda q: (len(members[q]), q)):
+        if owner[lab] != lab:
+            continue
+        p_idx = np.concatenate([members[q] for q in group[lab]])
+        best = None
+        for host in sorted({owner[labs[k]] for k in tree.query_ball_point(rects[lab].centre, reach)}):
+            h_idx = np.concatenate([members[q] for q in group[host]])
+            if host == lab or len(h_idx) < len(p_idx) or hag[p_idx].min() > hag[h_idx].max():
+                continue
+            both = min_area_rectangle(np.vstack([xy[h_idx], xy[p_idx]]))
+            if both.length > max_length or both.width > params.car_width[1]:
+                continue
+            # in line along the axis of their union: side by side, the union would be as wide as two cars
+            if not _in_line(xy[h_idx], xy[p_idx], both.centre, both.angle, gap, min_cover, offset):
+                continue
+            across = np.array([-np.sin(both.angle), np.cos(both.angle)])
+            widths = [np.ptp((xy[i] - both.centre) @ across) for i in (h_idx, p_idx)]
+            if both.width > max(widths) + widen:
+                continue
+            # a whole-length host before a piece; then the narrowest union
+            rank = (rects[host].length < params.car_length[0] if host in rects and len(group[host]) == 1 else False,
+                    both.width)
+            if best is None or rank < best[1]:
+                best = (host, rank)
+        if best is not None:
+            host = best[0]
+            for q in group.pop(lab):
+                owner[q] = host
+                group[host].append(q)
+                out[members[q]] = host
+    return out
+
+
+def _in_line(host: np.ndarray, piece: np.ndarray, centre, angle: float, gap: float, min_cover: float,
+             offset: float) -> bool:
+    """Does the piece (x/y points) continue the host along the axis at ``angle`` through ``centre``: each spans at
+    least ``min_cover`` of the other's extent across it, their middles across it within ``offset`` of that extent,
+    and at most ``gap`` (m) between them along it?"""
+    u = np.array([np.cos(angle), np.sin(angle)])
+    v = np.array([-u[1], u[0]])
+    across_h, across_p = (host - centre) @ v, (piece - centre) @ v
+    width = max(float(np.ptp(across_h)), float(np.ptp(across_p)))
+    if min(np.ptp(across_h), np.ptp(across_p)) < min_cover * width:
+        return False
+    mid_h, mid_p = (across_h.max() + across_h.min()) / 2, (across_p.max() + across_p.min()) / 2
+    if abs(mid_p - mid_h) > offset * width:
+        return False
+    along_h, along_p = host @ u, piece @ u
+    return max(along_p.min() - along_h.max(), along_h.min() - along_p.max()) <= gap
+
+
+def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing: float,
+                   depth: int = 3) -> np.ndarray | None:
+    """Labels cutting a too-large object where the tops of its slices fall lowest (the gap between two cars a
+    sparse scan joined: the gap holds only their lower sides), across whichever axis of its footprint rectangle
+    has the deepest such valley with at least the class's smallest width on each side; parts still too large are
+    cut again (``depth`` times). None when no slice is lower than half the tops on both sides."""
+    r = min_area_rectangle(xy)
+    if r.length <= params.car_length[1] and r.width <= params.car_width[1] or depth == 0 or len(xy) < 6:
+        return None
+    bin_ = max(0.1, spacing)
+    edge = params.car_width[0]
+    best = None
+    for a in (r.angle, r.angle + np.pi / 2):
+        t = xy @ np.array([np.cos(a), np.sin(a)])
+        k = np.floor((t - t.min()) / bin_).astype(np.int64)
+        n = int(k.max()) + 1
+        if n * bin_ < 2 * edge + bin_:
+            continue
+        top = np.zeros(n)
+        np.maximum.at(top, k, hag)
+        centres = (np.arange(n) + 0.5) * bin_
+        for j in np.flatnonzero((centres >= edge) & (centres <= n * bin_ - edge)):
+            ratio = top[j] / max(min(top[:j].max(), top[j + 1:].max()), 1e-9)
+            if ratio < 0.5 and (best is None or ratio < best[0]):
+                best = (ratio, (k > j).astype(np.int64), k != j)
+    if best is None:
+        return None
+    labels = best[1].copy()
+    labels[~best[2]] = -1  # the cut slice's own points go with nothing for now
+    out = np.full(len(xy), -1, dtype=np.int64)
+    nxt = 0
+    for side in (0, 1):
+        idx = np.flatnonzero(labels == side)
+        if len(idx) == 0:
+            continue
+        sub = _profile_split(xy[idx], hag[idx], params, spacing, depth - 1)
+        if sub is None:
+            out[idx] = nxt
+            nxt += 1
+        else:
+            out[idx] = sub + nxt
+            nxt += int(sub.max()) + 1
+    # the points of the cut slice join the part whose points are nearest
+    rest = np.flatnonzero(out < 0)
+    if len(rest):
+        from scipy.spatial import cKDTree
+
+        done = np.flatnonzero(out >= 0)
+        _, nn = cKDTree(xy[done]).query(xy[rest])
+        out[rest] = out[done[nn]]
+    return out
+
+
 def _footprint_split(xy: np.ndarray, params: CoscoParams, cell: float = 0.1) -> np.ndarray | None:
     """Labels splitting one object's footprint at its necks into parts of at least the class's smallest area,
     or None when it does not fall apart."""
@@ -210,8 +341,9 @@ def _footprint_split(xy: np.ndarray, params: CoscoParams, cell: float = 0.1) -> 
 
 
 def _describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: CoscoParams,
-              cell: float = 0.1) -> DetectedObject:
-    """Sizes of one object; its footprint area counts occupied ``cell`` squares (no finer than the spacing)."""
+              cell: float = 0.1, spacing: float = 0.0) -> DetectedObject:
+    """Sizes of one object; its footprint area counts occupied ``cell`` squares (no finer than the spacing). Its
+    lowest point may be up to 1 m and one point spacing above the ground (a sparse scan's steep sides)."""
     p = points[idx]
     rect = min_area_rectangle(p[:, :2]) if len(p) >= 3 else None
     area = n_cells(p, cell) * cell * cell
@@ -222,12 +354,49 @@ def _describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosc
     target = (params.car_length[0] <= length <= params.car_length[1]
               and params.car_width[0] <= width <= params.car_width[1]
               and params.car_height[0] <= height <= params.car_height[1]
-              and params.car_area[0] <= area <= params.car_area[1] and base <= 1.0)
+              and params.car_area[0] <= area <= params.car_area[1] and base <= 1.0 + spacing)
     return DetectedObject(np.sort(idx), float(length), float(width), height, float(area), base, bool(target))
 
 
 def _too_big(o: DetectedObject, params: CoscoParams) -> bool:
     return o.length > params.car_length[1] or o.width > params.car_width[1] or o.area > params.car_area[1]
+
+
+def _split_too_big(pts, hag, cand, comp, params: CoscoParams, cell: float, spacing: float) -> np.ndarray:
+    """``comp`` with every component too large for the target class (and not too tall) split at its footprint's
+    necks, or else where the tops of its slices fall lowest (:func:`_profile_split`), parts still too large split
+    again; the parts get new labels."""
+    order = stable_argsort(comp)
+    bounds = np.flatnonzero(np.r_[True, comp[order][1:] != comp[order][:-1], True])
+    out = comp.copy()
+    nxt = int(comp.max()) + 1 if len(comp) else 0
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        rows = order[a:b]
+        parts = _parts(pts, hag, cand, rows, params, cell, spacing, depth=3)
+        if len(parts) > 1:
+            for part in parts:
+                out[part] = nxt
+                nxt += 1
+    return out
+
+
+def _parts(pts, hag, cand, rows, params: CoscoParams, cell: float, spacing: float, depth: int) -> list:
+    """The rows of one component, cut into parts no larger than the target class where it can be."""
+    if len(rows) < params.seg_min_points or depth == 0:
+        return [rows]
+    idx = cand[rows]
+    obj = _describe(pts, hag, idx, params, cell, spacing)
+    if not _too_big(obj, params) or obj.height > params.car_height[1]:
+        return [rows]
+    labels = _footprint_split(pts[idx, :2], params, cell=max(0.1, spacing / 2))
+    if labels is None:
+        labels = _profile_split(pts[idx, :2], hag[idx], params, spacing)
+    if labels is None:
+        return [rows]
+    out = []
+    for lab in np.unique(labels):
+        out += _parts(pts, hag, cand, rows[labels == lab], params, cell, spacing, depth - 1)
+    return out
 
 
 def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) -> Segmentation:
@@ -267,24 +436,20 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
         core = np.r_[core, low[near]]
         comp = np.r_[comp, comp[nearest[near]]]
     cand = core
+    # a sparse scan gives a car few points: the least an object may have follows the density (two square metres'
+    # worth), within 10 and seg_min_points
+    min_points = int(np.clip(2.0 / max(spacing, 1e-6) ** 2, 10, params.seg_min_points))
     comp = _absorb_fragments(pts[cand, :2], hag[cand], comp, params)
+    comp = _split_too_big(pts, hag, cand, comp, params, cell, spacing)
+    # a windscreen's drop-out leaves a gap of about a metre in plan, plus a scan line
+    comp = _join_in_line(pts[cand, :2], hag[cand], comp, params, gap=0.8 + spacing)
     order = stable_argsort(comp)
     bounds = np.flatnonzero(np.r_[True, comp[order][1:] != comp[order][:-1], True])
     objects = []
     for a, b in zip(bounds[:-1], bounds[1:]):
         idx = cand[order[a:b]]
-        if len(idx) < params.seg_min_points:
-            continue
-        obj = _describe(pts, hag, idx, params, cell)
-        if _too_big(obj, params) and obj.height <= params.car_height[1]:
-            parts = _footprint_split(pts[idx, :2], params, cell=max(0.1, spacing / 2))
-            if parts is not None:
-                for lab in np.unique(parts):
-                    sub = idx[parts == lab]
-                    if len(sub) >= params.seg_min_points:
-                        objects.append(_describe(pts, hag, sub, params, cell))
-                continue
-        objects.append(obj)
+        if len(idx) >= min_points:
+            objects.append(_describe(pts, hag, idx, params, cell, spacing))
     objects.sort(key=lambda o: tuple(np.round(pts[o.indices, :2].mean(0), 1)))
     for k, o in enumerate(objects):
         labels[o.indices] = k
