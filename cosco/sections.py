@@ -15,7 +15,7 @@ import numpy as np
 
 from .footprint import as_points, cell_keys, check_object, from_frame, min_area_rectangle, to_frame
 from .params import DEFAULT, CoscoParams
-from .symmetry import Symmetry, detect_symmetry
+from .symmetry import Symmetry, detect_symmetry, with_footprint
 
 
 @dataclass(frozen=True)
@@ -245,7 +245,7 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     ([4.4, 1.8, 1.5], [100.0, 50.0])
     """
     pts = check_object(points)
-    sym = detect_symmetry(pts, params)
+    sym = with_footprint(detect_symmetry(pts, params), pts, params)
     frame = object_frame(pts, sym, ground_z, params, front_hint)
     sections = cut_sections(pts, frame, sym.found, params)
     size = measure_size(pts, frame, sym.found, params)

@@ -238,3 +238,38 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
         heading=wrap_axis(phi + np.pi / 2),
         tolerance=tol,
     )
+
+
+def with_footprint(sym: Symmetry, points, params: CoscoParams = DEFAULT) -> Symmetry:
+    """The symmetry plane reconciled with the footprint's edges (beyond the paper; docs/METHOD.md, "Heading").
+
+    On a sparse object (fewer than ``params.heading_sparse_points`` points) the mirror search has few pairs to
+    go by, while the long straight sides of a car still show in its footprint's minimum-area rectangle. When the
+    footprint is elongated (length at least ``params.heading_elongation`` times the width):
+
+    - a plane within ``params.heading_snap`` of the rectangle's axis is turned onto that axis (about its point
+      nearest the rectangle's centre: the plane keeps its position across the car);
+    - a plane farther from it is replaced by the rectangle's axis when the symmetry is weak (not found, or a PCR
+      under ``params.heading_trust_pcr``): a wrong plane across a sparse car is not kept.
+
+    Dense objects, squarish footprints and strong planes that disagree with the rectangle keep their plane.
+    """
+    pts = as_points(points)
+    if len(pts) >= params.heading_sparse_points:
+        return sym
+    rect = min_area_rectangle(pts[:, :2])
+    if rect.width <= 0 or rect.length < params.heading_elongation * rect.width:
+        return sym
+    d = axis_difference(sym.heading, rect.angle)
+    weak = not sym.found or sym.pcr < params.heading_trust_pcr
+    if d > params.heading_snap and not weak:
+        return sym
+    heading = wrap_axis(rect.angle)
+    phi = float(np.mod(heading + np.pi / 2, np.pi))
+    normal = np.array([np.cos(phi), np.sin(phi)])
+    if d <= params.heading_snap:  # the old plane's point nearest the rectangle's centre
+        base = rect.centre - sym.normal * (rect.centre @ sym.normal - sym.rho)
+    else:
+        base = rect.centre
+    return Symmetry(found=sym.found, pcr=sym.pcr, rmse=sym.rmse, phi=phi, rho=float(base @ normal), heading=heading,
+                    tolerance=sym.tolerance)
