@@ -37,6 +37,11 @@ class CoscoParams:
         The voxel is enlarged until at most this many down-sampled points remain (the paper's octree depth).
     sym_refine_steps : int
         Closed-form refinement steps on full-resolution mirror pairs after the optimiser.
+    heading_sparse_points, heading_elongation, heading_snap, heading_trust_pcr : int, float, float, float
+        The plane of an object of fewer points, whose footprint is at least ``heading_elongation`` times as long
+        as wide, is turned onto the footprint rectangle's axis when within ``heading_snap`` (rad) of it, and
+        replaced by it when farther and its PCR is under ``heading_trust_pcr`` (cosco/symmetry.py,
+        ``with_footprint``).
 
     Sections (paper 3.2, Figure 6):
 
@@ -121,7 +126,14 @@ class CoscoParams:
     Matching (paper 4.3):
 
     size_tol : float
-        Size prefilter tolerance (m) on each of L, W, H (paper: 0.2 m).
+        Size prefilter tolerance (m) on each of L, W, H (paper: 0.2 m); the floor of the window.
+    size_spacing_k : float
+        A model may be longer and wider than the object by ``size_tol`` plus this many of the object's point
+        spacings (a sparse scan measures its car short and narrow, hardly ever large); 0 when ``--tol`` is given.
+    match_register_k : int
+        At most this many candidates of the window, the nearest by descriptor, are registered.
+    match_nearest_k : int
+        When no model is inside the window, this many nearest by size are still tried (``outside_tolerance``).
     share_margin : float
         An object of a cluster first tries the models its cluster's first object liked best; it tries all of its
         candidates when the best of those fits it worse than that by more than this RMSE (m).
@@ -129,7 +141,11 @@ class CoscoParams:
     Accepting a match (twinreg/acceptance.py; docs/METHOD.md): a point is explained by the placed model when it
     lies within ``accept_sigmas * noise + accept_model_tol + accept_spacing_k * spacing`` (m) of its surface;
     the match is accepted when at most ``accept_max_outliers`` of the points are not explained. The best
-    ``accept_candidates`` models by section RMSE are tried in order. Objects with more than ``accept_max_points``
+    ``accept_candidates`` models by section RMSE are scored (twinreg/decision.py: weights ``decision_w_sections``
+    and ``decision_w_size``); a match must also leave at most ``accept_max_unseen`` of the placed model's top
+    surface with no point near it. Candidates within ``decision_ambiguous_sigma`` noise units of the winner's
+    score are ambiguous with it; ``decision_confidence_sigma`` scales the margin into a 0-1 confidence, which is
+    multiplied by ``decision_outside_factor`` for a model outside the size window. Objects with more than ``accept_max_points``
     points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
     points is a proportion: 1,500 points give it to about one percentage point).
 
@@ -148,6 +164,10 @@ class CoscoParams:
     sym_max_points: int = 400
     sym_side_share: float = 0.15
     sym_refine_steps: int = 4
+    heading_sparse_points: int = 600
+    heading_elongation: float = 1.5
+    heading_snap: float = 0.175
+    heading_trust_pcr: float = 0.9
 
     section_eps: float = 0.10
     section_min_points: int = 30
@@ -194,13 +214,22 @@ class CoscoParams:
     linkage: str = "average"
 
     size_tol: float = 0.20
+    size_spacing_k: float = 1.5
+    match_register_k: int = 8
+    match_nearest_k: int = 3
     share_margin: float = 0.01
 
     accept_sigmas: float = 3.0
     accept_model_tol: float = 0.04
-    accept_spacing_k: float = 0.10
+    accept_spacing_k: float = 0.20
     accept_max_outliers: float = 0.10
-    accept_candidates: int = 3
+    accept_candidates: int = 5
+    accept_max_unseen: float = 0.5
+    decision_w_sections: float = 0.5
+    decision_w_size: float = 0.5
+    decision_confidence_sigma: float = 1.0
+    decision_ambiguous_sigma: float = 0.3
+    decision_outside_factor: float = 0.5
     accept_max_points: int = 1500
 
     taxonomy_full_max: int = 32

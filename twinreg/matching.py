@@ -41,6 +41,11 @@ class Match:
     n_candidates: int = 0
     n_trials: int = 0
     verdict: object = None
+    confidence: float | None = None
+    margin_sigma: float | None = None
+    ambiguous_with: list = field(default_factory=list)
+    outside_tolerance: bool = False
+    evidence: dict | None = None
 
 
 @dataclass
@@ -66,9 +71,30 @@ class ModelCache:
         self._rows: dict[int, object] = {}
         self._meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._surfaces: dict[int, object] = {}
+        self._tops: dict[int, np.ndarray] = {}
+        self._index = None
 
     def row(self, model_id):
         return self._rows[model_id]
+
+    def known(self):
+        return self._rows.keys()
+
+    def size_index(self):
+        """Every model's descriptor (:class:`~twinreg.prefilter.SizeIndex`), loaded once."""
+        if getattr(self, "_index", None) is None:
+            from .prefilter import SizeIndex
+
+            self._index = SizeIndex(self.catalogue)
+        return self._index
+
+    def top(self, model_id: int) -> np.ndarray:
+        """The model's top surface (:func:`twinreg.decision.top_surface` of its sampled points), model frame."""
+        if model_id not in self._tops:
+            from .decision import top_surface
+
+            self._tops[model_id] = top_surface(self.geometry(model_id).points)
+        return self._tops[model_id]
 
     def add_rows(self, rows):
         for r in rows:
@@ -158,20 +184,26 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     with exactly the outcome of one call. cache : a
     :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
     """
-    tol = params.size_tol
+    from cosco.segment import point_spacing
+
+    from .prefilter import SizeIndex
+
     cache = ModelCache(catalogue, params) if cache is None else cache
     stats = {"prefilter_s": 0.0, "registration_s": 0.0, "verification_s": 0.0, "n_trials": 0,
              "n_pairs_without_prefilter": 0}
-    total_models = catalogue.count()
     pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
-    cands = []
     t = time.perf_counter()
-    for s in shapes:
-        rows = catalogue.list(near=s.size.as_array(), tol=tol)
-        cache.add_rows(rows)
-        cands.append([r.id for r in rows])
+    index = cache.size_index()
+    total_models = len(index)
+    if spacings is None:
+        spacings = [point_spacing(np.asarray(c)) if c is not None and len(c) >= 3 else 0.0
+                    for c in (clouds if clouds is not None else [None] * len(shapes))]
+    found = [index.candidates(s, spacings[i], params) for i, s in enumerate(shapes)]
+    cands = [f.all for f in found]
+    cache.add_rows(catalogue.rows(sorted({m for c in cands for m in c} - set(cache.known()))))
     stats["prefilter_s"] = time.perf_counter() - t
     stats["n_pairs_without_prefilter"] = total_models * len(shapes)
+    stats["n_without_window"] = sum(f.outside for f in found)
 
     # every candidate model's distance fields, built once (reported apart from the trials)
     t = time.perf_counter()
@@ -220,50 +252,78 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
             cloud = clouds[i] if clouds is not None else None
             noise_i = noise if noise is None or np.ndim(noise) == 0 else float(noise[i])
             t_v = time.perf_counter()
-            results[i] = _outcome(shapes[i], regs, cache, len(cands[i]), cloud, noise_i, pairs[i], params,
-                                  spacings[i] if spacings is not None else None)
+            results[i] = _outcome(shapes[i], regs, cache, found[i], cloud, noise_i, pairs[i], params, spacings[i])
             stats["verification_s"] += time.perf_counter() - t_v
     stats["registration_s"] = time.perf_counter() - t - stats["verification_s"]
     stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]
     return results, stats
 
 
-def _verified(shape, regs, cache: ModelCache, cloud, noise, obj_pair, params: CoscoParams, spacing=None):
-    """The index in ``regs`` of the first of the best few candidates whose placed mesh explains the object's points,
-    with its verdict, or ``(None, the best one's verdict)``; ``regs`` gets the accepted one polished. ``spacing``:
-    the object's point spacing (m) when known (``cloud`` may then be a sample of its points)."""
-    from cosco.segment import point_spacing
+def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
+    """Score the best ``accept_candidates`` registrations on all of the object's evidence
+    (:mod:`twinreg.decision`)."""
+    from scipy.spatial import cKDTree
 
-    from .acceptance import sample_cloud, verdict
+    from .acceptance import sample_cloud
+    from .decision import decide, evidence
 
-    if spacing is None:
-        spacing = point_spacing(cloud)
-    sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
-    first = None
-    for k, (reg, mid) in enumerate(regs[:params.accept_candidates]):
+    cloud = np.asarray(cloud, dtype=np.float64)
+    sample = sample_cloud(cloud, params.accept_max_points)
+    tree = cKDTree(cloud)
+    measured = shape.size.as_array()
+    scored = []
+    for reg, mid in regs[:params.accept_candidates]:
         m = placement(shape.frame, cache.frame(mid), reg)
         # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
         in_model = (sample - m[:3, 3]) @ m[:3, :3]
-        v = verdict(cache.surface(mid).distances(in_model), noise, spacing, params)
-        first = first or v
-        if v.accepted:
-            if k > 0:
-                regs[k] = (_trial(obj_pair, cache, mid, params, polish=True), mid)
-            return k, v
-    return None, first
+        top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
+        row = cache.row(mid)
+        scored.append(evidence(mid, reg.rmse, cache.surface(mid).distances(in_model), top, tree,
+                               np.array([row.length, row.width, row.height]), measured, noise, spacing, params))
+    return decide(scored, noise, params)
 
 
-def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, n_candidates: int, cloud=None, noise=None,
-             obj_pair=None, params: CoscoParams = DEFAULT, spacing=None) -> ObjectMatch:
+def _size_gap_text(gap: np.ndarray) -> str:
+    """How a model differs in size from an object (``gap``: its L, W, H minus the object's, m).
+
+    >>> _size_gap_text(np.array([0.36, -0.04, 0.0]))
+    '0.36 m longer, 0.04 m narrower'
+    """
+    words = (("longer", "shorter"), ("wider", "narrower"), ("taller", "lower"))
+    out = [f"{abs(g):.2f} m {w[0] if g > 0 else w[1]}" for g, w in zip(gap, words) if abs(g) >= 0.005]
+    return ", ".join(out) or "of the same size"
+
+
+def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=None, noise=None,
+             obj_pair=None, params: CoscoParams = DEFAULT, spacing=0.0) -> ObjectMatch:
+    n_candidates = found.n_window
     if not regs:
-        return ObjectMatch(shape, None, "no catalogue model within the size tolerance", [])
-    verdict = None
+        near = cache.size_index().nearest_gap(shape.size.as_array(), spacing, params)
+        reason = "no catalogue model within the size tolerance"
+        if near is not None:
+            cache.add_rows(cache.catalogue.rows([near[0]]))
+            reason += f"; the nearest, {cache.row(near[0]).name}, is {_size_gap_text(near[1])} than the object"
+        return ObjectMatch(shape, None, reason, [])
+    decision = None
     if cloud is not None:
-        k, verdict = _verified(shape, regs, cache, cloud, noise, obj_pair, params, spacing)
-        if k is None:
-            best = cache.row(regs[0][1]).name
-            return ObjectMatch(shape, None, verdict.reason(best), [m for _, m in regs],
-                               rejected={"name": best, "rmse_m": round(regs[0][0].rmse, 4), **verdict.as_dict()})
+        decision = _decided(shape, regs, cache, cloud, noise, spacing, params)
+        if decision.best is None:
+            best = decision.scored[0]
+            name = cache.row(best.model_id).name
+            reason = best.verdict.reason(name) if not best.verdict.accepted else (
+                f"the best model ({name}) leaves {best.unseen_share:.0%} of its top surface with no scan point "
+                f"near it (at most {params.accept_max_unseen:.0%} allowed)")
+            if found.outside:
+                near = cache.row(found.nearest[0])
+                gap = np.array([near.length, near.width, near.height]) - shape.size.as_array()
+                reason = (f"no catalogue model within the size tolerance; the nearest, {near.name}, is "
+                          f"{_size_gap_text(gap)} than the object, and none of the nearest fits it ({reason})")
+            return ObjectMatch(shape, None, reason, [m for _, m in regs],
+                               rejected={"name": name, "rmse_m": round(best.rmse, 4), **best.verdict.as_dict(),
+                                         **best.as_dict()})
+        k = next(j for j, (_, mid) in enumerate(regs) if mid == decision.best.model_id)
+        if k > 0:  # the winner's pose polished (the first by RMSE already was)
+            regs[k] = (_trial(obj_pair, cache, regs[k][1], params, polish=True), regs[k][1])
         regs.insert(0, regs.pop(k))
     reg, mid = regs[0]
     row = cache.row(mid)
@@ -272,10 +332,21 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, n_candidates: in
     heading = float(np.mod(np.arctan2(front[1], front[0]), 2 * np.pi))
     centre = (m @ np.array([0.0, 0.0, row.height / 2, 1.0]))[:3]
     runner = None
-    if len(regs) > 1:
+    if decision is not None:
+        others = [e for e in decision.scored if e.model_id != mid]
+        if others:
+            runner = {"model_id": others[0].model_id, "name": cache.row(others[0].model_id).name,
+                      "rmse_m": round(others[0].rmse, 4), "score_m": round(others[0].score, 4)}
+    elif len(regs) > 1:
         r2, m2 = regs[1]
         runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}
     match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=reg.rz, tz=reg.tz, du=reg.du, transform=m,
                   heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
-                  verdict=verdict)
+                  verdict=decision.best.verdict if decision else None,
+                  confidence=(decision.confidence * (params.decision_outside_factor if mid in found.nearest else 1.0)
+                              if decision else None),
+                  margin_sigma=decision.margin_sigma if decision else None,
+                  ambiguous_with=[cache.row(a).name for a in decision.ambiguous_with] if decision else [],
+                  outside_tolerance=mid in found.nearest,
+                  evidence=decision.best.as_dict() if decision else None)
     return ObjectMatch(shape, match, "", [m for _, m in regs])

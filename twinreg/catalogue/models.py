@@ -91,6 +91,10 @@ class RefModel(Base):
     frame_y: Mapped[float | None] = mapped_column(Float, nullable=True)
     frame_heading: Mapped[float | None] = mapped_column(Float, nullable=True)
     glass_fraction: Mapped[float] = mapped_column(Float, default=0.0, server_default="0")
+    #: height (m) of the longitudinal section's top at 1/4 and 3/4 of the half-length from the middle, both ends
+    #: averaged (:func:`cosco.taxonomy.descriptor`): with L, W, H the descriptor matching ranks candidates by
+    profile_mid: Mapped[float | None] = mapped_column(Float, nullable=True)
+    profile_end: Mapped[float | None] = mapped_column(Float, nullable=True)
     params_json: Mapped[str] = mapped_column(Text, default="{}", server_default="{}")
 
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=_now)

@@ -23,6 +23,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 import cosco
+from cosco.taxonomy import descriptor
 
 from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, require_positive
 from ..outdir import atomic_path
@@ -117,6 +118,28 @@ class Catalogue:
         if conds:
             q = q.where(and_(*conds))
         return q.options(*(defer(getattr(RefModel, b)) for b in BLOBS)).order_by(RefModel.id)
+
+    def descriptors(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every model's id (n,) and descriptor (n, 5): L, W, H and the section-top heights ``profile_mid``,
+        ``profile_end`` (one query, no blobs)."""
+        if not self.exists:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 5))
+        cols = (RefModel.id, RefModel.length, RefModel.width, RefModel.height, RefModel.profile_mid,
+                RefModel.profile_end)
+        with self.session() as s:
+            rows = s.execute(select(*cols).order_by(RefModel.id)).all()
+        table = np.array([[np.nan if v is None else v for v in r] for r in rows], dtype=np.float64).reshape(-1, 6)
+        return table[:, 0].astype(np.int64), table[:, 1:]
+
+    def rows(self, ids) -> list[RefModel]:
+        """The rows (blobs deferred) of the models ``ids``, in that order."""
+        ids = [int(i) for i in ids]
+        if not ids:
+            return []
+        q = select(RefModel).where(RefModel.id.in_(ids)).options(*(defer(getattr(RefModel, b)) for b in BLOBS))
+        with self.session() as s:
+            by_id = {r.id: r for r in s.scalars(q)}
+        return [by_id[i] for i in ids]
 
     def get(self, ref) -> RefModel:
         """A model by id or unique name."""
@@ -220,6 +243,7 @@ class Catalogue:
                                    faces=prep.mesh.faces.astype(np.int32), glass=prep.mesh.glass):
                         created.append(self.folder / mesh_file)
                     shape = prep.shape
+                    desc = descriptor(shape.size.as_array(), shape.sections.longitudinal)
                     row = RefModel(
                         name=final_name, make=make, model=model, body_class=body_class,
                         tags_json=json.dumps(sorted(set(tags))), sha256=sha, source_name=prep.path.name,
@@ -234,7 +258,7 @@ class Catalogue:
                         sample_spacing=prep.spacing, n_points=len(prep.points), points=pack(prep.points),
                         section_longitudinal=pack(shape.sections.longitudinal),
                         section_transverse=pack(shape.sections.transverse), section_res=shape.sections.res,
-                        glass_fraction=prep.glass_fraction,
+                        glass_fraction=prep.glass_fraction, profile_mid=float(desc[3]), profile_end=float(desc[4]),
                         section_longitudinal_fine=pack(shape.sections.fine[0]),
                         section_transverse_fine=pack(shape.sections.fine[1]),
                         frame_x=float(shape.frame.origin_xy[0]), frame_y=float(shape.frame.origin_xy[1]),
