@@ -90,12 +90,14 @@ def scan_meshes(meshes, passes=DEFAULT_PASSES, noise: float = 0.02, seed: int = 
 
 @dataclass
 class PlacedCar:
-    """Ground truth of one simulated car: model index, footprint centre (m), heading of its front (rad)."""
+    """Ground truth of one simulated car: model index, footprint centre (m), heading of its front (rad), and
+    whether the tree's canopy overhangs it (hidden from above)."""
 
     model: int
     x: float
     y: float
     heading: float
+    under_tree: bool = False
 
 
 @dataclass
@@ -178,6 +180,7 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
         ]
         # a tree by the first car of row 0: trunk beside it, canopy (from 2.3 m) overhanging its roof
         tx, ty = cars[0].x + 0.8, cars[0].y - 2.2
+        cars[0].under_tree = True
         gz = float(ground_height(tx, ty))
         import trimesh
 
