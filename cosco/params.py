@@ -145,8 +145,9 @@ class CoscoParams:
     and ``decision_w_size``); a match must also leave at most ``accept_max_unseen`` of the placed model's top
     surface with no point near it. Candidates within ``decision_ambiguous_sigma`` noise units of the winner's
     score are ambiguous with it; ``decision_confidence_sigma`` scales the margin into a 0-1 confidence, which is
-    multiplied by ``decision_outside_factor`` for a model outside the size window. Objects with more than ``accept_max_points``
-    points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
+    multiplied by ``decision_outside_factor`` for a model outside the size window. Before it is scored, each
+    candidate's pose is refined on the points (twinreg/refine.py; pairs within ``refine_reach`` m). Objects with more than
+    ``accept_max_points`` points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
     points is a proportion: 1,500 points give it to about one percentage point).
 
     Taxonomy at scale (cosco/taxonomy.py; docs/METHOD.md): up to ``taxonomy_full_max`` objects, the full matrix
@@ -230,6 +231,7 @@ class CoscoParams:
     decision_confidence_sigma: float = 1.0
     decision_ambiguous_sigma: float = 0.3
     decision_outside_factor: float = 0.5
+    refine_reach: float = 0.3
     accept_max_points: int = 1500
 
     taxonomy_full_max: int = 32

@@ -265,7 +265,7 @@ def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing
     """Labels cutting a too-large object where the tops of its slices fall lowest (the gap between two cars a
     sparse scan joined: the gap holds only their lower sides), across whichever axis of its footprint rectangle
     has the deepest such valley with at least the class's smallest width on each side; parts still too large are
-    cut again (``depth`` times). None when no slice is lower than half the tops on both sides."""
+    cut again (``depth`` times). None when no slice is lower than three quarters of the tops on both sides."""
     r = min_area_rectangle(xy)
     if r.length <= params.car_length[1] and r.width <= params.car_width[1] or depth == 0 or len(xy) < 6:
         return None
@@ -283,7 +283,7 @@ def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing
         centres = (np.arange(n) + 0.5) * bin_
         for j in np.flatnonzero((centres >= edge) & (centres <= n * bin_ - edge)):
             ratio = top[j] / max(min(top[:j].max(), top[j + 1:].max()), 1e-9)
-            if ratio < 0.5 and (best is None or ratio < best[0]):
+            if ratio < 0.75 and (best is None or ratio < best[0]):
                 best = (ratio, (k > j).astype(np.int64), k != j)
     if best is None:
         return None
@@ -389,7 +389,8 @@ def _parts(pts, hag, cand, rows, params: CoscoParams, cell: float, spacing: floa
     if not _too_big(obj, params) or obj.height > params.car_height[1]:
         return [rows]
     labels = _footprint_split(pts[idx, :2], params, cell=max(0.1, spacing / 2))
-    if labels is None:
+    if labels is None and obj.length <= 2 * params.car_length[1] and obj.width <= 2 * params.car_width[1]:
+        # a few cars a sparse scan joined, not a hedge or a row of planters cut into car-sized pieces
         labels = _profile_split(pts[idx, :2], hag[idx], params, spacing)
     if labels is None:
         return [rows]
@@ -436,9 +437,6 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
         core = np.r_[core, low[near]]
         comp = np.r_[comp, comp[nearest[near]]]
     cand = core
-    # a sparse scan gives a car few points: the least an object may have follows the density (two square metres'
-    # worth), within 10 and seg_min_points
-    min_points = int(np.clip(2.0 / max(spacing, 1e-6) ** 2, 10, params.seg_min_points))
     comp = _absorb_fragments(pts[cand, :2], hag[cand], comp, params)
     comp = _split_too_big(pts, hag, cand, comp, params, cell, spacing)
     # a windscreen's drop-out leaves a gap of about a metre in plan, plus a scan line
@@ -448,7 +446,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
     objects = []
     for a, b in zip(bounds[:-1], bounds[1:]):
         idx = cand[order[a:b]]
-        if len(idx) >= min_points:
+        if len(idx) >= params.seg_min_points:
             objects.append(_describe(pts, hag, idx, params, cell, spacing))
     objects.sort(key=lambda o: tuple(np.round(pts[o.indices, :2].mean(0), 1)))
     for k, o in enumerate(objects):

@@ -78,8 +78,6 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
                   noise: float = 0.02) -> tuple[list[CarOutcome], dict]:
     """Simulate, detect and match one car park of ``n_cars`` cars of the catalogue's models at ``density``;
     returns each car's outcome and the timings (s)."""
-    import cosco
-
     from .acceptance import scene_noise
     from .detect import describe_detected, detect_points, object_points
     from .io.points import PointSet
@@ -101,17 +99,7 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
                                    noise=scene_noise(det.hag, det.is_ground))
     t2 = time.perf_counter()
     classes = {r.name: body_class(r.body_class) for r in rows}
-    # each car is the object holding most of its points
-    owner = np.full(len(park.cars), -1)
-    best = np.zeros(len(park.cars))
-    for k, o in enumerate(det.objects):
-        lab = park.labels[o.indices]
-        lab = lab[lab >= 0]
-        if len(lab):
-            c = int(np.bincount(lab).argmax())
-            share = float(np.mean(lab == c))
-            if share > best[c]:
-                owner[c], best[c] = k, share
+    owner = car_objects(park, det)
     out = []
     for c, car in enumerate(park.cars):
         name = rows[car.model].name
@@ -129,9 +117,24 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
                 oc.evidence = getattr(m, "evidence", None)
                 oc.heading_err_deg = float(np.degrees(abs(np.angle(np.exp(1j * (m.heading - car.heading))))))
         out.append(oc)
-    del cosco
     return out, {"detect_s": t1 - t0, "match_s": t2 - t1, "n_objects": len(det.objects),
                  "n_trials": stats["n_trials"]}
+
+
+def car_objects(park, det) -> np.ndarray:
+    """(cars,) the index of each simulated car's detected object (the one holding the largest share of its
+    points), or -1 when none holds any."""
+    owner = np.full(len(park.cars), -1)
+    best = np.zeros(len(park.cars))
+    for k, o in enumerate(det.objects):
+        lab = park.labels[o.indices]
+        lab = lab[lab >= 0]
+        if len(lab):
+            c = int(np.bincount(lab).argmax())
+            share = float(np.mean(lab == c))
+            if share > best[c]:
+                owner[c], best[c] = k, share
+    return owner
 
 
 def summary(outcomes: list[CarOutcome], open_only: bool = False) -> dict:

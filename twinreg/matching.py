@@ -72,6 +72,7 @@ class ModelCache:
         self._meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._surfaces: dict[int, object] = {}
         self._tops: dict[int, np.ndarray] = {}
+        self._trees: dict[int, object] = {}
         self._index = None
 
     def row(self, model_id):
@@ -87,6 +88,14 @@ class ModelCache:
 
             self._index = SizeIndex(self.catalogue)
         return self._index
+
+    def tree(self, model_id: int):
+        """A cKDTree of the model's sampled points (model frame), for pose refinement."""
+        if model_id not in self._trees:
+            from scipy.spatial import cKDTree
+
+            self._trees[model_id] = cKDTree(self.geometry(model_id).points)
+        return self._trees[model_id]
 
     def top(self, model_id: int) -> np.ndarray:
         """The model's top surface (:func:`twinreg.decision.top_surface` of its sampled points), model frame."""
@@ -226,7 +235,10 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
             leads = k == 0 and not known
             ids = cands[i]
             if not leads and share and ranked_by_leader:
-                preferred = [m for m in ranked_by_leader[:share] if m in ids]
+                # the leader's favourites, and this object's own nearest by descriptor (a cluster may hold two
+                # kinds of car that the leader's ranking alone would not tell apart)
+                own = [m for m in ids[:share] if m not in ranked_by_leader[:share]]
+                preferred = [m for m in ranked_by_leader[:share] if m in ids] + own
                 ids = preferred or ids
             regs = []
             for mid in ids:
@@ -266,20 +278,34 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
 
     from .acceptance import sample_cloud
     from .decision import decide, evidence
+    from .refine import refine
 
     cloud = np.asarray(cloud, dtype=np.float64)
     sample = sample_cloud(cloud, params.accept_max_points)
     tree = cKDTree(cloud)
     measured = shape.size.as_array()
-    scored = []
-    for reg, mid in regs[:params.accept_candidates]:
+    def scored_pose(reg, mid):
         m = placement(shape.frame, cache.frame(mid), reg)
         # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
         in_model = (sample - m[:3, 3]) @ m[:3, :3]
+        # the pose sharpened on all the points (a turn about the vertical and a shift: twinreg/refine.py)
+        c = refine(in_model, cache.tree(mid), params.refine_reach)
+        in_model = in_model @ c[:3, :3].T + c[:3, 3]
+        m = m @ np.linalg.inv(c)
         top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
         row = cache.row(mid)
-        scored.append(evidence(mid, reg.rmse, cache.surface(mid).distances(in_model), top, tree,
-                               np.array([row.length, row.width, row.height]), measured, noise, spacing, params))
+        e = evidence(mid, reg.rmse, cache.surface(mid).distances(in_model), top, tree,
+                     np.array([row.length, row.width, row.height]), measured, noise, spacing, params)
+        e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)))
+        return e
+
+    scored = [scored_pose(reg, mid) for reg, mid in regs[:params.accept_candidates]]
+    if scored:  # the favourite end for end too: a box-like van's sections hardly tell its front from its back
+        k = int(np.argmin([e.score for e in scored]))
+        reg, mid = regs[k]
+        turned = scored_pose(cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du), mid)
+        if turned.score < scored[k].score:
+            scored[k] = turned
     return decide(scored, noise, params)
 
 
@@ -327,7 +353,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
         regs.insert(0, regs.pop(k))
     reg, mid = regs[0]
     row = cache.row(mid)
-    m = placement(shape.frame, cache.frame(mid), reg)
+    m = decision.best.extra["transform"] if decision is not None else placement(shape.frame, cache.frame(mid), reg)
     front = m[:2, :2] @ np.array([1.0, 0.0])
     heading = float(np.mod(np.arctan2(front[1], front[0]), 2 * np.pi))
     centre = (m @ np.array([0.0, 0.0, row.height / 2, 1.0]))[:3]
@@ -340,7 +366,8 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
     elif len(regs) > 1:
         r2, m2 = regs[1]
         runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}
-    match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=reg.rz, tz=reg.tz, du=reg.du, transform=m,
+    rz = decision.best.extra["rz"] if decision is not None else reg.rz
+    match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=rz, tz=reg.tz, du=reg.du, transform=m,
                   heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
                   verdict=decision.best.verdict if decision else None,
                   confidence=(decision.confidence * (params.decision_outside_factor if mid in found.nearest else 1.0)

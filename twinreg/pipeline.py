@@ -37,7 +37,9 @@ def _checked_params(params: CoscoParams, tol: float | None, threshold: float | N
 
     tol = require_positive("--tol", tol, f" (default {params.size_tol:g})")
     threshold = require_positive("--threshold", threshold, f" (default {params.cluster_threshold:g})")
+    # a tolerance given by the user is the window, as in the paper: it no longer grows with the point spacing
     return params.with_(size_tol=params.size_tol if tol is None else tol,
+                        size_spacing_k=params.size_spacing_k if tol is None else 0.0,
                         cluster_threshold=params.cluster_threshold if threshold is None else threshold)
 
 
@@ -164,7 +166,8 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
         "offset": [float(v) for v in offset], "noise_m": round(noise, 4),
         "objects": objects,
         **taxonomy_json(clusters),
-        "matching": {"tol_m": params.size_tol, "catalogue_models": catalogue.count(), "n_trials": stats["n_trials"],
+        "matching": {"tol_m": params.size_tol, "tol_spacing_k": params.size_spacing_k,
+                     "catalogue_models": catalogue.count(), "n_trials": stats["n_trials"],
                      "n_pairs_without_prefilter": stats["n_pairs_without_prefilter"],
                      "n_trials_saved_by_clusters": stats["n_trials_saved_by_clusters"],
                      "registration_ms_per_trial": round(1000 * stats["registration_s"] / max(stats["n_trials"], 1),

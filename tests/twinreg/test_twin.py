@@ -72,6 +72,25 @@ def test_every_car_matched_to_its_own_model_in_place(park, twin):
         assert v["accepted"] and v["outlier_share"] <= 0.10 and 0.05 < v["tolerance_m"] < 0.2
 
 
+def test_matches_say_how_sure_they_are(park, twin):
+    """The contract's confidence, ambiguous_with and outside_tolerance, in twin.json, the report and the KMZ."""
+    doc, out = twin
+    names = set(park["names"])
+    for o in doc["objects"]:
+        m = o["match"]
+        assert 0.0 <= m["confidence"] <= 1.0 and m["margin_sigma"] >= 0.0
+        assert set(m["ambiguous_with"]) <= names - {m["name"]}
+        assert m["outside_tolerance"] is False  # every car of this park is inside the size window
+        assert m["evidence"]["score_m"] <= m["runner_up"]["score_m"]
+        assert o["measured_size"]["length"] > 0
+    # a margin of many noise units is a confident match: most cars of this dense park are
+    assert np.mean([o["match"]["confidence"] >= 0.9 for o in doc["objects"]]) >= 0.75
+    report = (out / "report.html").read_text()
+    assert "<th>confidence</th>" in report and "<th>ambiguous with</th>" in report
+    kml = zipfile.ZipFile(out / "twin.kmz").read("doc.kml").decode()
+    assert kml.count('<Data name="confidence">') == len(doc["objects"])
+
+
 def test_kmz_reads_back(park, twin):
     import collada
 

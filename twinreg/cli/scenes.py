@@ -120,9 +120,12 @@ def build_twin_cmd(
          f"{twin['clustering']['n_clusters']} clusters, {twin['matching']['n_trials']} registration trials, "
          f"{twin['timing_s']['total']:.2f} s" + (f", {twin['grid']['n_cells']} cells" if tiled else ""))
     if len(twin["objects"]) <= 50:
+        from ..export.objects import trust_text
+
         for o in twin["objects"]:
             m = o["match"]
-            what = f"{m['name']} ({m['rmse_m'] * 100:.1f} cm)" if m else f"no match: {o.get('reason', '')}"
+            what = (f"{m['name']} ({m['rmse_m'] * 100:.1f} cm{trust_text(m)})" if m
+                    else f"no match: {o.get('reason', '')}")
             info(f"  {o['id']}: {what}, bearing {o['bearing_deg']:.1f} deg")
     written = [p for p in ("twin.json", "twin.ply", "twin.kmz", "report.html") if (out / p).exists()]
     info("written: " + ", ".join(str(out / p) for p in written) + (f", {out / 'ply'}/" if (out / "ply").exists()

@@ -54,6 +54,22 @@ def pose(res) -> tuple[np.ndarray, float]:
     return np.asarray(res.shape.centroid, dtype=np.float64), float(res.shape.heading)
 
 
+def trust_text(match_doc: dict) -> str:
+    """How sure a match is, in words: its confidence, the models it cannot be told from, outside tolerance.
+
+    >>> trust_text({"confidence": 0.12, "ambiguous_with": ["ford_mondeo_2015"], "outside_tolerance": False})
+    '; confidence 0.12; ambiguous with ford_mondeo_2015'
+    """
+    out = ""
+    if match_doc.get("confidence") is not None:
+        out += f"; confidence {match_doc['confidence']:.2f}"
+    if match_doc.get("ambiguous_with"):
+        out += "; ambiguous with " + ", ".join(match_doc["ambiguous_with"])
+    if match_doc.get("outside_tolerance"):
+        out += "; outside the size tolerance"
+    return out
+
+
 def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, georef, models,
                   where=None) -> ObjectOutput:
     """The exports of one matched (or unmatched) object. ``res``: its :class:`~twinreg.matching.ObjectMatch`;
@@ -73,6 +89,10 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
         match_doc = {"model_id": m.model_id, "name": m.name, "make": row.make, "model": row.model,
                      "rmse_m": round(m.rmse, 4), "rz": round(m.rz, 6), "tz": round(m.tz, 4), "du": round(m.du, 4),
                      "n_candidates": m.n_candidates, "n_trials": m.n_trials, "runner_up": m.runner_up,
+                     "confidence": None if m.confidence is None else round(m.confidence, 3),
+                     "margin_sigma": None if m.margin_sigma is None else round(m.margin_sigma, 2),
+                     "ambiguous_with": list(m.ambiguous_with), "outside_tolerance": bool(m.outside_tolerance),
+                     "evidence": m.evidence,
                      "verification": m.verdict.as_dict() if m.verdict is not None else None}
         reg = cosco.Registration(m.rmse, m.rz, m.tz, m.du)
         sections = {"title": f"{oid}: {m.name} ({m.rmse * 100:.1f} cm)",
@@ -107,14 +127,19 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
         if res.rejected:
             doc["rejected_model"] = res.rejected
     description = (f"{match_doc['name']} ({match_doc['make'] or ''} {match_doc['model'] or ''}), RMSE "
-                   f"{match_doc['rmse_m'] * 100:.1f} cm" if match_doc else f"unmatched: {res.reason}")
+                   f"{match_doc['rmse_m'] * 100:.1f} cm{trust_text(match_doc)}" if match_doc
+                   else f"unmatched: {res.reason}")
     kmz = {"id": oid, "lon": lon, "lat": lat, "alt": 0.0, "bearing": bearing, "mesh": mesh_key,
            "description": description,
            "data": {"model": match_doc["name"] if match_doc else "none",
                     "make": (match_doc or {}).get("make") or "",
                     "length_m": f"{size['length']:.2f}", "width_m": f"{size['width']:.2f}",
                     "height_m": f"{size['height']:.2f}",
-                    "rmse_m": f"{match_doc['rmse_m']:.4f}" if match_doc else "", "cluster": int(label)}}
+                    "rmse_m": f"{match_doc['rmse_m']:.4f}" if match_doc else "", "cluster": int(label),
+                    "confidence": "" if not match_doc or match_doc["confidence"] is None
+                    else f"{match_doc['confidence']:.2f}",
+                    "ambiguous_with": ", ".join(match_doc["ambiguous_with"]) if match_doc else "",
+                    "outside_tolerance": str(bool(match_doc and match_doc["outside_tolerance"])).lower()}}
     rect = min_area_rectangle(placed[:, :2])
     ctr = np.asarray(centre_local)[:2]
     footprint = {"corners": rect.corners(), "color": rgb / 255.0, "centre": ctr,

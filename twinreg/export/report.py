@@ -109,10 +109,16 @@ def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: li
     rows = []
     for o in twin["objects"]:
         m = o["match"]
+        doubt = ", ".join(m.get("ambiguous_with") or []) if m else ""
+        if m and m.get("outside_tolerance"):
+            doubt += " (outside the size tolerance)"
         rows.append("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in (
             o["id"], o["n_points"], f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}",
             o["cluster"], m["name"] if m else "no match: " + o.get("reason", ""),
-            f"{m['rmse_m'] * 100:.1f} cm" if m else "", f"{o['bearing_deg']:.1f}",
+            f"{m['rmse_m'] * 100:.1f} cm" if m else "",
+            "" if not m or m.get("confidence") is None else f"{m['confidence']:.2f}",
+            doubt,
+            f"{o['bearing_deg']:.1f}",
             (m.get("runner_up") or {}).get("name", "") if m else "")) + "</tr>")
     pics = "".join(f'<h2>{html.escape(p.stem)}</h2><img src="{p.name}" style="max-width:100%">' for p in files)
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {html.escape(twin['scene'])}"
@@ -121,6 +127,7 @@ def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: li
             f"<h1>Digital twin of {html.escape(twin['scene'])}</h1><p>{len(twin['objects'])} objects, "
             f"{sum(1 for o in twin['objects'] if o['match'])} matched; total {twin['timing_s']['total']:.2f} s.</p>"
             "<table><tr><th>object</th><th>points</th><th>size (m)</th><th>cluster</th><th>model</th><th>RMSE</th>"
-            "<th>bearing (deg)</th><th>runner-up</th></tr>" + "".join(rows) + "</table>" + pics + "</body></html>")
+            "<th>confidence</th><th>ambiguous with</th><th>bearing (deg)</th><th>runner-up</th></tr>"
+            + "".join(rows) + "</table>" + pics + "</body></html>")
     (folder / "report.html").write_text(page, encoding="utf-8")
     return files + [folder / "report.html"]

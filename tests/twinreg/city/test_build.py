@@ -82,7 +82,7 @@ def test_tiles_give_the_merged_scenes_twin_with_every_car_once(small_city, city_
     for x, y in zip(a, b):  # the same objects, points, matches and poses (ids aside)
         assert x["n_points"] == y["n_points"]
         assert np.allclose(x["centroid"], y["centroid"], atol=1e-6, rtol=0)
-        assert abs(x["heading_rad"] - y["heading_rad"]) < 1e-9
+        assert abs(x["heading_rad"] - y["heading_rad"]) < 1e-6  # the pose refinement sums in point order
         assert (x["match"] or {}).get("name") == (y["match"] or {}).get("name")
         assert x["match"]["rmse_m"] == y["match"]["rmse_m"] and x["size"] == y["size"]
         assert np.allclose([x["lat"], x["lon"], x["bearing_deg"]], [y["lat"], y["lon"], y["bearing_deg"]],
