@@ -280,9 +280,9 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
     from .decision import decide, evidence
     from .refine import refine
 
-    cloud = np.asarray(cloud, dtype=np.float64)
-    sample = sample_cloud(cloud, params.accept_max_points)
-    tree = cKDTree(cloud)
+    # the same sample whether the cloud is all of the object's points (a scene) or already its sample (a city cell)
+    sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
+    tree = cKDTree(sample)
     measured = shape.size.as_array()
     def scored_pose(reg, mid):
         m = placement(shape.frame, cache.frame(mid), reg)

@@ -41,7 +41,8 @@ class CellJob:
 @dataclass
 class CellObject:
     """An object the cell owns: ``id`` (cell name and index, the same from run to run), its shape and a sample of
-    its points (float32, scene-local: add ``offset``), its point ``spacing`` (m) and the ground under it."""
+    its points (at most ``accept_max_points``, scene-local: add ``offset``), its point ``spacing`` (m) and the
+    ground under it."""
 
     id: str
     cell: str
@@ -153,7 +154,7 @@ def _process_cell(job: CellJob) -> CellResult:
         cloud = object_points(det, o)
         out.objects.append(CellObject(
             id=f"{cell.name}-{k + 1}", cell=cell.name, offset=offset, n_points=int(o.n_points), shape=shape,
-            cloud=sample_cloud(cloud, params.accept_max_points).astype(np.float32),
+            cloud=sample_cloud(cloud, params.accept_max_points),
             spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o)))
     out.timing_s["sections"] = time.perf_counter() - t
     return out

@@ -66,7 +66,9 @@ def build_twin_cmd(
         help="The scene's projected CRS, e.g. EPSG:2157 (default: the CRS a LAS/LAZ header states).")] = None,
     unit: UnitOpt = "auto",
     tol: Annotated[Optional[float], typer.Option(
-        help=f"Size tolerance (m) of the catalogue prefilter [default: {DEFAULT.size_tol}].")] = None,
+        help=f"Size tolerance (m) of the catalogue prefilter: the window is then exactly +-TOL (default: "
+             f"{DEFAULT.size_tol} m, models up to {DEFAULT.size_spacing_k} point spacings longer and wider "
+             "too).")] = None,
     threshold: Annotated[Optional[float], typer.Option(
         help=f"Cluster threshold (m) [default: {DEFAULT.cluster_threshold}].")] = None,
     out: Annotated[Optional[Path], typer.Option(help="Output folder (default exports/<scene name>).")] = None,
