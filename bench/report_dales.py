@@ -24,8 +24,10 @@ def evaluate(cls: str):
         pts = np.loadtxt(f, usecols=(0, 1, 2))
         shape = cosco.describe_object(pts)
         rect = cosco.min_area_rectangle(pts[:, :2])
+        plane = cosco.detect_symmetry(pts)  # the mirror plane alone, before the footprint's edges are used
         out.append(dict(name=f.stem, n=len(pts), pts=pts, shape=shape, rect=rect,
                         err=np.degrees(cosco.axis_difference(shape.heading, rect.angle)),
+                        plane_err=np.degrees(cosco.axis_difference(plane.heading, rect.angle)),
                         dl=shape.size.length - rect.length, dw=shape.size.width - rect.width))
     return out
 
@@ -50,6 +52,10 @@ def main() -> None:
               f"0.3 m {ok_w} ({ok_w / n:.0%}); median L x W x H {size[0]:.2f} x {size[1]:.2f} x {size[2]:.2f} m; "
               f"car-sized {car_sized}")
         if cls == "car":
+            pe = np.array([r["plane_err"] for r in res])
+            print(f"   the mirror plane alone: within 5 deg {int((pe < 5).sum())}, beyond 15 deg {int((pe > 15).sum())}"
+                  f" (largest {pe.max():.1f} deg); with the footprint's edges (cosco.symmetry.with_footprint): "
+                  f"largest {max(r['err'] for r in res):.1f} deg")
             bad = [r for r in res if r["err"] >= 5 or abs(r["dl"]) >= 0.4 or abs(r["dw"]) >= 0.3 or
                    not r["shape"].symmetry.found]
             for r in bad:

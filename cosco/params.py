@@ -146,7 +146,8 @@ class CoscoParams:
     surface with no point near it. Candidates within ``decision_ambiguous_sigma`` noise units of the winner's
     score are ambiguous with it; ``decision_confidence_sigma`` scales the margin into a 0-1 confidence, which is
     multiplied by ``decision_outside_factor`` for a model outside the size window. Before it is scored, each
-    candidate's pose is refined on the points (twinreg/refine.py; pairs within ``refine_reach`` m). Objects with more than
+    candidate's pose is refined on at most ``refine_max_points`` of the points (twinreg/refine.py; pairs within
+    ``refine_reach`` m). Objects with more than
     ``accept_max_points`` points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
     points is a proportion: 1,500 points give it to about one percentage point).
 
@@ -216,15 +217,15 @@ class CoscoParams:
 
     size_tol: float = 0.20
     size_spacing_k: float = 1.5
-    match_register_k: int = 8
-    match_nearest_k: int = 3
+    match_register_k: int = 6
+    match_nearest_k: int = 2
     share_margin: float = 0.01
 
     accept_sigmas: float = 3.0
     accept_model_tol: float = 0.04
     accept_spacing_k: float = 0.20
     accept_max_outliers: float = 0.10
-    accept_candidates: int = 5
+    accept_candidates: int = 4
     accept_max_unseen: float = 0.5
     decision_w_sections: float = 0.5
     decision_w_size: float = 0.5
@@ -232,6 +233,7 @@ class CoscoParams:
     decision_ambiguous_sigma: float = 0.3
     decision_outside_factor: float = 0.5
     refine_reach: float = 0.3
+    refine_max_points: int = 500
     accept_max_points: int = 1500
 
     taxonomy_full_max: int = 32

@@ -214,11 +214,9 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     stats["n_pairs_without_prefilter"] = total_models * len(shapes)
     stats["n_without_window"] = sum(f.outside for f in found)
 
-    # every candidate model's distance fields, built once (reported apart from the trials)
-    t = time.perf_counter()
-    for mid in sorted({m for c in cands for m in c}):
-        cache.pair(mid)
-    stats["model_prep_s"] = time.perf_counter() - t
+    # the distance fields of a model are built the first time it is tried (counted in the registration time): a
+    # member of a cluster tries only a few of its candidates
+    stats["model_prep_s"] = 0.0
 
     # order: per cluster, the leader (its first object) first: it tries every candidate; then the members
     groups: dict[int, list[int]] = {}
@@ -288,8 +286,8 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         m = placement(shape.frame, cache.frame(mid), reg)
         # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
         in_model = (sample - m[:3, 3]) @ m[:3, :3]
-        # the pose sharpened on all the points (a turn about the vertical and a shift: twinreg/refine.py)
-        c = refine(in_model, cache.tree(mid), params.refine_reach)
+        # the pose sharpened on the points (a turn about the vertical and a shift: twinreg/refine.py)
+        c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
         in_model = in_model @ c[:3, :3].T + c[:3, 3]
         m = m @ np.linalg.inv(c)
         top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]

@@ -10,7 +10,7 @@ by the tolerance only; the height (the roof, which airborne scans always see) ke
 Inside the window the models are ranked by their descriptor (:func:`cosco.taxonomy.descriptor`: L, W, H and the
 section's top at two stations, stored with each model) against the object's, its L and W first grown by the
 expected shortfall, and only the best ``match_register_k`` are registered. The ``match_nearest_k`` models nearest
-to the window (by how far their L, W or H lies outside it) are always tried as well: a scan cut short still meets
+to the window (by how far their L, W and H lie outside it, summed) are always tried as well: a scan cut short still meets
 its model, and the margin of a match is measured against them too. A match among them is flagged
 ``outside_tolerance``.
 """
@@ -91,9 +91,9 @@ class SizeIndex:
                           [int(i) for i in self.ids[near]])
 
     def _gap(self, size, lo, hi) -> np.ndarray:
-        """(n,) how far (m, the largest of L, W, H) each model lies outside the window."""
+        """(n,) how far (m, summed over L, W and H) each model lies outside the window."""
         s = self.desc[:, :3]
-        return np.maximum(np.maximum(lo - s, s - hi), 0.0).max(1)
+        return np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1)
 
     def nearest_gap(self, size, spacing: float, params: CoscoParams = DEFAULT) -> tuple[int, np.ndarray] | None:
         """(model id, its L/W/H minus the object's (m)) of the model nearest to the window, or None."""
