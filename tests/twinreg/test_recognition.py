@@ -42,6 +42,15 @@ def test_at_8_pts_every_car_in_the_open_is_found_and_most_get_a_model(outcomes):
     assert summary(got)["matched"] >= 0.90
 
 
+@pytest.mark.parametrize("density", [20.0, 8.0])
+def test_sparse_scans_place_their_models_facing_the_right_way(outcomes, density):
+    """Heading of the cars given their own model: the footprint's edges and the pose refinement keep it within a few
+    degrees; a box-like van's front and back are the errors left (180 degrees)."""
+    errs = np.array([o.heading_err_deg for o in outcomes[density] if o.right])
+    assert np.median(errs) < 1.5
+    assert np.mean(errs < 5.0) >= 0.9
+
+
 def test_confidence_means_something(outcomes):
     """Matches given a confidence of 0.9 or more are right far more often than those under 0.6."""
     every = [o for d in outcomes.values() for o in d if o.matched]
