@@ -1,13 +1,17 @@
-"""Matching detected objects to catalogue models (paper 4.3): size prefilter, cross-section registration, pose.
+"""Matching detected objects to catalogue models (paper 4.3, and beyond it for sparse scans and large catalogues).
 
-For each object, the catalogue is asked once (one indexed SQL query) for models whose length, width and height
-are all within ``params.size_tol``; each candidate's sections are registered to the object's over rz in
-{0, pi/2, pi, 3pi/2}, a continuous tz and a small axial shift du, and the candidates are ranked by RMSE. Objects of
-one cluster share work: the cluster's first object (its leader) tries every candidate, the others first the best
-few of the leader's ranking, and all of their own candidates only when those fit clearly worse (by
-``share_margin``). When the object's points are given, the best few are then verified against all of them
-(:mod:`twinreg.acceptance`): the first that explains the object wins, and an object no candidate explains gets no
-model (a box, a skip or a kiosk of car size).
+1. Candidates (:mod:`twinreg.prefilter`): every model's descriptor is read once; an object's candidates are the
+   models in its density-aware size window, ranked by descriptor (the best ``match_register_k``), and the
+   ``match_nearest_k`` nearest outside the window.
+2. Registration (the paper): each candidate's sections are registered to the object's over rz in {0, pi/2, pi,
+   3pi/2}, a continuous tz and a small axial shift du, and ranked by RMSE. Objects of one cluster share work: the
+   cluster's first object (its leader) tries every candidate, the others first the leader's favourites and their
+   own nearest, and all of their candidates only when those fit clearly worse (by ``share_margin``).
+3. Decision (:mod:`twinreg.decision`), when the object's points are given: the best ``accept_candidates`` are
+   placed, their pose refined on the points (:mod:`twinreg.refine`), checked (:mod:`twinreg.acceptance`) and
+   scored on all the evidence; the lowest acceptable score wins, with a confidence, the models it cannot be told
+   from, and whether it lies outside the size window. An object no candidate explains gets no model (a box, a
+   skip or a kiosk of car size), with the reason.
 """
 
 from __future__ import annotations
@@ -83,7 +87,7 @@ class ModelCache:
 
     def size_index(self):
         """Every model's descriptor (:class:`~twinreg.prefilter.SizeIndex`), loaded once."""
-        if getattr(self, "_index", None) is None:
+        if self._index is None:
             from .prefilter import SizeIndex
 
             self._index = SizeIndex(self.catalogue)
@@ -194,8 +198,6 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
     """
     from cosco.segment import point_spacing
-
-    from .prefilter import SizeIndex
 
     cache = ModelCache(catalogue, params) if cache is None else cache
     stats = {"prefilter_s": 0.0, "registration_s": 0.0, "verification_s": 0.0, "n_trials": 0,
