@@ -113,8 +113,8 @@ class Catalogue:
             conds += [RefModel.length.between(length - tol, length + tol),
                       RefModel.width.between(width - tol, width + tol),
                       RefModel.height.between(height - tol, height + tol)]
-        if body_class:
-            conds.append(RefModel.body_class == body_class)
+        if body_class:  # "sedan" finds "sedan/liftback" and "Sedan (fastback)"
+            conds.append(func.lower(RefModel.body_class).contains(body_class.lower(), autoescape=True))
         if conds:
             q = q.where(and_(*conds))
         return q.options(*(defer(getattr(RefModel, b)) for b in BLOBS)).order_by(RefModel.id)

@@ -23,6 +23,15 @@ FrontOpt = Annotated[str, typer.Option(
     "--front", help="auto|+x|-x|+y|-y: the car's front, in the file's axes once up is Z.")]
 
 
+def _near_duplicates(cat, row) -> tuple[list[dict], str | None]:
+    """The stored model's near-duplicates in the catalogue (as JSON) and the warning line, or ([], None)."""
+    from ..catalogue.duplicates import near_duplicates, warning_text
+
+    dups = near_duplicates(cat, (row.length, row.width, row.height), cat.geometry(row, with_mesh=False).points,
+                           exclude=row.id)
+    return [d.as_dict() for d in dups], (warning_text(row.name, dups) if dups else None)
+
+
 def _summary(row) -> str:
     return (f"added model {row.id} '{row.name}': {row.length:.2f} x {row.width:.2f} x {row.height:.2f} m, "
             f"symmetry {'found' if row.sym_found else 'not found'} (PCR {row.sym_pcr:.2f}), {row.n_points} points; "
@@ -49,8 +58,11 @@ def add_model(
     with err_console.status(f"measuring {mesh.name}"):
         row = cat.add(mesh, name=name, make=make, model=model, body_class=body_class, tags=tag or (), unit=unit,
                       up=up, front=front)
+        dups, warning = _near_duplicates(cat, row)
+    if warning:  # a warning, not a failure: the model is stored
+        info(warning)
     if json_:
-        print_json(row.to_dict())
+        print_json(row.to_dict() | {"near_duplicates": dups, "warnings": [warning] if warning else []})
     else:
         info(_summary(row))
 
@@ -71,7 +83,7 @@ def import_models(
     if not files:
         fail(f"{folder}: no mesh files ({', '.join(sorted(MESH_SUFFIXES))})")
     cat = Catalogue(library_path(library))
-    added, skipped = [], []
+    added, skipped, dups, warnings = [], [], [], []
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                   TimeElapsedColumn(), console=err_console) as bar:
         task = bar.add_task("importing", total=len(files))
@@ -79,12 +91,18 @@ def import_models(
             bar.update(task, description=f"importing {path.name}")
             try:
                 added.append(cat.add(path, unit=unit, up=up))
+                near, warning = _near_duplicates(cat, added[-1])
+                dups.append(near)
+                if warning:
+                    warnings.append(warning)
+                    bar.console.print(warning, markup=False, highlight=False)
             except TwinregError as exc:
                 skipped.append({"file": str(path), "error": str(exc)})
                 bar.console.print(f"skipped: {exc}", markup=False, highlight=False)
             bar.advance(task)
     if json_:
-        print_json({"added": [r.to_dict() for r in added], "skipped": skipped})
+        print_json({"added": [r.to_dict() | {"near_duplicates": d} for r, d in zip(added, dups)],
+                    "skipped": skipped, "warnings": warnings})
     else:
         info(f"{len(added)} added, {len(skipped)} skipped")
     if not added and skipped:
@@ -104,6 +122,9 @@ def _table(rows) -> Table:
     return t
 
 
+SORT_KEYS = ("id", "name", "length", "width", "height", "make", "class")
+
+
 @app.command("list-models")
 @handled
 def list_models(
@@ -111,18 +132,48 @@ def list_models(
         "--near", help="L W H (m): only models within --tol of this size.")] = None,
     tol: Annotated[Optional[float], typer.Option(
         help="Size tolerance (m) on each of L, W, H [default: 0.2, the matcher's].")] = None,
-    body_class: Annotated[Optional[str], typer.Option("--body-class")] = None,
+    body_class: Annotated[Optional[str], typer.Option(
+        "--body-class", "--class", help="Only models whose body class contains this (any case): sedan, SUV.")] = None,
+    tag: Annotated[Optional[List[str]], typer.Option("--tag", help="Only models with this tag (repeatable: all).")
+                   ] = None,
+    sort: Annotated[str, typer.Option("--sort", help=f"Order: {', '.join(SORT_KEYS)}.")] = "id",
+    csv_: Annotated[bool, typer.Option("--csv", help="Print CSV (the JSON fields, sizes flattened).")] = False,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
     """List (or size-query) the catalogue."""
+    if sort not in SORT_KEYS:
+        fail(f"--sort {sort}: not one of {', '.join(SORT_KEYS)}")
     rows = Catalogue(library_path(library), create=False).list(near=near, tol=tol, body_class=body_class)
+    wanted = set(tag or ())
+    rows = [r for r in rows if wanted <= set(r.tags)]
+    key = {"class": lambda r: (r.body_class or "").lower(), "make": lambda r: (r.make or "").lower(),
+           "name": lambda r: r.name.lower()}.get(sort, lambda r: getattr(r, sort))
+    rows = sorted(rows, key=key)
     if json_:
         print_json([r.to_dict() for r in rows])
+    elif csv_:
+        _print_csv(rows)
     elif rows:
         out_console.print(_table(rows))
     else:
         info("no models")
+
+
+def _print_csv(rows) -> None:
+    import csv
+    import sys
+
+    cols = ["id", "name", "make", "model", "body_class", "tags", "length", "width", "height", "symmetry_found",
+            "pcr", "n_points", "sha256", "source_name", "unit", "up", "front"]
+    w = csv.writer(sys.stdout, lineterminator="\n")
+    w.writerow(cols)
+    for r in rows:
+        d = r.to_dict()
+        w.writerow([d["id"], d["name"], d["make"] or "", d["model"] or "", d["body_class"] or "", ";".join(d["tags"]),
+                    d["size"]["length"], d["size"]["width"], d["size"]["height"], d["symmetry"]["found"],
+                    d["symmetry"]["pcr"], d["n_points"], d["sha256"], d["source_name"], d["unit"], d["up"],
+                    d["front"]])
 
 
 @app.command("show-model")
