@@ -81,6 +81,13 @@ class Catalogue:
     def exists(self) -> bool:
         return self._engine is not None
 
+    @property
+    def engine(self):
+        """The SQLAlchemy engine of the catalogue's database (opened, and created, on first use)."""
+        if self._engine is None:
+            self._engine = open_engine(self.folder, create=True)
+        return self._engine
+
     def session(self) -> Session:
         if self._engine is None:
             self._engine = open_engine(self.folder, create=True)

@@ -6,7 +6,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from . import city, models, objects, scenes
+from . import city, library, models, objects, scenes
 
 app = typer.Typer(
     name="twinreg",
@@ -34,6 +34,7 @@ def _global(
 
 
 app.add_typer(models.app)
+app.add_typer(library.app)
 app.add_typer(objects.app)
 app.add_typer(scenes.app)
 app.add_typer(city.app)

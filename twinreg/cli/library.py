@@ -1,0 +1,59 @@
+"""Library commands: export-library, import-library (portable catalogues, twinreg/catalogue/bundle.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..catalogue.db import library_path
+from ..catalogue.repository import Catalogue
+from ._common import JsonOpt, LibraryOpt, err_console, handled, info, print_json
+
+app = typer.Typer()
+
+
+@app.command("export-library")
+@handled
+def export_library(
+    zip_path: Annotated[Path, typer.Argument(help="The bundle to write (a .zip).")],
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Write the catalogue (models, sampled clouds, sections, meshes, provenance, schema) to one zip."""
+    from ..catalogue.bundle import export_library as export
+
+    cat = Catalogue(library_path(library), create=False)
+    with err_console.status(f"exporting {cat.folder}"):
+        manifest = export(cat, zip_path)
+    size = sum(m["bytes"] for m in manifest["members"].values())
+    if json_:
+        print_json({"zip": str(zip_path), "n_models": manifest["n_models"], "schema_revision":
+                    manifest["schema_revision"], "n_files": len(manifest["members"]), "bytes": size})
+    else:
+        info(f"{manifest['n_models']} models ({len(manifest['members'])} files, {size / 1e6:.1f} MB) written to "
+             f"{zip_path}")
+
+
+@app.command("import-library")
+@handled
+def import_library(
+    zip_path: Annotated[Path, typer.Argument(help="A bundle written by export-library.")],
+    rename: Annotated[bool, typer.Option("--rename", help="Give clashing names a free one (name-2).")] = False,
+    skip: Annotated[bool, typer.Option("--skip", help="Leave models whose name is taken out.")] = False,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Add a bundle's models, checksums verified; clashing names change nothing without --rename or --skip."""
+    from ..catalogue.bundle import import_library as do_import
+
+    cat = Catalogue(library_path(library))
+    with err_console.status(f"importing {zip_path.name}"):
+        result = do_import(cat, zip_path, rename=rename, skip=skip)
+    if json_:
+        print_json(result.as_dict())
+    else:
+        renamed = {a: b for a, b in result.added.items() if a != b}
+        info(f"{len(result.added)} models imported into {cat.folder}, {len(result.skipped)} left out"
+             + (f"; renamed: {', '.join(f'{a} -> {b}' for a, b in renamed.items())}" if renamed else ""))
