@@ -1,9 +1,10 @@
-"""Library commands: export-library, import-library (portable catalogues, twinreg/catalogue/bundle.py)."""
+"""Library commands: export-library, import-library (portable catalogues, twinreg/catalogue/bundle.py) and coverage
+(what the catalogue lacks, twinreg/coverage.py)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, List, Optional
 
 import typer
 
@@ -57,3 +58,37 @@ def import_library(
         renamed = {a: b for a, b in result.added.items() if a != b}
         info(f"{len(result.added)} models imported into {cat.folder}, {len(result.skipped)} left out"
              + (f"; renamed: {', '.join(f'{a} -> {b}' for a, b in renamed.items())}" if renamed else ""))
+
+
+@app.command("coverage")
+@handled
+def coverage(
+    twins: Annotated[List[Path], typer.Argument(help="twin.json files written by build-twin.")],
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="Draw object sizes over the catalogue's (PNG).")
+                    ] = None,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """The objects that got no model (or one outside the size window), grouped by size, and the sizes the
+    catalogue is missing."""
+    import numpy as np
+
+    from ..coverage import coverage as cover
+    from ..coverage import plot as draw
+    from ..coverage import read_objects
+
+    objects = read_objects(twins)
+    rows = Catalogue(library_path(library), create=False).list()
+    models = np.array([[r.length, r.width, r.height] for r in rows]).reshape(-1, 3)
+    names = [r.name for r in rows]
+    doc = cover(objects, models, names)
+    if plot:
+        draw(objects, models, names, plot)
+        doc["plot"] = str(plot)
+    if json_:
+        print_json(doc)
+        return
+    info(f"{doc['n_lacking']} of {doc['n_objects']} objects got no model or one outside the size window"
+         + ("" if rows else " (no catalogue: give --library to name the nearest models)"))
+    for g in doc["groups"]:
+        info("  " + g["text"])

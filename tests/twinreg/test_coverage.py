@@ -1,0 +1,37 @@
+"""twinreg coverage (issue 10): the objects of twins that got no model, grouped by size, and the sizes the
+catalogue lacks."""
+
+import json
+
+from typer.testing import CliRunner
+
+from twinreg.cli import app
+
+
+def _obj(k, length, width, height, match=None):
+    return {"id": f"obj{k}", "measured_size": {"length": length, "width": width, "height": height}, "match": match}
+
+
+def test_small_cars_are_reported_as_missing_sizes(catalogue16, tmp_path):
+    objs = [_obj(k, 3.3 + 0.02 * k, 1.55, 1.45) for k in range(6)]  # smaller than any shared car
+    objs += [_obj(10, 4.9, 1.85, 1.30)]  # a Fusion-sized object that no model explained
+    objs += [_obj(11, 4.6, 1.80, 1.50, {"name": "toyota_prius", "outside_tolerance": False})]
+    twin = tmp_path / "twin.json"
+    twin.write_text(json.dumps({"objects": objs}))
+    res = CliRunner().invoke(app, ["coverage", str(twin), "--library", str(catalogue16.folder), "--json",
+                                   "--plot", str(tmp_path / "cov.png")])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["n_objects"] == 8 and doc["n_lacking"] == 7
+    small, fusion = doc["groups"]
+    assert small["n_objects"] == 6 and small["models_within_tol"] == 0
+    assert small["text"].startswith("6 objects 3.3-3.4 m long, 1.6-1.6 m wide: no model within 0.2 m")
+    assert fusion["models_within_tol"] >= 3  # Fusion, Mondeo, MKZ...: near in size, none accepted
+    assert (tmp_path / "cov.png").stat().st_size > 10_000
+
+
+def test_a_file_that_is_not_a_twin_is_refused(tmp_path):
+    bad = tmp_path / "twin.json"
+    bad.write_text("{\"scene\": 1}")
+    res = CliRunner().invoke(app, ["coverage", str(bad)])
+    assert res.exit_code == 1 and "not a twin.json written by build-twin" in res.output
