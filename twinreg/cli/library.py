@@ -92,3 +92,38 @@ def coverage(
          + ("" if rows else " (no catalogue: give --library to name the nearest models)"))
     for g in doc["groups"]:
         info("  " + g["text"])
+
+
+@app.command("library-report")
+@handled
+def library_report(
+    density: Annotated[float, typer.Option("--density", help="The survey's density (points per m2).")] = 150.0,
+    out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("exports/library"),
+    scans: Annotated[int, typer.Option("--scans", help="Simulated scans of each model.")] = 10,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the simulated scans.")] = 0,
+    workers: Annotated[int, typer.Option("--workers", help="Processes the models are spread over.")] = 2,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """A gallery of the models, their taxonomy and near-duplicates, and which of them a scan of the given density
+    confuses (library.html, library.json)."""
+    from ..errors import require_positive
+    from ..library_report import report
+
+    require_positive("--density", density)
+    if scans < 1 or workers < 1:
+        from ..errors import ParameterError
+
+        raise ParameterError("--scans and --workers must be at least 1")
+    cat = Catalogue(library_path(library), create=False)
+    with err_console.status("library report") as status:
+        doc = report(cat, out, density=density, scans=scans, seed=seed, workers=workers,
+                     progress=lambda msg: status.update(msg))
+    if json_:
+        print_json(doc)
+        return
+    info(f"{doc['n_models']} models; {len(doc['taxonomy']['near_duplicates'])} near-duplicate pair(s); "
+         f"{len(doc['cannot_tell_apart'])} pair(s) confused at {density:g} pts/m2; {doc['timing_s']:.1f} s")
+    for p in doc["cannot_tell_apart"]:
+        info("  " + p["text"])
+    info(f"written: {out / 'library.html'}, {out / 'library.json'}")
