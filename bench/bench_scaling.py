@@ -25,8 +25,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import Row, machine  # noqa: E402
 
 
-def clone_catalogue(base, folder: Path, n: int, seed: int = 0):
-    """A catalogue of ``n`` rows: the base's models, then jittered clones of them."""
+def clone_catalogue(base, folder: Path, n: int, seed: int = 0, own_files: bool = False):
+    """A catalogue of ``n`` rows: the base's models, then clones of them with their sizes jittered. The clones'
+    sampled points are thinned to 10 cm and their model files are the originals' (folders linked), unless
+    ``own_files``: then each clone keeps its points and gets its own copies (hard links) of its original file and
+    normalised mesh, as a library of distinct models would hold."""
+    import os
+
     from sqlalchemy import select
 
     import cosco
@@ -37,18 +42,30 @@ def clone_catalogue(base, folder: Path, n: int, seed: int = 0):
     cat = Catalogue(folder)
     with base.session() as s_in, cat.session() as s_out:
         src = list(s_in.scalars(select(RefModel).order_by(RefModel.id)))
-        thin = {r.id: pack(cosco.voxel_downsample(unpack(r.points), 0.10)[0]) for r in src}
+        thin = {} if own_files else {r.id: pack(cosco.voxel_downsample(unpack(r.points), 0.10)[0]) for r in src}
         for k in range(n):
             r = src[k % len(src)]
             d = {c.name: getattr(r, c.name) for c in RefModel.__table__.columns if c.name != "id"}
             if k >= len(src):
+                sha = f"{r.sha256[:48]}{k:016d}"
                 jitter = rng.normal(0, 0.15, 3)
-                d.update(name=f"{r.name}-v{k}", sha256=f"{r.sha256[:48]}{k:016d}", points=thin[r.id],
-                         length=r.length + jitter[0], width=r.width + jitter[1] / 3, height=r.height + jitter[2] / 2)
+                d.update(name=f"{r.name}-v{k}", sha256=sha, length=r.length + jitter[0],
+                         width=r.width + jitter[1] / 3, height=r.height + jitter[2] / 2)
+                if own_files:
+                    d.update(stored_file=str(Path(r.stored_file).with_name(sha + Path(r.stored_file).suffix)),
+                             mesh_file=f"meshes/{sha}.npz")
+                else:
+                    d.update(points=thin[r.id])
+            if own_files:
+                for old, new in ((r.stored_file, d["stored_file"]), (r.mesh_file, d["mesh_file"])):
+                    (folder / new).parent.mkdir(parents=True, exist_ok=True)
+                    if not (folder / new).exists():
+                        os.link(base.folder / old, folder / new)
             s_out.add(RefModel(**d))
         s_out.commit()
-    for sub in ("meshes", "files"):  # the model files the matcher reads are the originals'
-        (folder / sub).symlink_to(base.folder / sub)
+    if not own_files:
+        for sub in ("meshes", "files"):  # the model files the matcher reads are the originals'
+            (folder / sub).symlink_to(base.folder / sub)
     return cat
 
 

@@ -24,17 +24,10 @@ from pathlib import Path
 from ..errors import CatalogueError
 from ..outdir import atomic_path
 from .db import DB_NAME, current_revision, make_engine, upgrade, writer_lock
+from .prepare import file_sha256
 
 FORMAT = "twinreg-library"
 VERSION = 1
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def export_library(catalogue, zip_path) -> dict:
@@ -58,7 +51,7 @@ def export_library(catalogue, zip_path) -> dict:
                                                 and ".tmp" not in p.name]
             manifest = {"format": FORMAT, "version": VERSION, "schema_revision": current_revision(catalogue.engine),
                         "n_models": catalogue.count(),
-                        "members": {name: {"bytes": p.stat().st_size, "sha256": _sha256(p)} for p, name in members}}
+                        "members": {name: {"bytes": p.stat().st_size, "sha256": file_sha256(p)} for p, name in members}}
             with atomic_path(zip_path) as tmp_zip:
                 with zipfile.ZipFile(tmp_zip, "w", zipfile.ZIP_STORED) as z:
                     z.writestr("bundle.json", json.dumps(manifest, indent=1))
