@@ -111,10 +111,8 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
             oc.measured = tuple(round(float(v), 2) for v in res.shape.size.as_array())
             if m is not None:
                 oc.got, oc.got_class = m.name, classes.get(m.name, "")
-                oc.ambiguous_with = tuple(getattr(m, "ambiguous_with", ()) or ())
-                oc.confidence = getattr(m, "confidence", None)
-                oc.outside_tolerance = bool(getattr(m, "outside_tolerance", False))
-                oc.evidence = getattr(m, "evidence", None)
+                oc.ambiguous_with = tuple(m.ambiguous_with)
+                oc.confidence, oc.outside_tolerance, oc.evidence = m.confidence, m.outside_tolerance, m.evidence
                 oc.heading_err_deg = float(np.degrees(abs(np.angle(np.exp(1j * (m.heading - car.heading))))))
         out.append(oc)
     return out, {"detect_s": t1 - t0, "match_s": t2 - t1, "n_objects": len(det.objects),
