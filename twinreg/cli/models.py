@@ -150,10 +150,10 @@ def list_models(
     key = {"class": lambda r: (r.body_class or "").lower(), "make": lambda r: (r.make or "").lower(),
            "name": lambda r: r.name.lower()}.get(sort, lambda r: getattr(r, sort))
     rows = sorted(rows, key=key)
-    if json_:
-        print_json([r.to_dict() for r in rows])
-    elif csv_:
+    if csv_:  # asked for on this command: it wins over a --json given for every command
         _print_csv(rows)
+    elif json_:
+        print_json([r.to_dict() for r in rows])
     elif rows:
         out_console.print(_table(rows))
     else:
