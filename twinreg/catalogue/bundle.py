@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shutil
 import sqlite3
 import tempfile
 import zipfile
@@ -25,6 +24,7 @@ from ..errors import CatalogueError
 from ..outdir import atomic_path
 from .db import DB_NAME, current_revision, make_engine, upgrade, writer_lock
 from .prepare import file_sha256
+from .repository import atomic_copy, undone_on_failure
 
 FORMAT = "twinreg-library"
 VERSION = 1
@@ -155,8 +155,7 @@ def import_library(catalogue, zip_path, rename: bool = False, skip: bool = False
             if result.clashes and not (rename or skip):
                 raise CatalogueError(f"{zip_path}: {len(result.clashes)} model name(s) already in {folder} "
                                      f"({', '.join(result.clashes[:5])}); nothing imported; give --rename or --skip")
-            created = []
-            try:
+            with undone_on_failure(s) as created:
                 for r in plan:
                     new_name = r.name
                     k = 2
@@ -164,22 +163,13 @@ def import_library(catalogue, zip_path, rename: bool = False, skip: bool = False
                         new_name, k = f"{r.name}-{k}", k + 1
                     names.add(new_name)
                     for rel in _files_of(tmp, r):
-                        dst = folder / rel
-                        if not dst.exists():
-                            dst.parent.mkdir(parents=True, exist_ok=True)
-                            with atomic_path(dst) as part:
-                                shutil.copyfile(tmp / rel, part)
-                            created.append(dst)
+                        if atomic_copy(tmp / rel, folder / rel):
+                            created.append(folder / rel)
                     data = {c.name: getattr(r, c.name) for c in RefModel.__table__.columns if c.name != "id"}
                     data["name"] = new_name
                     s.add(RefModel(**data))
                     result.added[r.name] = new_name
                 s.commit()
-            except BaseException:
-                s.rollback()
-                for f in created:
-                    f.unlink(missing_ok=True)
-                raise
     return result
 
 

@@ -12,6 +12,7 @@ names and rename them, insert the row in one transaction, and delete the new fil
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 from dataclasses import dataclass
@@ -51,13 +52,27 @@ class ModelGeometry:
     mesh_glass: np.ndarray | None = None
 
 
-def _atomic_copy(src: Path, dst: Path) -> bool:
+def atomic_copy(src: Path, dst: Path) -> bool:
     """Copy ``src`` to ``dst`` through a temporary file and a rename. Returns False if ``dst`` already existed."""
     if dst.exists():
         return False
     with atomic_path(dst) as tmp:
         shutil.copyfile(src, tmp)
     return True
+
+
+@contextlib.contextmanager
+def undone_on_failure(session: Session):
+    """Yield a list for the files a transaction writes; if the block fails, the session is rolled back and those
+    files deleted, so that rows and files go in together or not at all."""
+    created: list[Path] = []
+    try:
+        yield created
+    except BaseException:
+        session.rollback()
+        for f in created:
+            f.unlink(missing_ok=True)
+        raise
 
 
 def _atomic_npz(dst: Path, **arrays) -> bool:
@@ -242,48 +257,41 @@ class Catalogue:
                     raise DuplicateModelError(f"{prep.path}: same content as model {existing.id} "
                                               f"'{existing.name}' already in the catalogue")
                 final_name = self._free_name(s, name, prep.path)
-                created = []
-                try:
-                    if _atomic_copy(prep.path, self.folder / stored):
-                        created.append(self.folder / stored)
-                    if _atomic_npz(self.folder / mesh_file, vertices=prep.mesh.vertices.astype(np.float32),
-                                   faces=prep.mesh.faces.astype(np.int32), glass=prep.mesh.glass):
-                        created.append(self.folder / mesh_file)
-                    shape = prep.shape
-                    desc = descriptor(shape.size.as_array(), shape.sections.longitudinal)
-                    row = RefModel(
-                        name=final_name, make=make, model=model, body_class=body_class,
-                        tags_json=json.dumps(sorted(set(tags))), sha256=sha, source_name=prep.path.name,
-                        stored_file=str(stored), mesh_file=str(mesh_file), n_faces=len(prep.mesh.faces),
-                        unit=prep.mesh.unit, unit_scale=prep.mesh.scale, unit_source=prep.mesh.unit_source,
-                        up_axis=prep.mesh.up, front_axis=prep.mesh.front, notes="; ".join(prep.mesh.notes),
-                        length=shape.size.length, width=shape.size.width, height=shape.size.height,
-                        mesh_length=float(prep.mesh_size[0]), mesh_width=float(prep.mesh_size[1]),
-                        mesh_height=float(prep.mesh_size[2]),
-                        sym_found=shape.symmetry.found, sym_pcr=shape.symmetry.pcr,
-                        sym_rmse=float(shape.symmetry.rmse), sym_heading=shape.heading,
-                        sample_spacing=prep.spacing, n_points=len(prep.points), points=pack(prep.points),
-                        section_longitudinal=pack(shape.sections.longitudinal),
-                        section_transverse=pack(shape.sections.transverse), section_res=shape.sections.res,
-                        glass_fraction=prep.glass_fraction, profile_mid=float(desc[3]), profile_end=float(desc[4]),
-                        section_longitudinal_fine=pack(shape.sections.fine[0]),
-                        section_transverse_fine=pack(shape.sections.fine[1]),
-                        frame_x=float(shape.frame.origin_xy[0]), frame_y=float(shape.frame.origin_xy[1]),
-                        frame_heading=float(shape.frame.heading),
-                        params_json=json.dumps({"sample_spacing": prep.spacing}),
-                    )
-                    s.add(row)
-                    s.commit()
-                except IntegrityError as exc:
-                    s.rollback()
-                    for f in created:
-                        f.unlink(missing_ok=True)
-                    raise DuplicateModelError(f"{prep.path}: already in the catalogue ({exc.orig})") from exc
-                except BaseException:
-                    s.rollback()
-                    for f in created:
-                        f.unlink(missing_ok=True)
-                    raise
+                with undone_on_failure(s) as created:
+                    try:
+                        if atomic_copy(prep.path, self.folder / stored):
+                            created.append(self.folder / stored)
+                        if _atomic_npz(self.folder / mesh_file, vertices=prep.mesh.vertices.astype(np.float32),
+                                       faces=prep.mesh.faces.astype(np.int32), glass=prep.mesh.glass):
+                            created.append(self.folder / mesh_file)
+                        shape = prep.shape
+                        desc = descriptor(shape.size.as_array(), shape.sections.longitudinal)
+                        row = RefModel(
+                            name=final_name, make=make, model=model, body_class=body_class,
+                            tags_json=json.dumps(sorted(set(tags))), sha256=sha, source_name=prep.path.name,
+                            stored_file=str(stored), mesh_file=str(mesh_file), n_faces=len(prep.mesh.faces),
+                            unit=prep.mesh.unit, unit_scale=prep.mesh.scale, unit_source=prep.mesh.unit_source,
+                            up_axis=prep.mesh.up, front_axis=prep.mesh.front, notes="; ".join(prep.mesh.notes),
+                            length=shape.size.length, width=shape.size.width, height=shape.size.height,
+                            mesh_length=float(prep.mesh_size[0]), mesh_width=float(prep.mesh_size[1]),
+                            mesh_height=float(prep.mesh_size[2]),
+                            sym_found=shape.symmetry.found, sym_pcr=shape.symmetry.pcr,
+                            sym_rmse=float(shape.symmetry.rmse), sym_heading=shape.heading,
+                            sample_spacing=prep.spacing, n_points=len(prep.points), points=pack(prep.points),
+                            section_longitudinal=pack(shape.sections.longitudinal),
+                            section_transverse=pack(shape.sections.transverse), section_res=shape.sections.res,
+                            glass_fraction=prep.glass_fraction,
+                            profile_mid=float(desc[3]), profile_end=float(desc[4]),
+                            section_longitudinal_fine=pack(shape.sections.fine[0]),
+                            section_transverse_fine=pack(shape.sections.fine[1]),
+                            frame_x=float(shape.frame.origin_xy[0]), frame_y=float(shape.frame.origin_xy[1]),
+                            frame_heading=float(shape.frame.heading),
+                            params_json=json.dumps({"sample_spacing": prep.spacing}),
+                        )
+                        s.add(row)
+                        s.commit()
+                    except IntegrityError as exc:
+                        raise DuplicateModelError(f"{prep.path}: already in the catalogue ({exc.orig})") from exc
                 return row
 
     def add(self, path, name=None, make=None, model=None, body_class=None, tags=(), unit="auto", up="auto",
