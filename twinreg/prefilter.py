@@ -10,8 +10,8 @@ by the tolerance only; the height (the roof, which airborne scans always see) ke
 Inside the window the models are ranked by their descriptor (:func:`cosco.taxonomy.descriptor`: L, W, H and the
 section's top at two stations, stored with each model) against the object's, its L and W first grown by the
 expected shortfall, and only the best ``match_register_k`` are registered. The ``match_nearest_k`` models nearest
-to the window (by how far their L, W and H lie outside it, summed) are always tried as well: a scan cut short still meets
-its model, and the margin of a match is measured against them too. A match among them is flagged
+to the window (by how far their L, W and H lie outside it, summed) are always tried as well: a scan cut short
+still meets its model, and the margin of a match is measured against them too. A match among them is flagged
 ``outside_tolerance``.
 """
 
@@ -49,10 +49,8 @@ class SizeIndex:
     """Every model's id and descriptor, loaded once (one query), for windows and rankings in numpy."""
 
     def __init__(self, catalogue):
+        # a profile not known (NaN) counts for nothing in the ranking (:meth:`distance`)
         self.ids, self.desc = catalogue.descriptors()
-        missing = ~np.isfinite(self.desc[:, 3:]).all(1)
-        if missing.any():  # rows of a catalogue written before their profile existed: the sizes alone rank them
-            self.desc[missing, 3:] = np.nan
 
     def __len__(self) -> int:
         return len(self.ids)
