@@ -1,27 +1,12 @@
-// Open the twinreg viewer in the system's headless Chromium (playwright-core, no downloaded browser), refuse every
-// request that does not go to 127.0.0.1, wait for the viewer's ready flag, save a screenshot and print one JSON
+// Open the twinreg viewer in the system's headless Chromium (local_browser.mjs: every request that is not local is
+// refused), wait for the viewer's ready flag, save a screenshot and print one JSON
 // line: {"ready", "ms", "stats", "errors", "blocked", "cars": [{id, x, y, colour}]}.
 //   node shoot_viewer.mjs URL SCREENSHOT.png [width height]
-import { chromium } from "playwright-core";
+import { localPage } from "./local_browser.mjs";
 
 const [url, shot, w = "1280", h = "800"] = process.argv.slice(2);
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || "/usr/bin/chromium",
-  args: ["--no-sandbox", "--headless=new", "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
-    "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update",
-    "--disable-sync"],
-});
-const errors = [], blocked = [];
+const { browser, page, errors, blocked } = await localPage(w, h);
 try {
-  const page = await browser.newPage({ viewport: { width: Number(w), height: Number(h) } });
-  await page.route("**/*", (route) => {
-    const u = new URL(route.request().url());
-    if (u.hostname === "127.0.0.1" || u.protocol === "data:" || u.protocol === "blob:") return route.continue();
-    blocked.push(u.href);
-    return route.abort();
-  });
-  page.on("console", (m) => { if (m.type() === "error") errors.push(m.text()); });
-  page.on("pageerror", (e) => errors.push(String(e)));
   const t0 = Date.now();
   await page.goto(url);
   let ready = true;
