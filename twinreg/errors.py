@@ -30,6 +30,10 @@ class CatalogueError(TwinregError):
     """The catalogue folder or database cannot be used."""
 
 
+class BundleError(CatalogueError):
+    """A library bundle is malformed or unsafe; nothing was changed."""
+
+
 class SceneReadError(TwinregError):
     """A scene or object point file could not be read."""
 

@@ -133,6 +133,10 @@ def open_engine(folder: Path, create: bool = True) -> Engine:
     except CatalogueError:
         raise
     except Exception as exc:
+        text = str(exc).lower()
+        if any(w in text for w in ("disk is full", "disk i/o", "readonly database", "read-only", "unable to open")):
+            raise CatalogueError(f"{db_file}: the catalogue cannot be written ({str(exc).splitlines()[0][:120]}); "
+                                 "free space on its disk or check that you may write to the folder") from exc
         raise CatalogueError(f"{db_file}: not a usable twinreg catalogue ({type(exc).__name__}: {exc}); "
                              "move it away or point --library elsewhere") from exc
     return engine

@@ -38,7 +38,11 @@ def unpack(blob: bytes) -> np.ndarray:
     >>> unpack(pack(np.arange(6.0).reshape(3, 2))).tolist()
     [[0.0, 1.0], [2.0, 3.0], [4.0, 5.0]]
     """
-    shape = tuple(np.frombuffer(blob[:8], dtype="<i4"))
+    if blob is None or len(blob) < 8:
+        raise ValueError("a stored array is missing its header")
+    shape = tuple(int(v) for v in np.frombuffer(blob[:8], dtype="<i4"))
+    if min(shape) < 0 or shape[0] * shape[1] * 4 != len(blob) - 8:
+        raise ValueError(f"a stored array's header says {shape} but holds {len(blob) - 8} bytes")
     return np.frombuffer(blob[8:], dtype="<f4").reshape(shape).astype(np.float64)
 
 

@@ -30,6 +30,7 @@ from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, re
 from ..outdir import atomic_path
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
+from .names import check_name, is_sha256, parse_ref, printable, safe_auto_name
 from .prepare import PreparedModel, file_sha256, prepare_model
 
 EDITABLE = ("name", "make", "model", "body_class", "tags")
@@ -87,10 +88,17 @@ class Catalogue:
     """A catalogue folder. ``Catalogue(path)`` opens (and upgrades) it; reads of a missing catalogue see it empty."""
 
     def __init__(self, folder, create: bool = True):
+        """``create``: whether a missing catalogue may be created; it is created by its first write, never by
+        opening it (a refused command leaves no empty catalogue behind)."""
         self.folder = Path(folder)
         self._engine = None
-        if create or (self.folder / DB_NAME).exists():
-            self._engine = open_engine(self.folder, create=create)
+        if self.folder.exists() and not self.folder.is_dir():
+            raise CatalogueError(f"{self.folder}: is a file, not a catalogue folder; give --library the folder "
+                                 "that holds catalogue.sqlite")
+        if (self.folder / DB_NAME).exists():
+            self._engine = open_engine(self.folder, create=False)
+        elif not create:
+            self._engine = None
 
     @property
     def exists(self) -> bool:
@@ -164,27 +172,38 @@ class Catalogue:
         return [by_id[i] for i in ids]
 
     def get(self, ref) -> RefModel:
-        """A model by id or unique name."""
+        """A model by REF: ``id:N``, ``name:TEXT``, an id (digits) or a unique name (:mod:`.names`); bare digits
+        that are both an id and an old model's name are refused, listing both."""
+        kind, text = parse_ref(ref)
+        shown = printable(ref)
         if not self.exists:
-            raise ModelNotFoundError(f"no model '{ref}': the catalogue in {self.folder} is empty")
+            raise ModelNotFoundError(f"no model '{shown}': the catalogue in {self.folder} is empty")
         with self.session() as s:
-            row = None
-            if str(ref).isdigit():
-                row = s.get(RefModel, int(ref))
+            by_id = s.get(RefModel, int(text)) if kind in ("id", "either") and text.isdigit() else None
+            by_name = s.scalar(select(RefModel).where(RefModel.name == text)) if kind in ("name", "either") else None
+            if by_id is not None and by_name is not None and by_id.id != by_name.id:
+                raise CatalogueError(f"'{shown}' is ambiguous: model id {by_id.id} ('{printable(by_id.name)}') and "
+                                     f"model {by_name.id} named '{shown}'; say id:{text} or name:{text}")
+            row = by_id if by_id is not None else by_name
             if row is None:
-                row = s.scalar(select(RefModel).where(RefModel.name == str(ref)))
-            if row is None:
-                raise ModelNotFoundError(f"no model '{ref}' in {self.folder}; see `twinreg list-models`")
+                raise ModelNotFoundError(f"no model '{shown}' in {self.folder}; see `twinreg list-models`")
             return row
 
     def geometry(self, row: RefModel, with_mesh: bool = True) -> ModelGeometry:
         """Arrays of one model (sections, sampled points and, unless ``with_mesh`` is False, the normalised
-        mesh)."""
+        mesh). A damaged row or mesh file is a :class:`CatalogueError` naming the model and the fix."""
+        try:
+            return self._geometry(row, with_mesh)
+        except (ValueError, KeyError, OSError, EOFError) as exc:
+            raise CatalogueError(f"{self.folder}: model {row.id} '{printable(row.name)}' is damaged ({exc}); remove "
+                                 f"it (`twinreg remove-model id:{row.id} --yes`) and add its file again") from exc
+
+    def _geometry(self, row: RefModel, with_mesh: bool) -> ModelGeometry:
         with self.session() as s:
             blobs = s.execute(select(*(getattr(RefModel, b) for b in BLOBS)).where(RefModel.id == row.id)).one()
         blob = dict(zip(BLOBS, blobs))
         if with_mesh:
-            mesh = np.load(self.folder / row.mesh_file)
+            mesh = np.load(self.mesh_path(row), allow_pickle=False)
         else:
             mesh = {"vertices": np.zeros((0, 3)), "faces": np.zeros((0, 3), dtype=np.int64)}
         return ModelGeometry(
@@ -197,6 +216,14 @@ class Catalogue:
             points=unpack(blob["points"]),
             mesh_glass=mesh["glass"].astype(bool) if with_mesh and "glass" in mesh.files else None,
         )
+
+    def mesh_path(self, row: RefModel, tag: str | None = None) -> Path:
+        """Where the catalogue keeps a model's normalised mesh (``meshes/<sha>.npz``) or a decimated one
+        (``meshes/<sha>.<tag>.npz``): derived from its content address, never from a stored path."""
+        if not is_sha256(row.sha256):
+            raise CatalogueError(f"{self.folder}: model {row.id} '{printable(row.name)}' is damaged (its content address "
+                                 f"is not a sha256); remove it (`twinreg remove-model id:{row.id} --yes`)")
+        return self.folder / "meshes" / (f"{row.sha256}.npz" if tag is None else f"{row.sha256}.{tag}.npz")
 
     def scan_meshes(self, rows) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
         """``(vertices, faces, glass)`` of the normalised meshes of ``rows``, as the scan simulator takes them."""
@@ -212,8 +239,7 @@ class Catalogue:
         uses the model)."""
         from ..export.collada import GE_MAX_TRIANGLES, decimate
 
-        tag = "ge" if max_faces is None else str(int(max_faces))
-        path = self.folder / "meshes" / f"{row.sha256}.{tag}.npz"
+        path = self.mesh_path(row, "ge" if max_faces is None else str(int(max_faces)))
         if path.exists():
             d = np.load(path)
             return d["vertices"].astype(np.float64), d["faces"].astype(np.int64)
@@ -231,10 +257,11 @@ class Catalogue:
     # ---- writing -------------------------------------------------------------------------------------------
     def _free_name(self, s: Session, wanted: str | None, path: Path) -> str:
         if wanted:
+            check_name(wanted, f"{path}: ")
             if s.scalar(select(RefModel.id).where(RefModel.name == wanted)) is not None:
                 raise DuplicateModelError(f"{path}: the name '{wanted}' is taken; pass another --name")
             return wanted
-        candidates = [path.stem, f"{path.parent.name}_{path.stem}"]
+        candidates = [safe_auto_name(path.stem), safe_auto_name(f"{path.parent.name}_{path.stem}")]
         for base in candidates:
             if s.scalar(select(RefModel.id).where(RefModel.name == base)) is None:
                 return base
@@ -250,6 +277,7 @@ class Catalogue:
         ext = prep.path.suffix.lower()
         stored = Path("files") / sha[:2] / f"{sha}{ext}"
         mesh_file = Path("meshes") / f"{sha}.npz"
+        self.engine  # created (and upgraded) before the writer lock is taken: the upgrade takes it itself
         with writer_lock(self.folder):
             with self.session() as s:
                 existing = s.scalar(select(RefModel).where(RefModel.sha256 == sha))
@@ -318,6 +346,8 @@ class Catalogue:
                     continue
                 if key not in EDITABLE:
                     raise CatalogueError(f"'{key}' cannot be edited; editable: {', '.join(EDITABLE)}")
+                if key == "name":
+                    check_name(value)
                 if key == "tags":
                     row.tags_json = json.dumps(sorted(set(value)))
                 else:
@@ -332,20 +362,39 @@ class Catalogue:
     def remove(self, ref) -> RefModel:
         """Delete a model row, then its files, all under the writer lock (a concurrent add of the same file waits
         until the files are gone, then writes them anew). The row goes first: a crash leaves orphan files, which a
-        later add of the same content reuses, never a row pointing to nothing."""
+        later add of the same content reuses, never a row pointing to nothing. Only files inside the catalogue's
+        ``files/`` and ``meshes/`` that no other row names are deleted, whatever the row says."""
         row = self.get(ref)
         with writer_lock(self.folder):
             with self.session() as s:
                 victim = s.get(RefModel, row.id)
                 if victim is None:
-                    raise ModelNotFoundError(f"no model '{ref}' in {self.folder}; see `twinreg list-models`")
+                    raise ModelNotFoundError(f"no model '{printable(ref)}' in {self.folder}; see `twinreg list-models`")
                 s.delete(victim)
+                s.flush()
+                used = {p for pair in s.execute(select(RefModel.stored_file, RefModel.mesh_file)) for p in pair}
                 s.commit()
-            for rel in (row.stored_file, row.mesh_file):
-                (self.folder / rel).unlink(missing_ok=True)
-            for cached in (self.folder / "meshes").glob(f"{row.sha256}.*.npz"):  # the decimated meshes
-                cached.unlink(missing_ok=True)
+            for path in self._own_files(row, used):
+                path.unlink(missing_ok=True)
         return row
+
+    def _own_files(self, row: RefModel, used: set) -> list[Path]:
+        """The files of ``row`` that may be deleted: inside ``files/`` or ``meshes/`` (symlinks not followed out),
+        regular files, named by no other row (``used``: the other rows' paths)."""
+        roots = [(self.folder / sub).resolve() for sub in ("files", "meshes")]
+        paths = [row.stored_file, row.mesh_file]
+        if is_sha256(row.sha256):  # the decimated meshes, named by the content's address
+            paths += [p.relative_to(self.folder).as_posix() for p in (self.folder / "meshes").glob(f"{row.sha256}.*.npz")]
+        out = []
+        for rel in dict.fromkeys(p for p in paths if p):
+            if rel in used or Path(rel).is_absolute() or ".." in Path(rel).parts:
+                continue
+            p = self.folder / rel
+            if p.is_symlink() or not p.is_file():
+                continue
+            if any(p.resolve().parent == r or r in p.resolve().parents for r in roots):
+                out.append(p)
+        return out
 
     def close(self) -> None:
         """Release the database (the folder can then be moved)."""

@@ -11,6 +11,7 @@ from typing import Annotated, Optional
 import typer
 from rich.console import Console
 
+from ..catalogue.names import printable
 from ..errors import TwinregError
 
 err_console = Console(stderr=True)
@@ -25,7 +26,8 @@ JsonOpt = Annotated[bool, typer.Option("--json", envvar="TWINREG_JSON",
 
 
 def fail(message: str, code: int = 1):
-    err_console.print(f"error: {message}", markup=False, highlight=False, soft_wrap=True)
+    """One line on stderr (control characters of names in it shown as escapes), then exit ``code``."""
+    err_console.print(f"error: {printable(message)}", markup=False, highlight=False, soft_wrap=True)
     raise typer.Exit(code)
 
 
@@ -54,7 +56,8 @@ def print_json(doc) -> None:
 
 
 def info(message: str) -> None:
-    err_console.print(message, markup=False, highlight=False, soft_wrap=True)
+    """A message on stderr; a name's control characters (a newline, a terminal escape) are shown as escapes."""
+    err_console.print(printable(message), markup=False, highlight=False, soft_wrap=True)
 
 
 class CityProgress:

@@ -19,15 +19,16 @@ app = typer.Typer()
 @handled
 def export_library(
     zip_path: Annotated[Path, typer.Argument(help="The bundle to write (a .zip).")],
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file that is not a bundle.")] = False,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
     """Write the catalogue (models, sampled clouds, sections, meshes, provenance, schema) to one zip."""
     from ..catalogue.bundle import export_library as export
 
-    cat = Catalogue(library_path(library), create=False)
-    with err_console.status(f"exporting {cat.folder}"):
-        manifest = export(cat, zip_path)
+    folder = library_path(library)
+    with err_console.status(f"exporting {folder}"):
+        manifest = export(folder, zip_path, force=force)
     size = sum(m["bytes"] for m in manifest["members"].values())
     if json_:
         print_json({"zip": str(zip_path), "n_models": manifest["n_models"], "schema_revision":

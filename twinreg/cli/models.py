@@ -8,8 +8,10 @@ from typing import Annotated, List, Optional
 import typer
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+from rich.text import Text
 
 from ..catalogue.db import library_path
+from ..catalogue.names import printable
 from ..catalogue.repository import Catalogue
 from ..errors import TwinregError
 from ..io.meshes import MESH_SUFFIXES
@@ -116,9 +118,9 @@ def _table(rows) -> Table:
                       ("points", "right")):
         t.add_column(col, justify=just)
     for r in rows:
-        t.add_row(str(r.id), r.name, r.make or "", (r.model or "")[:30], r.body_class or "", f"{r.length:.2f}",
-                  f"{r.width:.2f}", f"{r.height:.2f}", "yes" if r.sym_found else "no", f"{r.sym_pcr:.2f}",
-                  str(r.n_points))
+        text = (Text(printable(x)) for x in (r.name, r.make or "", (r.model or "")[:30], r.body_class or ""))
+        t.add_row(str(r.id), *text, f"{r.length:.2f}", f"{r.width:.2f}", f"{r.height:.2f}",
+                  "yes" if r.sym_found else "no", f"{r.sym_pcr:.2f}", str(r.n_points))
     return t
 
 

@@ -1,0 +1,91 @@
+"""What a model's name may be, and how a REF (an id or a name) finds one model without ambiguity.
+
+A name is what users type and what pages and terminals show: 1-200 characters, no control or format characters
+(no newline, no terminal escape), no leading or trailing space, and never all digits (``2`` would read as the id
+of another model). A REF is ``id:N``, ``name:TEXT``, or bare text: digits are an id and other text a name; a
+catalogue written before names were checked may hold a model named ``2`` beside a model of id 2, and then the bare
+REF is refused, listing both.
+"""
+
+from __future__ import annotations
+
+import re
+import unicodedata
+
+from ..errors import CatalogueError
+
+MAX_NAME = 200
+_HEX64 = re.compile(r"[0-9a-f]{64}")
+
+
+def name_problem(name) -> str | None:
+    """Why ``name`` cannot be a model's name, or None.
+
+    >>> [name_problem(n) for n in ("audi_tt", "2", "a\\nb", " x", "")]
+    [None, 'it is all digits and would read as a model id', 'it holds a control character', 'it starts or ends with a space', 'it is empty']
+    """
+    if not isinstance(name, str) or not name:
+        return "it is empty"
+    if len(name) > MAX_NAME:
+        return f"it is longer than {MAX_NAME} characters"
+    if name.isdigit():
+        return "it is all digits and would read as a model id"
+    if any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in name):
+        return "it holds a control character"
+    if name != name.strip():
+        return "it starts or ends with a space"
+    if name.startswith(("id:", "name:")):
+        return "it starts with id: or name:, which REF reserves"
+    return None
+
+
+def check_name(name: str, where: str = "") -> str:
+    """``name`` if it may name a model, else :class:`CatalogueError` saying why and what to do."""
+    why = name_problem(name)
+    if why:
+        raise CatalogueError(f"{where}{printable(name)!s}: not a usable model name ({why}); give another --name")
+    return name
+
+
+def safe_auto_name(stem: str) -> str:
+    """A usable name from a file's stem: control characters dropped, digits prefixed.
+
+    >>> safe_auto_name("2"), safe_auto_name(" golf\\n")
+    ('model-2', 'golf')
+    """
+    text = "".join(c for c in stem if unicodedata.category(c) not in ("Cc", "Cf", "Zl", "Zp")).strip()[:MAX_NAME - 10]
+    if not text or text.startswith(("id:", "name:")):
+        text = "model" + (f"-{text}" if text else "")
+    return f"model-{text}" if text.isdigit() else text
+
+
+def is_sha256(text) -> bool:
+    """True for 64 lower-case hex characters (a catalogue file's content address)."""
+    return isinstance(text, str) and _HEX64.fullmatch(text) is not None
+
+
+def printable(text) -> str:
+    """``text`` with control characters shown as escapes (a name printed to a terminal runs no escape code).
+
+    >>> printable("a\\x1b[31mb\\n")
+    'a\\\\x1b[31mb\\\\n'
+    """
+    s = str(text)
+    if not any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in s):
+        return s
+    return "".join(c.encode("unicode_escape").decode("ascii") if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp")
+                   else c for c in s)
+
+
+def parse_ref(ref) -> tuple[str, str]:
+    """``("id", "2")``, ``("name", "golf")`` or ``("either", "2")`` for bare digits.
+
+    >>> parse_ref("id:2"), parse_ref("name:2"), parse_ref("2"), parse_ref("golf")
+    (('id', '2'), ('name', '2'), ('either', '2'), ('name', 'golf'))
+    """
+    text = str(ref)
+    if text.startswith("id:"):
+        return "id", text[3:]
+    if text.startswith("name:"):
+        return "name", text[5:]
+    return ("either" if text.isdigit() else "name"), text
