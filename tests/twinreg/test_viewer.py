@@ -106,3 +106,93 @@ def test_view_refuses_a_folder_that_is_not_a_twin(tmp_path):
     proc = subprocess.run([str(BIN / "twinreg"), "view", str(tmp_path), "--no-open"], capture_output=True,
                           text=True, timeout=60, env=_env())
     assert proc.returncode == 1 and proc.stderr.startswith("error:") and str(tmp_path) in proc.stderr
+
+
+XSS = '<img src=x onerror="window.__xss=1;document.title=\'pwned\'">'
+
+
+@pytest.fixture()
+def hostile_twin(demo_twin, tmp_path) -> Path:
+    """The demo's twin as a stranger might share it: a model name, make and reason that are HTML."""
+    folder = tmp_path / "hostile"
+    shutil.copytree(demo_twin, folder)
+    twin = json.loads((folder / "twin.json").read_text())
+    matched = [o for o in twin["objects"] if o["match"]]
+    for o in matched:
+        o["match"]["name"] = XSS
+        o["match"]["make"] = XSS
+    for o in twin["objects"]:
+        if not o["match"]:
+            o["reason"] = XSS
+    twin["scene"] = XSS
+    (folder / "twin.json").write_text(json.dumps(twin))
+    return folder
+
+
+def test_names_from_a_twin_are_text_in_the_page_never_script(hostile_twin):
+    """Stored XSS (issue 19): the names are shown as text, no script of theirs runs, the page sends a CSP."""
+    if not CHROMIUM.exists() or not (ROOT / "node_modules" / "playwright-core").is_dir():
+        pytest.fail("chromium or the npm packages are missing: run `make install`")
+    from twinreg.viewer import serve
+
+    server, url = serve(hostile_twin, 0)
+    try:
+        with urllib.request.urlopen(url) as r:
+            csp = r.headers["Content-Security-Policy"]
+        assert "script-src 'self'" in csp and "unsafe-inline" not in csp
+        proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "probe_xss.mjs"), url], capture_output=True,
+                              text=True, timeout=300, cwd=ROOT)
+    finally:
+        server.shutdown()
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["ready"] and not got["ran"], got
+    assert "<img" in got["details"]  # shown, as text
+    assert got["hits"] and all("<img" in h for h in got["hits"])
+    assert got["errors"] == [] and got["blocked"] == [], got
+
+
+def _get(url: str, host: str | None = None) -> int:
+    req = urllib.request.Request(url, headers={"Host": host} if host else {})
+    try:
+        with urllib.request.urlopen(req, timeout=10) as r:
+            return r.status
+    except urllib.error.HTTPError as e:
+        return e.code
+
+
+def test_the_server_answers_only_local_hosts_lists_no_folder_and_drops_idle_sockets(demo_twin, monkeypatch):
+    import socket
+    import time
+
+    from twinreg.viewer import server as srv
+
+    monkeypatch.setattr(srv._Handler, "timeout", 1.0)
+    server, url = srv.serve(demo_twin, 0)
+    try:
+        port = server.server_address[1]
+        assert _get(url + "twin/twin.json") == 200
+        assert _get(url + "twin/twin.json", host=f"localhost:{port}") == 200
+        for host in ("evil.example", f"attacker.example:{port}", "127.0.0.1.evil.example"):
+            assert _get(url + "twin/twin.json", host=host) == 421, host  # DNS rebinding reads nothing
+        for folder in ("twin/", "twin/tiles/", "vendor/three/", "vendor/three/build/"):
+            assert _get(url + folder) == 404, folder
+        for bad in ("twin/%00", "twin/a%00b.json", "%2e%2e%2f%2e%2e%2fetc/passwd", "twin/..%5c..%5cetc"):
+            assert _get(url + bad) in (400, 404), bad
+        # an idle connection is closed by the server, not kept forever
+        s = socket.create_connection(("127.0.0.1", port))
+        s.settimeout(10)
+        t0 = time.perf_counter()
+        assert s.recv(10) == b""
+        assert time.perf_counter() - t0 < 8
+        s.close()
+    finally:
+        server.shutdown()
+
+
+def test_a_bad_port_is_a_usage_error(demo_twin):
+    for port in ("99999", "-1", "http"):
+        proc = subprocess.run([str(BIN / "twinreg"), "view", str(demo_twin), "--port", port, "--no-open"],
+                              capture_output=True, text=True, timeout=60, env=_env())
+        assert proc.returncode == 2, (port, proc.stderr)
+        assert "Traceback" not in proc.stderr and "OverflowError" not in proc.stderr

@@ -4,7 +4,7 @@ quadric edge collapse when larger)."""
 from __future__ import annotations
 
 from pathlib import Path
-from xml.sax.saxutils import escape
+from xml.sax.saxutils import escape as _escape
 
 import numpy as np
 
@@ -63,7 +63,7 @@ def write_collada(path, vertices: np.ndarray, faces: np.ndarray, color=(0.6, 0.6
     f = np.asarray(faces, dtype=np.int64)
     n = vertex_normals(v, f)
     r, g, b = (float(c) for c in color[:3])
-    nm = escape(name)
+    nm = _escape(str(name), {'"': "&quot;", "'": "&apos;"})
     xml = f"""<?xml version="1.0" encoding="utf-8"?>
 <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
 <asset><contributor><authoring_tool>twinreg</authoring_tool></contributor><unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>

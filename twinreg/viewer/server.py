@@ -1,11 +1,20 @@
 """A small HTTP server on 127.0.0.1 for one twin folder: ``/`` is the viewer page (this package's ``static/``),
 ``/twin/...`` the folder's files, ``/vendor/three/...`` three.js from the npm packages installed at set-up
-(``make`` runs ``npm ci``; nothing comes from the internet at run time)."""
+(``make`` runs ``npm ci``; nothing comes from the internet at run time).
+
+A twin may come from someone else, so the page treats its text as text (``viewer.js`` never builds HTML from
+data) and the server makes that a rule: a Content-Security-Policy allows only this server's own scripts (and the
+page's import map, by its hash), no inline script or handler; requests must name 127.0.0.1 or localhost as their
+Host (a DNS-rebinding page elsewhere cannot read the folder); no folder is listed; a bad path is a 400 or 404,
+never a traceback; an idle connection is closed after :data:`IDLE_TIMEOUT_S`."""
 
 from __future__ import annotations
 
+import base64
 import functools
+import hashlib
 import os
+import re
 import threading
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -14,10 +23,26 @@ from urllib.parse import unquote, urlparse
 from ..errors import TwinregError
 
 STATIC = Path(__file__).resolve().parent / "static"
+#: seconds an idle connection is kept open
+IDLE_TIMEOUT_S = 15
+#: the Host names a request may use
+LOCAL_HOSTS = ("127.0.0.1", "localhost")
 
 
 class ViewerError(TwinregError):
     """The twin folder or the viewer's JavaScript is missing."""
+
+
+def content_policy() -> str:
+    """The Content-Security-Policy of every answer: scripts from this server only, plus the page's inline import
+    map by its sha256 (the one inline script a module page needs)."""
+    html = (STATIC / "index.html").read_text(encoding="utf-8")
+    hashes = [base64.b64encode(hashlib.sha256(m.encode("utf-8")).digest()).decode("ascii")
+              for m in re.findall(r'<script type="importmap">(.*?)</script>', html, re.S)]
+    scripts = " ".join(["'self'"] + [f"'sha256-{h}'" for h in hashes])
+    return (f"default-src 'self'; script-src {scripts}; style-src 'self'; img-src 'self' data: blob:; "
+            "connect-src 'self' data: blob:; worker-src 'self' blob:; object-src 'none'; base-uri 'none'; "
+            "form-action 'none'; frame-ancestors 'none'")
 
 
 def vendor_folder() -> Path:
@@ -33,23 +58,64 @@ def vendor_folder() -> Path:
 
 class _Handler(SimpleHTTPRequestHandler):
     roots: dict = {}
+    policy: str = "default-src 'none'"
+    timeout = IDLE_TIMEOUT_S
 
     def translate_path(self, path: str) -> str:
         p = unquote(urlparse(path).path)
+        if "\x00" in p or "\\" in p:
+            return str(STATIC / "__forbidden__")
         for prefix, root in self.roots.items():
             if p == prefix.rstrip("/") or p.startswith(prefix):
-                rel = p[len(prefix):].lstrip("/") or "index.html"
-                target = (root / rel).resolve()
-                if root.resolve() in target.parents or target == root.resolve():
+                rel = p[len(prefix):].lstrip("/") or ("index.html" if root == STATIC else "")
+                try:
+                    target = (root / rel).resolve()
+                except (OSError, ValueError, RuntimeError):
+                    return str(root / "__forbidden__")
+                if root.resolve() in target.parents:
                     return str(target)
                 return str(root / "__forbidden__")
         return str(STATIC / "__missing__")
 
+    def _host_ok(self) -> bool:
+        host = (self.headers.get("Host") or "").strip().lower()
+        name = host[1:host.index("]")] if host.startswith("[") and "]" in host else host.rsplit(":", 1)[0]
+        return name in LOCAL_HOSTS or name == "::1"
+
+    def send_head(self):
+        if not self._host_ok():
+            self.send_error(421, "this viewer answers only requests for 127.0.0.1 or localhost")
+            return None
+        path = self.translate_path(self.path)
+        if os.path.isdir(path):  # no folder is listed, whatever it holds
+            self.send_error(404, "not found")
+            return None
+        try:
+            return super().send_head()
+        except (OSError, ValueError):
+            self.send_error(400, "bad request")
+            return None
+
+    def list_directory(self, path):  # never reached through send_head; kept closed if it ever is
+        self.send_error(404, "not found")
+        return None
+
     def end_headers(self):
         self.send_header("Cache-Control", "no-store")
+        self.send_header("Content-Security-Policy", self.policy)
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("Referrer-Policy", "no-referrer")
         super().end_headers()
 
     def log_message(self, *args):  # quiet: the CLI prints the URL once
+        pass
+
+
+class _Server(ThreadingHTTPServer):
+    daemon_threads = True
+    request_queue_size = 64
+
+    def handle_error(self, request, client_address):  # a broken or timed-out connection: no traceback
         pass
 
 
@@ -65,9 +131,11 @@ def serve(folder, port: int = 0) -> tuple[ThreadingHTTPServer, str]:
         raise ViewerError(f"{folder}: not a twin folder (no twin.json and tiles/tileset.json); pass the OUT folder "
                           "of `twinreg build-twin`")
     roots = {"/twin/": folder, "/vendor/three/": vendor_folder() / "three", "/": STATIC}
-    handler = type("Handler", (_Handler,), {"roots": roots})
+    handler = type("Handler", (_Handler,), {"roots": roots, "policy": content_policy()})
+    if not 0 <= int(port) <= 65535:
+        raise ViewerError(f"--port {port}: a port is 0 (any free one) to 65535")
     try:
-        server = ThreadingHTTPServer(("127.0.0.1", port), functools.partial(handler))
+        server = _Server(("127.0.0.1", port), functools.partial(handler))
     except OSError as exc:
         raise ViewerError(f"port {port}: cannot listen on 127.0.0.1 ({exc.strerror}); pick another --port") from exc
     threading.Thread(target=server.serve_forever, daemon=True).start()

@@ -1,6 +1,7 @@
 // The twin viewer: reads tiles/tileset.json (children, transforms, external tilesets, GLB content with
 // EXT_mesh_gpu_instancing) with three.js, shows the scan and the placed models, a click on a car shows its
 // twin.json record and sections, the search box finds cars by model name. Everything comes from 127.0.0.1.
+// A twin may come from someone else: what it says is shown as text (textContent), never parsed as HTML.
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
@@ -70,7 +71,8 @@ const byId = new Map();
 function showObject(id) {
   const o = byId.get(id);
   const d = document.getElementById("details");
-  if (!o) { d.innerHTML = ""; return; }
+  d.replaceChildren();
+  if (!o) return;
   const m = o.match;
   const rows = [["id", o.id], ["model", m ? `${m.name} (${m.make || ""} ${m.model || ""})` : "none: " + (o.reason || "")],
     ["confidence", m && m.confidence != null ? m.confidence.toFixed(2) : "-"],
@@ -79,7 +81,13 @@ function showObject(id) {
     ["measured", o.measured_size ? `${o.measured_size.length.toFixed(2)} x ${o.measured_size.width.toFixed(2)} x ${o.measured_size.height.toFixed(2)} m` : "-"],
     ["lat, lon", `${o.lat.toFixed(7)}, ${o.lon.toFixed(7)}`], ["bearing", `${o.bearing_deg.toFixed(1)} deg`],
     ["points", o.n_points], ["cluster", o.cluster]];
-  d.innerHTML = "<table>" + rows.map(([k, v]) => `<tr><td>${k}</td><td>${v}</td></tr>`).join("") + "</table>";
+  const table = document.createElement("table");
+  for (const [k, v] of rows) {
+    const tr = table.insertRow();
+    tr.insertCell().textContent = k;
+    tr.insertCell().textContent = String(v);
+  }
+  d.appendChild(table);
   const s = sections[id];
   if (s) {
     const c = document.createElement("canvas");
@@ -107,12 +115,20 @@ function drawSections(c, s) {
 
 function search(text) {
   const hits = document.getElementById("hits");
+  hits.replaceChildren();
   const q = text.trim().toLowerCase();
-  if (!q) { hits.innerHTML = ""; return; }
-  const found = twin.objects.filter((o) => o.match && o.match.name.toLowerCase().includes(q)).slice(0, 200);
-  hits.innerHTML = `<div>${found.length} found</div>` +
-    found.map((o) => `<div data-id="${o.id}">${o.id}: ${o.match.name}</div>`).join("");
-  hits.querySelectorAll("div[data-id]").forEach((el) => el.onclick = () => focusOn(el.dataset.id));
+  if (!q) return;
+  const found = twin.objects.filter((o) => o.match && String(o.match.name).toLowerCase().includes(q)).slice(0, 200);
+  const count = document.createElement("div");
+  count.textContent = `${found.length} found`;
+  hits.appendChild(count);
+  for (const o of found) {
+    const el = document.createElement("div");
+    el.dataset.id = o.id;
+    el.textContent = `${o.id}: ${o.match.name}`;
+    el.addEventListener("click", () => focusOn(o.id));
+    hits.appendChild(el);
+  }
 }
 
 function carPosition(id) {
