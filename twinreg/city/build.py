@@ -206,7 +206,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
                                                               timing)
     except BaseException:
         # a folder this run created and in which no cell finished goes again: OUT is as it was
-        if created and not any(store.folder.glob("*.pkl")):
+        if created and not any(store.folder.glob("*.npz")):
             shutil.rmtree(out, ignore_errors=True)
         raise
     from .export import export_city

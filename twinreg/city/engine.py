@@ -4,6 +4,11 @@ default) or an existing cluster given by its scheduler's address.
 Tasks go out through a bounded window (at most ``per_worker`` in flight per worker, so the scheduler never holds a
 city's worth of results), each is retried once (a worker killed by its memory limit or a crash), and a task that
 fails again is reported by name while the others finish.
+
+The embedded cluster talks TLS with temporary credentials (``Security.temporary()``: a key and certificate made in
+memory for this run, required of both ends), so no other process on the machine can reach its scheduler or
+workers and submit work. An existing cluster is reached as its address and the Dask configuration say; its
+operator secures it (docs/METHOD.md, "City scale").
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ class Engine:
 
     def __enter__(self) -> "Engine":
         from distributed import Client, LocalCluster
+        from distributed.security import Security
 
         try:
             if self.scheduler:
@@ -63,8 +69,9 @@ class Engine:
                 with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
                     self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                                 memory_limit=memory, dashboard_address=None,
-                                                silence_logs=logging.CRITICAL, host="127.0.0.1", scheduler_port=0)
-                self.client = Client(self.cluster)
+                                                silence_logs=logging.CRITICAL, host="127.0.0.1", scheduler_port=0,
+                                                protocol="tls://", security=Security.temporary())
+                self.client = Client(self.cluster, security=self.cluster.security)
         except Exception as exc:  # unreachable, refused, a malformed address, no free port...
             self.__exit__(None, None, None)
             where = self.scheduler or "a local cluster"

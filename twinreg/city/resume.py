@@ -3,19 +3,19 @@ the cell and a hash of what it was computed from (the tiles that feed it, the gr
 program's version). A rerun reuses the results whose hash still matches and computes only the others; a result
 file is written under a temporary name and renamed, so a killed run never leaves half of one.
 
-The results are Python pickles: the folder is the user's own output, written by this program; do not point a
-run at an output folder someone else gave you.
+The results are data, not code (:mod:`twinreg.city.cellfile`: arrays and JSON, read with no pickle): an OUT from
+someone else is safe to resume into, and a file that is not a cell result this program wrote is ignored and its
+cell computed again.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import pickle
 import shutil
 from pathlib import Path
 
-from ..outdir import atomic_path
+from . import cellfile
 
 #: the work folder inside OUT, kept with the twin (a rerun with the same inputs reuses it)
 WORK = ".cells"
@@ -35,21 +35,27 @@ class CellStore:
         self.folder = Path(out) / WORK
 
     def path(self, name: str, key: str) -> Path:
-        return self.folder / f"{name}-{key}.pkl"
+        return self.folder / f"{name}-{key}.npz"
 
     def has(self, name: str, key: str) -> bool:
-        return self.path(name, key).is_file()
+        """True when a readable result of this cell and key is kept (an unreadable or foreign file is deleted:
+        the cell is then computed again)."""
+        p = self.path(name, key)
+        if not p.is_file():
+            return False
+        try:
+            ok = cellfile.identity(p) == (name, key)
+        except cellfile.CellFileError:
+            ok = False
+        if not ok:
+            p.unlink(missing_ok=True)
+        return ok
 
     def save(self, result) -> Path:
-        dst = self.path(result.name, result.key)
-        with atomic_path(dst, ".pkl") as tmp:
-            with open(tmp, "wb") as fh:
-                pickle.dump(result, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        return dst
+        return cellfile.save(result, self.path(result.name, result.key))
 
     def load(self, name: str, key: str):
-        with open(self.path(name, key), "rb") as fh:
-            return pickle.load(fh)
+        return cellfile.load(self.path(name, key))
 
     def split_folder(self, key: str) -> Path:
         return self.folder / "split" / key

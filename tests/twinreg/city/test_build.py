@@ -153,7 +153,7 @@ def _cli(*args, **kw):
 
 def _finished(out: Path) -> list[Path]:
     """The cells a run has stored (not a result being written under a temporary name)."""
-    return [p for p in (out / ".cells").glob("*.pkl") if not p.name.startswith(".tmp")]
+    return [p for p in (out / ".cells").glob("*.npz") if not p.name.startswith(".tmp")]
 
 
 @pytest.mark.parametrize("stop", ["ctrl-c", "kill"])

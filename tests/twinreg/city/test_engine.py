@@ -71,7 +71,7 @@ def test_a_broken_tile_fails_its_cells_only_and_a_rerun_resumes(tmp_path, parame
     with pytest.raises(CityError, match=r"cells failed twice: c\d+_\d+ \(") as err:
         build_city_twin([tmp_path / "copc"], cat, None, out, cell=CELL, workers=2)
     assert "rerun the same command" in str(err.value)
-    stored = list((out / ".cells").glob("*.pkl"))
+    stored = list((out / ".cells").glob("*.npz"))
     assert stored and not (out / "twin.json").exists()
     victim.write_bytes(good)
     twin = build_city_twin([tmp_path / "copc"], cat, None, out, cell=CELL, workers=2)
@@ -79,3 +79,32 @@ def test_a_broken_tile_fails_its_cells_only_and_a_rerun_resumes(tmp_path, parame
     assert 0 < twin["grid"]["n_cells_reused"] < twin["grid"]["n_cells"]
     assert len(twin["objects"]) == len(truth["cars"])
     shutil.rmtree(out)
+
+
+def test_the_embedded_cluster_refuses_every_other_process():
+    """The scheduler of a city run speaks TLS with this run's temporary credentials: a local process that tries
+    plain TCP, TLS without them, or TLS with credentials of its own cannot connect, so it cannot submit work."""
+    import subprocess
+    import sys
+    import textwrap
+
+    from twinreg.city.engine import Engine
+
+    with Engine(workers=1) as eng:
+        addr = eng.client.scheduler.address
+        assert addr.startswith("tls://127.0.0.1:")
+        code = textwrap.dedent(f"""
+            from distributed import Client
+            from distributed.security import Security
+            for addr, sec in (({addr!r}, None), ({addr.replace('tls://', 'tcp://')!r}, None),
+                              ({addr!r}, Security.temporary())):
+                try:
+                    c = Client(addr, timeout="5s", security=sec)
+                    print("CONNECTED", c.run(lambda: __import__("os").getpid()))
+                except Exception as e:
+                    print("REFUSED", type(e).__name__)
+            """)
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        lines = proc.stdout.split("\n")
+        assert [ln.split()[0] for ln in lines if ln] == ["REFUSED"] * 3, proc.stdout + proc.stderr
+        assert eng.map(abs, [-3], ["ok"]) == [3]  # the run's own client still works

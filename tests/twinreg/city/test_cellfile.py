@@ -1,0 +1,72 @@
+"""Resumable cells are data (issue 19): a cell's result goes to an npz of arrays and JSON and comes back equal; a
+pickle, an npz holding Python objects, or JSON naming another class, planted in OUT/.cells under a cell's name, is
+refused unread (never executed) and the cell is computed again."""
+
+from __future__ import annotations
+
+import json
+import pickle
+
+import numpy as np
+
+from cosco import describe_object
+from tests.conftest import toy_car
+from twinreg.city.cellfile import CellFileError, load, save
+from twinreg.city.cells import CellObject, CellResult
+from twinreg.city.resume import CellStore
+
+
+def _result() -> CellResult:
+    pts = toy_car(3)
+    shape = describe_object(pts)
+    obj = CellObject(id="c0_0-1", cell="c0_0", offset=np.array([100.0, 200.0, 0.0]), n_points=len(pts),
+                     shape=shape, cloud=pts[:50], spacing=0.05, ground_z=0.0)
+    return CellResult("c0_0", "k123", (0.0, 0.0), (50.0, 50.0), n_read=10, n_points=9, objects=[obj],
+                      timing_s={"read": 0.1}, image=np.zeros((4, 4), np.uint8),
+                      scan=(np.zeros((3, 3), np.float32), np.zeros((3, 3), np.uint8)))
+
+
+def test_a_cell_result_comes_back_equal(tmp_path):
+    r = _result()
+    back = load(save(r, tmp_path / "c0_0-k123.npz"))
+    assert back.name == r.name and back.key == r.key and back.lo == r.lo and back.timing_s == r.timing_s
+    a, b = r.objects[0], back.objects[0]
+    assert a.id == b.id and np.array_equal(a.cloud, b.cloud) and np.array_equal(a.offset, b.offset)
+    assert a.shape.size == b.shape.size and a.shape.symmetry == b.shape.symmetry
+    assert np.array_equal(a.shape.sections.longitudinal, b.shape.sections.longitudinal)
+    assert a.shape.frame.heading == b.shape.frame.heading
+    assert np.array_equal(back.scan[0], r.scan[0]) and back.scan[1].dtype == np.uint8
+
+
+def test_planted_files_are_refused_and_never_run(tmp_path):
+    store = CellStore(tmp_path)
+    store.folder.mkdir()
+    marker = tmp_path / "ran"
+
+    class Payload:
+        def __reduce__(self):
+            return (open, (str(marker), "w"))
+
+    target = store.path("c0_0", "k123")
+    for what in ("pickle", "object npz", "foreign class"):
+        if what == "pickle":
+            target.write_bytes(pickle.dumps(Payload()))
+        elif what == "object npz":
+            np.savez(target, __doc__=np.array([Payload()], dtype=object))
+        else:
+            doc = {"format": "twinreg-cell/1", "result": {"$class": "Popen", "fields": {"args": "touch x"}}}
+            np.savez(target, __doc__=np.frombuffer(json.dumps(doc).encode(), dtype=np.uint8))
+        assert not store.has("c0_0", "k123"), what
+        assert not target.exists(), what  # forgotten: the cell is computed again
+    assert not marker.exists()
+    # a well-formed file with another class inside is refused when loaded too
+    doc = {"format": "twinreg-cell/1", "result": {"$class": "CellResult", "fields": {
+        "name": "c0_0", "key": "k123", "lo": [0, 0], "hi": [1, 1], "objects": [{"$class": "Popen", "fields": {}}]}}}
+    np.savez(target, __doc__=np.frombuffer(json.dumps(doc).encode(), dtype=np.uint8))
+    try:
+        load(target)
+        raise AssertionError("a foreign class was loaded")
+    except CellFileError:
+        pass
+    save(_result(), target)
+    assert store.has("c0_0", "k123") and not store.has("c0_0", "other")

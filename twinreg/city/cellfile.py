@@ -1,0 +1,134 @@
+"""A finished cell's result as data: ``<name>-<key>.npz`` holding its arrays and one JSON document of its
+structure (numbers, strings, lists and the names of a fixed set of result classes).
+
+A resumed run reads these files back from ``OUT/.cells``, and OUT may come from someone else (a shared twin keeps
+its cells), so the format runs no code when read: arrays are loaded with ``allow_pickle=False``, and the JSON may
+name only the classes of :data:`CLASSES` (anything else, or a file that is not such an npz, is refused and the cell
+computed again).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from cosco.sections import Frame, ObjectShape, Sections, Size
+from cosco.symmetry import Symmetry
+
+from ..outdir import atomic_path
+from .cells import CellObject, CellResult
+
+#: the classes a cell file may hold, by the name it gives them
+CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry, Frame, Sections, Size)}
+#: the largest cell file read back (bytes)
+MAX_BYTES = 4 * 1024 ** 3
+FORMAT = "twinreg-cell/1"
+
+
+class CellFileError(ValueError):
+    """A cell file that is not one this program wrote (it is ignored and the cell computed again)."""
+
+
+def _encode(obj, arrays: dict):
+    if isinstance(obj, np.ndarray):
+        key = f"a{len(arrays)}"
+        arrays[key] = obj
+        return {"$array": key}
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        name = type(obj).__name__
+        if CLASSES.get(name) is not type(obj):
+            raise TypeError(f"a cell result may not hold a {type(obj).__qualname__}")
+        return {"$class": name, "fields": {f.name: _encode(getattr(obj, f.name), arrays)
+                                           for f in dataclasses.fields(obj)}}
+    if isinstance(obj, tuple):
+        return {"$tuple": [_encode(v, arrays) for v in obj]}
+    if isinstance(obj, list):
+        return [_encode(v, arrays) for v in obj]
+    if isinstance(obj, dict):
+        if not all(isinstance(k, str) for k in obj):
+            raise TypeError("a cell result's mappings have string keys")
+        return {"$dict": {k: _encode(v, arrays) for k, v in obj.items()}}
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    if obj is None or isinstance(obj, (bool, int, float, str)):
+        return obj
+    raise TypeError(f"a cell result may not hold a {type(obj).__qualname__}")
+
+
+def _decode(doc, arrays):
+    if isinstance(doc, list):
+        return [_decode(v, arrays) for v in doc]
+    if not isinstance(doc, dict):
+        return doc
+    if "$array" in doc:
+        return arrays[str(doc["$array"])]
+    if "$tuple" in doc:
+        return tuple(_decode(v, arrays) for v in doc["$tuple"])
+    if "$dict" in doc:
+        return {str(k): _decode(v, arrays) for k, v in doc["$dict"].items()}
+    cls = CLASSES.get(doc.get("$class"))
+    if cls is None:
+        raise CellFileError(f"it names a class {str(doc.get('$class'))[:60]!r} a cell result does not hold")
+    fields = {f.name for f in dataclasses.fields(cls)}
+    given = doc.get("fields", {})
+    if not isinstance(given, dict) or not set(given) <= fields:
+        raise CellFileError(f"its {cls.__name__} has fields it should not")
+    return cls(**{k: _decode(v, arrays) for k, v in given.items()})
+
+
+def save(result, dst: Path) -> Path:
+    """Write ``result`` (a :class:`CellResult`) to ``dst`` through a temporary file."""
+    arrays: dict = {}
+    doc = {"format": FORMAT, "result": _encode(result, arrays)}
+    with atomic_path(dst, ".npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, __doc__=np.frombuffer(json.dumps(doc).encode("utf-8"), dtype=np.uint8), **arrays)
+    return dst
+
+
+def _document(path: Path) -> tuple[dict, object]:
+    if path.is_symlink() or path.stat().st_size > MAX_BYTES:
+        raise CellFileError("it is a link or too large")
+    z = np.load(path, allow_pickle=False)
+    if not hasattr(z, "files") or "__doc__" not in z.files:
+        raise CellFileError("it is not a twinreg cell file")
+    doc = json.loads(z["__doc__"].tobytes().decode("utf-8"))
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT or not isinstance(doc.get("result"), dict):
+        raise CellFileError("it is not a twinreg cell file")
+    return doc, z
+
+
+def identity(path: Path) -> tuple[str, str]:
+    """The (cell name, key) a cell file says it holds, reading only its JSON; :class:`CellFileError` if it is not
+    a cell file."""
+    try:
+        doc, z = _document(Path(path))
+        z.close()
+        fields = doc["result"].get("fields", {})
+        if doc["result"].get("$class") != "CellResult":
+            raise CellFileError("it does not hold a cell result")
+        return str(fields.get("name")), str(fields.get("key"))
+    except CellFileError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError) as exc:
+        raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
+
+
+def load(path: Path):
+    """The :class:`CellResult` in ``path``; :class:`CellFileError` if the file is not one this program wrote."""
+    path = Path(path)
+    try:
+        doc, z = _document(path)
+        with z:
+            arrays = {k: z[k] for k in z.files if k != "__doc__"}
+        result = _decode(doc["result"], arrays)
+    except CellFileError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError) as exc:
+        raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
+    if not isinstance(result, CellResult):
+        raise CellFileError("it does not hold a cell result")
+    return result
