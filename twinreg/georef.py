@@ -159,6 +159,13 @@ def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: 
                         required: bool = True) -> Georef | None:
     """Validate the georeferencing options. Raises :class:`GeorefError` with the fix. With ``required`` False,
     no option at all gives None (the scene's own CRS is used once it is read: :func:`scene_georef`)."""
+    import math
+
+    for flag, value in (("--lat", lat), ("--lon", lon), ("--alt", alt)) + tuple(
+            (f"--anchor {'XY'[k]}", v) for k, v in enumerate(anchor or ())):
+        if value is not None and not (math.isfinite(float(value)) and abs(float(value)) < 1e8):
+            raise GeorefError(f"{flag} {value}: not a finite number; give a position in degrees, metres or the "
+                              "scene's units")
     if crs:
         if lat is not None or lon is not None:
             raise GeorefError("give either --crs or --lat/--lon, not both")

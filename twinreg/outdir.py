@@ -12,6 +12,7 @@ lost.
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import json
 import os
@@ -70,8 +71,8 @@ def _listing(folder: Path) -> list[str]:
 def check_replaceable(target, protect=()) -> Path:
     """Raise :class:`ExportError` unless ``target`` may be replaced: missing, an empty folder, or a folder
     twinreg wrote (its marker lists every file in it), and holding none of the ``protect`` paths (inputs, the
-    catalogue)."""
-    target = Path(target)
+    catalogue). A symbolic link is judged by the folder it points to."""
+    target = real_target(target)
     for p in protect:
         if p is not None and _inside(Path(p), target):
             raise ExportError(f"{target}: the output folder holds {p}, which this run reads; choose another --out "
@@ -98,6 +99,27 @@ def check_replaceable(target, protect=()) -> Path:
         raise ExportError(f"{target}: holds files twinreg did not write ({shown}); move them out or choose another "
                           "--out (an output folder is replaced as a whole)")
     return target
+
+
+def real_target(target) -> Path:
+    """OUT itself, or the folder it links to when OUT is a symbolic link (the link stays and sees the new twin).
+
+    >>> real_target("exports/x") == Path("exports/x")
+    True
+    """
+    target = Path(target)
+    return Path(os.path.realpath(target)) if target.is_symlink() else target
+
+
+#: errors of a full, read-only or over-quota disk: said with the folder and the fix, not as a bare errno
+DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG)
+
+
+def disk_error(target: Path, exc: OSError) -> ExportError:
+    """The one-line error of a failed write into ``target``."""
+    where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+    return ExportError(f"{target}: cannot write the output: {exc.strerror or exc}{where}; free space on its disk "
+                       "or choose another --out (nothing was changed)")
 
 
 def _journal(target: Path) -> Path:
@@ -176,7 +198,7 @@ def _drop_temporaries(stage: Path) -> None:
 def claim(target, protect=()) -> Path:
     """Make ``target`` a folder marked as twinreg's (creating it when missing), after :func:`check_replaceable`:
     a long run can then keep work in it (``.cells/``) before its results replace it as a whole."""
-    target = Path(target)
+    target = real_target(target)
     recover(target)
     check_replaceable(target, protect)
     try:
@@ -194,8 +216,9 @@ def claim(target, protect=()) -> Path:
 def staged_folder(target, protect=()):
     """Yield a staging folder; on success it replaces ``target`` as a whole, on failure it is deleted and
     ``target`` is left as it was. ``target`` must pass :func:`check_replaceable` (``protect``: paths the run
-    reads, such as its inputs and the catalogue, which OUT may not hold)."""
-    target = Path(target)
+    reads, such as its inputs and the catalogue, which OUT may not hold). A symbolic link as OUT: the folder it
+    points to is replaced, the link kept."""
+    target = real_target(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -212,8 +235,10 @@ def staged_folder(target, protect=()):
         _drop_temporaries(stage)
         marker = {"tool": "twinreg", "files": _listing(stage)}
         (stage / MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(stage, ignore_errors=True)
+        if isinstance(exc, OSError) and exc.errno in DISK_ERRORS:
+            raise disk_error(target, exc) from exc
         raise
     old = target.parent / f".{target.name}.old-{os.getpid()}"
     try:

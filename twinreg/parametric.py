@@ -113,5 +113,5 @@ def write_obj(path, vertices: np.ndarray, faces: np.ndarray, comment: str = "") 
     lines = [f"# {comment}"] if comment else []
     lines += [f"v {x:.5f} {y:.5f} {z:.5f}" for x, y, z in vertices]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
-    with open(path, "w") as fh:
+    with open(path, "w", encoding="utf-8") as fh:
         fh.write("\n".join(lines) + "\n")

@@ -87,11 +87,16 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
 
     clusters = classify(shapes, params, timing, progress)
     with staged_folder(Path(out), protect=[scene_path, catalogue.folder]) as stage:
-        names = [f"obj{k + 1}" for k in range(len(targets))]
-        taxonomy = painter.submit(plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,
-                                  clusters.threshold) if painter and clusters.method == "full" else None
-        twin = _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, clusters,
-                                 params, progress, timing, t_start, painter, taxonomy, ply)
+        try:
+            names = [f"obj{k + 1}" for k in range(len(targets))]
+            taxonomy = painter.submit(plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,
+                                      clusters.threshold) if painter and clusters.method == "full" else None
+            twin = _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, clusters,
+                                     params, progress, timing, t_start, painter, taxonomy, ply)
+        except BaseException:
+            if painter:  # the helper may be drawing into the stage: stopped before the stage is deleted
+                painter.stop()
+            raise
     return twin
 
 

@@ -89,7 +89,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
     import laspy
 
     from ..io._files import checked_input
-    from ..io.points import _crs_and_units
+    from ..io.points import _crs_and_units, check_las_header
 
     path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
     try:
@@ -97,6 +97,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
             header = reader.header
     except Exception as exc:
         raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
+    check_las_header(path, header)
     header_crs = header_error = None
     try:
         header_crs = header.parse_crs()
@@ -224,7 +225,7 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
                 counts[c.name] = counts.get(c.name, 0) + len(inside)
         for h in handles.values():
             h.close()
-        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts}))
+        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts}), encoding="utf-8")
         os.replace(tmp, folder)
     except BaseException:
         for h in handles.values():

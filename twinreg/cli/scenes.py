@@ -176,7 +176,7 @@ def demo(
 @handled
 def view(
     folder: Annotated[Path, typer.Argument(help="A twin folder (the OUT of build-twin).")],
-    port: Annotated[int, typer.Option("--port", help="Port on 127.0.0.1 (0: a free one).")] = 8765,
+    port: Annotated[int, typer.Option("--port", min=0, max=65535, help="Port on 127.0.0.1 (0: a free one).")] = 8765,
     no_open: Annotated[bool, typer.Option("--no-open", help="Print the URL only; do not open a browser.")] = False,
 ):
     """Serve a twin folder on 127.0.0.1 and open the offline 3D viewer (Ctrl-C stops it)."""

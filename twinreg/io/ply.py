@@ -11,7 +11,8 @@ from ..outdir import atomic_path
 
 
 def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
-    """Write ``vertices`` (n, 3) float64, ``faces`` (m, 3) int, ``colors`` (n, 3) uint8 to a binary PLY."""
+    """Write ``vertices`` (n, 3) float64, ``faces`` (m, 3) int, ``colors`` (n, 3) uint8 to a binary PLY. Comments
+    are UTF-8 (a scene named ``scän.ply`` keeps its name), one line each."""
     path = Path(path)
     v = np.ascontiguousarray(vertices, dtype="<f8")
     fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
@@ -23,7 +24,8 @@ def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
         c = np.asarray(colors, dtype=np.uint8).reshape(-1, 3)
         rec["red"], rec["green"], rec["blue"] = c[:, 0], c[:, 1], c[:, 2]
     header = ["ply", "format binary_little_endian 1.0"]
-    header += [f"comment {line}" for line in comments]
+    # a comment is one header line: a name holding a line break would end it (and the header) early
+    header += ["comment " + " ".join(str(line).split()) for line in comments]
     header += [f"element vertex {len(v)}", "property double x", "property double y", "property double z"]
     if colors is not None:
         header += ["property uchar red", "property uchar green", "property uchar blue"]
@@ -31,7 +33,7 @@ def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:
         header += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
     header += ["end_header"]
     with atomic_path(path, ".ply") as tmp, open(tmp, "wb") as fh:
-        fh.write(("\n".join(header) + "\n").encode("ascii"))
+        fh.write(("\n".join(header) + "\n").encode("utf-8"))
         fh.write(rec.tobytes())
         if faces is not None:
             f = np.asarray(faces, dtype="<i4").reshape(-1, 3)

@@ -15,6 +15,12 @@ import numpy as np
 from ..errors import SceneReadError
 from ._files import checked_input
 
+#: the largest coordinate (file units times the unit) a survey's point may have: projected and ECEF coordinates
+#: stay under 1e7 m; beyond this a value is a corrupt record, not a position
+MAX_COORD = 1e8
+#: the largest LAS header offset accepted (file units)
+MAX_LAS_OFFSET = 1e9
+
 UNIT_SCALES = {"m": 1.0, "cm": 0.01, "mm": 0.001, "ft": 0.3048, "us-ft": 1200.0 / 3937.0, "in": 0.0254}
 POINT_SUFFIXES = {".ply", ".pcd", ".las", ".laz", ".xyz", ".txt", ".csv", ".pts", ".bin"}
 
@@ -82,6 +88,20 @@ def _read_kitti(path: Path) -> np.ndarray:
     return raw.reshape(-1, 4)[:, :3].astype(np.float64)
 
 
+def check_las_header(path: Path, header) -> None:
+    """:class:`SceneReadError` for a LAS/LAZ header whose scale factors are not positive (zero loses every
+    coordinate, a negative one mirrors the scene) or whose offsets are beyond :data:`MAX_LAS_OFFSET`."""
+    scales = np.asarray(header.scales, dtype=np.float64)
+    offsets = np.asarray(header.offsets, dtype=np.float64)
+    if not (np.isfinite(scales).all() and (scales > 0).all()):
+        raise SceneReadError(f"{path}: the LAS header's scale factors {scales.tolist()} must be positive (zero loses "
+                             "the coordinates, a negative one mirrors the scene); rewrite the file with correct "
+                             "scales (e.g. pdal translate or las2las)")
+    if not (np.isfinite(offsets).all() and (np.abs(offsets) <= MAX_LAS_OFFSET).all()):
+        raise SceneReadError(f"{path}: the LAS header's offsets {offsets.tolist()} are not coordinates on Earth; "
+                             "rewrite the file with correct offsets (e.g. pdal translate or las2las)")
+
+
 def _read_las(path: Path):
     """(points (n, 3) in file units, the header's CRS or None, the error parsing it or None)."""
     import laspy
@@ -90,6 +110,7 @@ def _read_las(path: Path):
         las = laspy.read(str(path))
     except Exception as exc:
         raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
+    check_las_header(path, las.header)
     pts = np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
                            np.asarray(las.z, dtype=np.float64)])
     try:
@@ -120,7 +141,13 @@ def _read_ply(path: Path) -> np.ndarray | None:
             if words[0] == "format":
                 fmt = words[1]
             elif words[0] == "element":
-                current = [words[1], int(words[2]), []]
+                count = int(words[2]) if len(words) == 3 and words[2].isdigit() else -1
+                if count < 0 or count > path.stat().st_size:
+                    shown = " ".join(words[2:])[:40]
+                    raise SceneReadError(f"{path}: the PLY header says the element '{words[1][:40]}' has "
+                                         f"{shown} records, which the file cannot hold; the file is damaged, export "
+                                         "it again")
+                current = [words[1], count, []]
                 elements.append(current)
             elif words[0] == "property" and current is not None:
                 if words[1] == "list":
@@ -224,6 +251,11 @@ def read_points(path, unit: str = "auto", crs: str | None = None) -> PointSet:
     info, unit, scale, z_scale = _crs_and_units(path, unit.lower(), crs, header_crs, header_error)
     if scale != 1.0 or z_scale != 1.0:
         pts = pts * np.array([scale, scale, z_scale])
+    far = np.abs(pts).max(1) > MAX_COORD
+    if far.any():
+        raise SceneReadError(f"{path}: {int(far.sum())} point(s) lie beyond {MAX_COORD:.0e} m (e.g. "
+                             f"{pts[np.argmax(far)].tolist()}): corrupt records, not positions; remove them (e.g. "
+                             "pdal translate with a range filter) and run again")
     offset = np.floor(pts.min(0) / 100.0) * 100.0
     offset[2] = 0.0
     return PointSet(path=path, points=pts, offset=offset, unit=unit, crs_info=info, n_dropped=dropped, scale=scale,
