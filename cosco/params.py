@@ -151,6 +151,14 @@ class CoscoParams:
     ``accept_max_points`` points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
     points is a proportion: 1,500 points give it to about one percentage point).
 
+    A parked car stands on the ground: a placed model whose lowest point lies more than ``accept_sink_sigmas *
+    noise + accept_sink_tol`` (m) below the object's ground (a model taller than the object, sunk until its roof
+    meets the object's top: a box taken for a van) or more than ``accept_max_float`` above it (a model lower than
+    the object, lifted; the margin allows body-only CAD models without wheels) is refused. The confidence is the
+    margin's times a fit factor: 1 while every acceptance measure (unexplained points, unseen top surface, sinking)
+    uses at most half of its limit, falling to 0.5 at ``decision_poor_fit`` of a limit (a poor fit is never above
+    0.5) and to 0.25 at the limit.
+
     Taxonomy at scale (cosco/taxonomy.py; docs/METHOD.md): up to ``taxonomy_full_max`` objects, the full matrix
     and the dendrogram (the paper); beyond, each object is compared with its ``taxonomy_neighbours`` nearest
     objects by size and sections only, and clusters are the connected parts of the graph of pairs closer than
@@ -235,6 +243,10 @@ class CoscoParams:
     refine_reach: float = 0.3
     refine_max_points: int = 500
     accept_max_points: int = 1500
+    accept_sink_sigmas: float = 2.0
+    accept_sink_tol: float = 0.03
+    accept_max_float: float = 0.25
+    decision_poor_fit: float = 0.75
 
     taxonomy_full_max: int = 32
     taxonomy_neighbours: int = 3

@@ -18,10 +18,15 @@ part in metres:
 
     score = scan_fit + model_fit + w_sections * sections + w_size * size
 
-The lowest score wins among the candidates the acceptance test (:mod:`twinreg.acceptance`) passes. The margin
-to the runner-up, in units of the scan's noise, is the match's ``margin_sigma``; its ``confidence`` is
-``1 - exp(-margin_sigma / decision_confidence_sigma)`` (0 when two models score alike, near 1 when the runner-up
-is far behind); candidates whose score lies within ``decision_ambiguous_sigma`` noise units of the winner's are
+The lowest score wins among the candidates the acceptance test (:mod:`twinreg.acceptance`) passes and that stand
+on the object's ground: ``sink`` (m) is how far the placed model's lowest point lies below the ground under the
+object (negative: above it); a model sunk deeper than ``accept_sink_sigmas * noise + accept_sink_tol`` is taller
+than the object (its roof was brought down onto a box's top) and one floating higher than ``accept_max_float`` is
+lower than it. The margin to the runner-up, in units of the scan's noise, is the match's ``margin_sigma``; the
+margin's confidence ``1 - exp(-margin_sigma / decision_confidence_sigma)`` (0 when two models score alike, near 1
+when the runner-up is far behind) times the fit factor (:func:`fit_factor`: how much of its acceptance limits
+the winner uses) is its ``confidence``, so that a poor fit is never above 0.5 however far behind the runner-up
+is; candidates whose score lies within ``decision_ambiguous_sigma`` noise units of the winner's are
 ``ambiguous_with`` it: the scan cannot tell them apart.
 """
 
@@ -48,12 +53,56 @@ class Evidence:
     score: float
     verdict: Verdict
     unseen_share: float
+    sink: float = 0.0
+    sink_limit: float = np.inf
+    float_limit: float = np.inf
     extra: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {"score_m": round(self.score, 4), "scan_fit_m": round(self.scan_fit, 4),
                 "model_fit_m": round(self.model_fit, 4), "sections_m": round(self.rmse, 4),
-                "size_m": round(self.size, 4), "unseen_share": round(self.unseen_share, 3)}
+                "size_m": round(self.size, 4), "unseen_share": round(self.unseen_share, 3),
+                "sink_m": round(self.sink, 4), "fit_ratio": round(self.fit_ratio(DEFAULT), 3)}
+
+    def stands(self) -> bool:
+        """Whether the placed model stands on the object's ground (neither sunk nor floating beyond the limits)."""
+        return -self.float_limit <= self.sink <= self.sink_limit
+
+    def fit_ratio(self, params: CoscoParams = DEFAULT) -> float:
+        """The largest share of an acceptance limit this placement uses: unexplained points, unseen top surface,
+        sinking into or floating above the ground (1: at a limit)."""
+        v = self.verdict
+        ratios = [v.outlier_share / max(v.max_share, 1e-9), self.unseen_share / max(params.accept_max_unseen, 1e-9),
+                  max(self.sink, 0.0) / max(self.sink_limit, 1e-9), max(-self.sink, 0.0) / max(self.float_limit, 1e-9)]
+        return float(max(ratios))
+
+    def reason(self, name: str, params: CoscoParams = DEFAULT) -> str:
+        """Why this placement is refused (one clause)."""
+        if not self.verdict.accepted:
+            return self.verdict.reason(name)
+        if self.sink > self.sink_limit:
+            return (f"the best model ({name}) fits only {self.sink * 100:.0f} cm sunk into the ground (at most "
+                    f"{self.sink_limit * 100:.0f} cm allowed): it is taller than the object")
+        if -self.sink > self.float_limit:
+            return (f"the best model ({name}) fits only {-self.sink * 100:.0f} cm above the ground (at most "
+                    f"{self.float_limit * 100:.0f} cm allowed): it is lower than the object")
+        return (f"the best model ({name}) leaves {self.unseen_share:.0%} of its top surface with no scan point "
+                f"near it (at most {params.accept_max_unseen:.0%} allowed)")
+
+
+def fit_factor(ratio: float, params: CoscoParams = DEFAULT) -> float:
+    """What the confidence of a placement using ``ratio`` of its acceptance limits is multiplied by: 1 up to half
+    a limit, 0.5 at ``decision_poor_fit``, 0.25 at the limit.
+
+    >>> [round(fit_factor(r), 2) for r in (0.2, 0.5, 0.75, 1.0)]
+    [1.0, 1.0, 0.5, 0.25]
+    """
+    poor = params.decision_poor_fit
+    if ratio <= 0.5:
+        return 1.0
+    if ratio <= poor:
+        return float(1.0 - 0.5 * (ratio - 0.5) / (poor - 0.5))
+    return float(max(0.5 - 0.25 * (ratio - poor) / max(1.0 - poor, 1e-9), 0.25))
 
 
 def top_surface(points: np.ndarray, cell: float = 0.1) -> np.ndarray:
@@ -77,9 +126,10 @@ def top_surface(points: np.ndarray, cell: float = 0.1) -> np.ndarray:
 
 def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.ndarray, cloud_tree,
              model_size: np.ndarray, measured: np.ndarray, noise: float, spacing: float,
-             params: CoscoParams = DEFAULT) -> Evidence:
+             params: CoscoParams = DEFAULT, sink: float = 0.0) -> Evidence:
     """Score one placed candidate. ``distances``: the object's (sampled) points to the placed model's surface;
-    ``top_placed``: the model's top surface in the scene; ``cloud_tree`` a cKDTree of the object's points."""
+    ``top_placed``: the model's top surface in the scene; ``cloud_tree`` a cKDTree of the object's points;
+    ``sink`` (m): how far the placed model's lowest point lies below the object's ground."""
     v = verdict(distances, noise, spacing, params)
     tau = v.tolerance_m
     scan_fit = float(np.mean(np.minimum(distances, tau))) if len(distances) else tau
@@ -92,7 +142,9 @@ def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.n
     shortfall = np.maximum(np.asarray(measured) - np.asarray(model_size) - 2 * noise, 0.0)
     size = float(shortfall.sum())
     score = scan_fit + model_fit + params.decision_w_sections * rmse + params.decision_w_size * size
-    return Evidence(model_id, float(rmse), scan_fit, model_fit, size, float(score), v, unseen)
+    sink_limit = params.accept_sink_sigmas * noise + params.accept_sink_tol
+    return Evidence(model_id, float(rmse), scan_fit, model_fit, size, float(score), v, unseen, float(sink),
+                    float(sink_limit), float(params.accept_max_float))
 
 
 @dataclass
@@ -110,7 +162,8 @@ def decide(scored: list[Evidence], noise: float, params: CoscoParams = DEFAULT) 
     """Pick the lowest score among accepted candidates; the margin to the next candidate (accepted or not), in
     noise units, gives the confidence, and candidates within ``decision_ambiguous_sigma`` are ambiguous."""
     ranked = sorted(scored, key=lambda e: e.score)
-    accepted = [e for e in ranked if e.verdict.accepted and e.unseen_share <= params.accept_max_unseen]
+    accepted = [e for e in ranked
+                if e.verdict.accepted and e.unseen_share <= params.accept_max_unseen and e.stands()]
     if not accepted:
         return Decision(None, ranked, None, None, [])
     best = accepted[0]
@@ -121,5 +174,6 @@ def decide(scored: list[Evidence], noise: float, params: CoscoParams = DEFAULT) 
         margin = (best.verdict.max_share - best.verdict.outlier_share) * best.verdict.tolerance_m / noise
     margin = max(float(margin), 0.0)
     confidence = float(1.0 - np.exp(-margin / params.decision_confidence_sigma))
+    confidence *= fit_factor(best.fit_ratio(params), params)
     ambiguous = [e.model_id for e in others if (e.score - best.score) / noise < params.decision_ambiguous_sigma]
     return Decision(best, ranked, margin, confidence, ambiguous)

@@ -294,8 +294,10 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         m = m @ np.linalg.inv(c)
         top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
         row = cache.row(mid)
+        # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
         e = evidence(mid, reg.rmse, cache.surface(mid).distances(in_model), top, tree,
-                     np.array([row.length, row.width, row.height]), measured, noise, spacing, params)
+                     np.array([row.length, row.width, row.height]), measured, noise, spacing, params,
+                     sink=float(shape.frame.ground_z - m[2, 3]))
         e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)))
         return e
 
@@ -336,9 +338,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
         if decision.best is None:
             best = decision.scored[0]
             name = cache.row(best.model_id).name
-            reason = best.verdict.reason(name) if not best.verdict.accepted else (
-                f"the best model ({name}) leaves {best.unseen_share:.0%} of its top surface with no scan point "
-                f"near it (at most {params.accept_max_unseen:.0%} allowed)")
+            reason = best.reason(name, params)
             if found.outside:
                 near = cache.row(found.nearest[0])
                 gap = np.array([near.length, near.width, near.height]) - shape.size.as_array()

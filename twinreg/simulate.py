@@ -205,7 +205,9 @@ def non_car(kind: str, length: float, width: float, height: float):
 
     - ``box``: a plain closed box;
     - ``skip``: an open-topped waste container whose walls slope outwards (a trapezoid from the side), 5 cm thick;
-    - ``kiosk``: a box with a pitched roof overhanging it by 0.2 m.
+    - ``kiosk``: a box with a pitched roof overhanging it by 0.2 m;
+    - ``trailer``: a utility trailer: a bed 0.55 m above the ground with 0.4 m walls, open at the top, on one
+      axle, and a 0.9 m drawbar at the front (``length`` includes it; ``height`` is the walls' top, at most 1 m).
     """
     import trimesh
 
@@ -236,5 +238,20 @@ def non_car(kind: str, length: float, width: float, height: float):
                          [0.0, height], [-length / 2, height - 0.4]])
         return merge_meshes([(np.asarray(walls.vertices), np.asarray(walls.faces)),
                              prism(roof, -width / 2, width / 2)])
-    raise ValueError(f"unknown object kind {kind!r}; use box, skip or kiosk")
+    if kind == "trailer":
+        bar, bed, t = 0.9, 0.55, 0.05
+        body = length - bar
+        top = min(height, 1.0)
+        x0 = -length / 2 + bar
+        parts = [_box([body, width, t], [x0 + body / 2, 0, bed]),
+                 _box([t, width, top - bed], [x0 + t / 2, 0, (bed + top) / 2]),
+                 _box([t, width, top - bed], [length / 2 - t / 2, 0, (bed + top) / 2]),
+                 _box([body, t, top - bed], [x0 + body / 2, -width / 2 + t / 2, (bed + top) / 2]),
+                 _box([body, t, top - bed], [x0 + body / 2, width / 2 - t / 2, (bed + top) / 2]),
+                 _box([bar, 0.08, 0.08], [-length / 2 + bar / 2, 0, bed - 0.05]),
+                 _box([0.55, 0.2, 0.55], [x0 + body / 2, -width / 2 + 0.15, 0.275]),
+                 _box([0.55, 0.2, 0.55], [x0 + body / 2, width / 2 - 0.15, 0.275])]
+        return merge_meshes(parts)
+    raise ValueError(f"unknown object kind {kind!r}; use box, skip, kiosk or trailer")
+
 
