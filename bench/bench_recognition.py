@@ -5,6 +5,8 @@ every catalogue model's sampled points to the object's points, the model of the 
 inlier RMSE) winning.
 
     python bench/bench_recognition.py [--seeds 10] [--peer-seeds 3] [--plot docs/recognition_density.png]
+
+``--peer-seeds 0`` leaves the peer out (its figures do not change with twinreg's).
 """
 
 from __future__ import annotations
@@ -82,6 +84,11 @@ def peer_outcomes(catalogue, density: float, seed: int):
     return [(t, g, classes[t], classes.get(g, "")) for t, g in out]
 
 
+def _pct(v) -> str:
+    """A share as a percentage, or "-" when it was not measured (``--peer-seeds 0``)."""
+    return "-" if v is None else f"{v:.1%}"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=10)
@@ -114,8 +121,8 @@ def main() -> None:
                 "matching_ms_per_object": 1000 * t_match / max(n_obj, 1),
                 "wrong": [(o.truth, o.got, round(o.confidence or 0, 2)) for o in outs if o.matched and not o.right],
                 "unmatched": [(o.truth, o.reason[:90]) for o in outs if o.found and not o.matched],
-                "peer": {"n": len(peer), "top1": float(np.mean([t == g for t, g, _, _ in peer])),
-                         "body_class": float(np.mean([tc == gc for _, _, tc, gc in peer])),
+                "peer": {"n": len(peer), "top1": float(np.mean([t == g for t, g, _, _ in peer])) if peer else None,
+                         "body_class": float(np.mean([tc == gc for _, _, tc, gc in peer])) if peer else None,
                          "s_per_object": t_peer / max(len(peer), 1)},
             }
             print(f"{d:5.0f} pts/m2: {json.dumps({k: results[d][k] for k in ('cosco', 'peer')})}",
@@ -128,7 +135,7 @@ def main() -> None:
         c, o, p = r["cosco"], r["cosco_open"], r["peer"]
         print(f"| {d:.0f} | {c['found']:.1%} | {c['matched']:.1%} | {c['top1']:.1%} | {c['body_class']:.1%} | "
               f"{o['matched']:.1%} / {o['top1']:.1%} | {r['heading_deg']['median']:.2f} / {r['heading_deg']['p95']:.2f}"
-              f" | {p['top1']:.1%} | {p['body_class']:.1%} |")
+              f" | {_pct(p['top1'])} | {_pct(p['body_class'])} |")
     for d, r in results.items():
         print(f"{d:.0f} pts/m2 wrong: {r['wrong']}; no model: {r['unmatched']}")
     if args.json:
@@ -143,8 +150,10 @@ def main() -> None:
         fig, ax = plt.subplots(figsize=(6.4, 3.8))
         ax.plot(ds, [results[d]["cosco"]["top1"] * 100 for d in ds], "o-", label="COSCO: own model")
         ax.plot(ds, [results[d]["cosco"]["body_class"] * 100 for d in ds], "s--", label="COSCO: body class")
-        ax.plot(ds, [results[d]["peer"]["top1"] * 100 for d in ds], "o-", label="FPFH+RANSAC+ICP: own model")
-        ax.plot(ds, [results[d]["peer"]["body_class"] * 100 for d in ds], "s--", label="FPFH+RANSAC+ICP: body class")
+        if all(results[d]["peer"]["n"] for d in ds):
+            ax.plot(ds, [results[d]["peer"]["top1"] * 100 for d in ds], "o-", label="FPFH+RANSAC+ICP: own model")
+            ax.plot(ds, [results[d]["peer"]["body_class"] * 100 for d in ds], "s--",
+                    label="FPFH+RANSAC+ICP: body class")
         ax.set_xscale("log")
         ax.set_xticks(ds, [f"{d:.0f}" for d in ds])
         ax.set_xlabel("scan density (points per m$^2$)")

@@ -168,3 +168,24 @@ def test_a_catalogue_on_a_full_disk_is_not_called_unusable(tmp_path, monkeypatch
     monkeypatch.setattr(db, "_upgrade_to_head", full)
     with pytest.raises(CatalogueError, match="cannot be written.*free space"):
         db.open_engine(tmp_path / "lib")
+
+
+def test_a_full_disk_while_adding_a_model(parametric_objs, tmp_path, monkeypatch):
+    """ENOSPC while the model's file is copied in: one line naming the file and the fix, no row, no file."""
+    import shutil
+
+    from twinreg.catalogue.repository import Catalogue
+
+    lib = tmp_path / "lib"
+    Catalogue(lib).add(parametric_objs["demo_sedan"], name="first")
+    before = sorted(p.name for p in lib.rglob("*") if p.is_file() and not p.name.endswith(("-shm", "-wal")))
+
+    def full(src, dst, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(dst))
+
+    monkeypatch.setattr(shutil, "copyfile", full)
+    res = _invoke("add-model", parametric_objs["demo_suv"], "--library", lib)
+    _one_line_error(res, 1, "No space left on device", str(lib), "free space")
+    assert [r.name for r in Catalogue(lib).list()] == ["first"]
+    after = sorted(p.name for p in lib.rglob("*") if p.is_file() and not p.name.endswith(("-shm", "-wal")))
+    assert after == before

@@ -171,6 +171,8 @@ class _Bundle:
 
     def __init__(self, zip_path: Path):
         self.path = zip_path
+        if not zip_path.is_file():
+            raise BundleError(f"{zip_path}: no such bundle file; give the .zip written by `twinreg export-library`")
         try:
             self.zip = zipfile.ZipFile(zip_path)
         except (zipfile.BadZipFile, OSError) as exc:

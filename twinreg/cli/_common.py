@@ -42,6 +42,12 @@ def handled(fn):
             fail(str(exc), getattr(exc, "exit_code", 1))
         except (typer.Exit, typer.Abort, KeyboardInterrupt):
             raise
+        except OSError as exc:  # a full or read-only disk, a vanished file: the file and the fix, not an errno
+            if os.environ.get("TWINREG_DEBUG"):
+                raise
+            where = exc.filename or "a file this command writes or reads"
+            fail(f"{where}: {exc.strerror or exc}; free space on its disk or check that it can be read and written, "
+                 "then run again (nothing half-written was kept)")
         except Exception as exc:  # pragma: no cover - a bug; keep the one-line promise unless debugging
             if os.environ.get("TWINREG_DEBUG"):
                 raise
