@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed-stamp
 NPM_STAMP := node_modules/.installed-stamp
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test install bench clean
+.PHONY: demo test install bench bench-all clean
 
 # system packages: libusb for open3d, Node.js and npm for the viewer's JavaScript (when the machine has no node)
 define apt_install
@@ -45,8 +45,13 @@ demo: $(STAMP) $(NPM_STAMP)
 test: $(STAMP) $(NPM_STAMP) /usr/bin/chromium
 	TWINREG_REQUIRE_SHARED_DATA=1 $(BIN)/python -m pytest
 
+# the quick benches (minutes); the long ones are listed with their commands
 bench: $(STAMP) $(NPM_STAMP)
 	$(BIN)/python bench/run.py
+
+# every bench, the long ones too (about an hour on 2 cores)
+bench-all: $(STAMP) $(NPM_STAMP)
+	$(BIN)/python bench/run.py --long
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache node_modules

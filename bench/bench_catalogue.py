@@ -29,11 +29,11 @@ def run() -> list[Row]:
         rows.append(Row("add-model, process start to catalogue written", label, f"{min(times):.2f} s",
                         "< 5 s"))
     # the same work in-process, by stage, on the largest file
+    import cosco
+    from twinreg.catalogue.normalise import normalise
     from twinreg.catalogue.prepare import SAMPLE_SPACING
     from twinreg.io.meshes import load_mesh
-    from twinreg.catalogue.normalise import normalise
     from twinreg.raycast import visible_surface
-    import cosco
 
     path = SHARED / "cars" / files[0][0]
     if path.exists():

@@ -66,7 +66,7 @@ def catalogue16(folder: Path):
 
 
 def city(cat, folder: Path, km2: float, seed: int = 0, tile: float = 250.0) -> dict:
-    from twinreg.city.simulate import simulate_city
+    from twinreg.sim.city import simulate_city
 
     if (folder / "truth.json").exists():
         return json.loads((folder / "truth.json").read_text())
@@ -120,7 +120,7 @@ def car_park_6x6(cat, path: Path) -> int:
     """The bench_twin car park (seed 5, 12 cars) repeated 6 x 6 in one LAS file (EPSG:28992)."""
     from bench_twin import _scene
 
-    from twinreg.city.simulate import write_laz
+    from twinreg.sim.city import write_laz
 
     park, _ = _scene(cat, path.with_suffix(".ply"))
     pts = park.points

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
+from common import SHARED, Row, timed
 
 import cosco
-from common import SHARED, Row, timed
 
 
 def _scanned_cars(n: int):
     from twinreg.catalogue.normalise import normalise
     from twinreg.io.meshes import load_mesh
-    from twinreg.simulate import pose_matrix, scan_meshes, transform
+    from twinreg.sim.scan import pose_matrix, scan_meshes, transform
 
     names = ["toyota_prius/Hybrid.obj", "nissan_patrol/suv_chassis.obj", "audi_unidentified/audi_chassis.obj",
              "jeep_cherokee_xj_1997/JeepCherokee.obj", "uaz_469/uaz469_chassis.obj",

@@ -10,13 +10,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from common import REPO, SHARED, Row
 
 
 def _tile_source():
     from twinreg.catalogue.prepare import prepare_model
-    from twinreg.simulate import car_park
+    from twinreg.sim.scan import car_park
 
     names = ["toyota_prius/Hybrid.obj", "nissan_patrol/suv_chassis.obj", "audi_unidentified/audi_chassis.obj",
              "jeep_cherokee_xj_1997/JeepCherokee.obj", "uaz_469/uaz469_chassis.obj",

@@ -30,10 +30,10 @@ def peer_outcomes(catalogue, density: float, seed: int):
     """(truth class, got class, truth name, got name) of each car by FPFH + RANSAC + ICP against every model."""
     import open3d as o3d
 
-    from twinreg.accuracy import body_class, density_passes
     from twinreg.detect import detect_points, object_points
     from twinreg.io.points import PointSet
-    from twinreg.simulate import car_park
+    from twinreg.sim.accuracy import body_class, density_passes
+    from twinreg.sim.scan import car_park
 
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     rows = sorted(catalogue.list(), key=lambda r: r.name)
@@ -98,7 +98,7 @@ def main() -> None:
     args = ap.parse_args()
     from bench_twin import _catalogue
 
-    from twinreg.accuracy import park_outcomes, summary
+    from twinreg.sim.accuracy import park_outcomes, summary
 
     results = {}
     with tempfile.TemporaryDirectory() as tmp:

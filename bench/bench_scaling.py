@@ -73,13 +73,13 @@ def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
     from bench_twin import _catalogue
 
     from cosco.params import DEFAULT
-    from twinreg.accuracy import car_objects, density_passes
-    from twinreg.acceptance import scene_noise
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
-    from twinreg.matching import match_objects
+    from twinreg.matching.acceptance import scene_noise
+    from twinreg.matching.match import match_objects
     from twinreg.pipeline import classify
-    from twinreg.simulate import car_park
+    from twinreg.sim.accuracy import car_objects, density_passes
+    from twinreg.sim.scan import car_park
 
     rows_out = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -16,7 +16,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from common import SHARED, Row
 
 DUBLIN = ["--lat", "53.351160", "--lon", "-6.261601"]
@@ -35,7 +34,7 @@ def _catalogue(folder: Path):
 
 def _scene(cat, path: Path, seed: int = 5):
     from twinreg.io.ply import write_ply
-    from twinreg.simulate import Pass, car_park
+    from twinreg.sim.scan import Pass, car_park
 
     rows = sorted(cat.list(), key=lambda r: r.name)
     models = cat.scan_meshes(rows)

@@ -50,7 +50,7 @@ def cars() -> list[dict]:
 @pytest.fixture(scope="session")
 def parametric_objs(tmp_path_factory) -> dict:
     """The project's own parametric cars written as OBJ files (no shared data): name -> path."""
-    from twinreg.parametric import LIBRARY, car_mesh, write_obj
+    from twinreg.sim.parametric import LIBRARY, car_mesh, write_obj
 
     folder = tmp_path_factory.mktemp("parametric")
     out = {}
@@ -82,7 +82,7 @@ def load_xyz(path: Path) -> np.ndarray:
 def scanned_cars(prepared_cars):
     """Every shared car placed at a random pose (far from the origin) and scanned by simulated oblique airborne
     passes with 2 cm noise: slug -> (points (n, 3), x, y, heading)."""
-    from twinreg.simulate import pose_matrix, scan_meshes, transform
+    from twinreg.sim.scan import pose_matrix, scan_meshes, transform
 
     rng = np.random.default_rng(2026)
     out = {}
@@ -100,7 +100,7 @@ def toy_car(seed: int = 0) -> np.ndarray:
     """A scanned toy car made of two boxes (body and cabin), symmetric about the plane y = 0 (no shared data)."""
     import trimesh
 
-    from twinreg.simulate import scan_meshes
+    from twinreg.sim.scan import scan_meshes
 
     body = trimesh.creation.box([4.4, 1.8, 0.8], trimesh.transformations.translation_matrix([0, 0, 0.6]))
     cabin = trimesh.creation.box([2.2, 1.5, 0.6], trimesh.transformations.translation_matrix([-0.3, 0, 1.3]))

@@ -11,7 +11,7 @@ _API = {
     "TwinregError": "twinreg.errors",
     "build_twin": "twinreg.pipeline",
     "detect_file": "twinreg.detect",
-    "georef_from_options": "twinreg.georef",
+    "georef_from_options": "twinreg.geo.georef",
     "load_mesh": "twinreg.io.meshes",
     "read_points": "twinreg.io.points",
 }

@@ -142,8 +142,8 @@ def detection_json(det: Detection, all_objects: bool = False) -> dict:
 
 def write_detection(det: Detection, out: Path, all_objects: bool = False) -> list[Path]:
     """One PLY per object (float64 coordinates) and a numbered top view, into ``out`` (replaced as a whole)."""
+    from .io.outdir import staged_folder
     from .io.ply import write_ply
-    from .outdir import staged_folder
 
     written = []
     with staged_folder(out, protect=[det.scene.path]) as stage:
@@ -160,7 +160,7 @@ def plot_detection(det: Detection, path, all_objects: bool = False, title: str |
     """Top view: ground in grey, other points by height, target objects outlined and numbered."""
     from cosco.footprint import min_area_rectangle
 
-    from .plots import _plt, save_figure
+    from .report.plots import _plt, save_figure
 
     plt = _plt()
     local = det.scene.local

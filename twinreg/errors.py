@@ -46,6 +46,28 @@ class ExportError(TwinregError):
     """Output files could not be written."""
 
 
+class CityError(TwinregError):
+    """Cells of a tiled run failed twice."""
+
+
+class EngineError(TwinregError):
+    """The Dask cluster could not be started or reached."""
+
+
+class ViewerError(TwinregError):
+    """The twin folder or the viewer's JavaScript is missing."""
+
+
+class HelperError(RuntimeError):
+    """The picture helper process failed, timed out or is gone (the caller then draws in its own process; never
+    shown to a user)."""
+
+
+class CellFileError(ValueError):
+    """A kept cell file that is not one this program wrote (it is ignored and the cell computed again; never shown
+    to a user)."""
+
+
 class ParameterError(TwinregError):
     """An option's value is out of its range (bad usage: exit status 2)."""
 

@@ -10,20 +10,20 @@ from pathlib import Path
 import cosco
 from cosco.params import DEFAULT, CoscoParams
 
-from .acceptance import scene_noise
 from .catalogue.repository import Catalogue
 from .detect import describe_detected, detect_file, object_points
-from .errors import CatalogueError, SceneReadError
+from .errors import CatalogueError, HelperError, SceneReadError
 from .export.formats import write_formats
 from .export.kmz import write_kmz
 from .export.objects import object_output
-from .export.painter import HELPER_TIMEOUT_S, HelperError, Painter
-from .export.report import plot_taxonomy, warm_up, write_report
 from .export.tiles3d import scan_sample
 from .export.twin_ply import write_twin_ply
-from .georef import Georef, scene_georef
-from .matching import ModelCache, match_objects
-from .outdir import check_replaceable, staged_folder
+from .geo.georef import Georef, scene_georef
+from .io.outdir import check_replaceable, staged_folder
+from .matching.acceptance import scene_noise
+from .matching.match import ModelCache, match_objects
+from .report.painter import HELPER_TIMEOUT_S, Painter
+from .report.scene import plot_taxonomy, warm_up, write_report
 
 
 def _say(progress, msg):
@@ -49,7 +49,7 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
     ``ply=False`` leaves out twin.ply).
 
-    georef : from :func:`~twinreg.georef.georef_from_options`, or None to use the CRS the file states. tol,
+    georef : from :func:`~twinreg.geo.georef.georef_from_options`, or None to use the CRS the file states. tol,
     threshold : the size tolerance and cluster threshold (m), ``params.size_tol`` and ``params.cluster_threshold``
     when None.
     """

@@ -25,7 +25,7 @@ def test_object_against_itself_turned_and_lifted_is_near_zero(scanned_cars, slug
 def test_every_scan_is_nearest_to_its_own_model(scanned_cars, prepared_cars):
     """A second, independent scan of each car (other seed, pose and height) picks its own model out of 16, and
     different models differ by more than the scan-to-scan noise."""
-    from twinreg.simulate import pose_matrix, scan_meshes, transform
+    from twinreg.sim.scan import pose_matrix, scan_meshes, transform
 
     names = sorted(scanned_cars)
     first = [describe_object(scanned_cars[n][0]).sections for n in names]

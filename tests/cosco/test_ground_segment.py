@@ -3,14 +3,14 @@ import pytest
 
 from cosco.ground import remove_ground
 from cosco.segment import segment_objects
-from tests.conftest import kitti_boxes, need, KITTI
+from tests.conftest import KITTI, kitti_boxes, need
 
 
 @pytest.fixture(scope="module")
 def car_park_scene(prepared_cars):
     """12 cars of 8 shared models in two rows 0.4-1.0 m apart on a 2 % slope with an 8 % ramp, a kerb, a wall, a
     lamp pole and a tree whose canopy overhangs a car; three oblique airborne passes, 2 cm noise."""
-    from twinreg.simulate import car_park
+    from twinreg.sim.scan import car_park
 
     names = sorted(prepared_cars)[:8]
     models = [(prepared_cars[n].mesh.vertices, prepared_cars[n].mesh.faces) for n in names]
@@ -68,8 +68,8 @@ def test_kitti_cars_found_as_objects():
 
 
 def _parametric_park(seed=3):
-    from twinreg.parametric import LIBRARY, car_mesh
-    from twinreg.simulate import car_park
+    from twinreg.sim.parametric import LIBRARY, car_mesh
+    from twinreg.sim.scan import car_park
 
     return car_park([car_mesh(s) for s in LIBRARY], n_cars=12, seed=seed)
 

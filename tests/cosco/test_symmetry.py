@@ -74,7 +74,7 @@ def _asymmetric_scan(seed: int) -> np.ndarray:
     """A scanned clutter of a low box, a tower on one corner, a tilted slab on one side and a leaning mast."""
     import trimesh
 
-    from twinreg.simulate import scan_meshes
+    from twinreg.sim.scan import scan_meshes
 
     parts = [
         trimesh.creation.box([4.0, 2.0, 0.5], trimesh.transformations.translation_matrix([0, 0, 0.25])),

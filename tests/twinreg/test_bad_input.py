@@ -32,8 +32,8 @@ def _one_line_error(res, code: int, *words):
 
 @pytest.fixture(scope="module")
 def park(tmp_path_factory) -> Path:
-    from twinreg.parametric import LIBRARY, car_mesh
-    from twinreg.simulate import car_park
+    from twinreg.sim.parametric import LIBRARY, car_mesh
+    from twinreg.sim.scan import car_park
 
     folder = tmp_path_factory.mktemp("park")
     p = car_park([car_mesh(LIBRARY[2])], n_cars=2, seed=1, distractors=False)
@@ -145,8 +145,8 @@ def test_a_symlinked_out_keeps_its_link(park, parametric_catalogue, tmp_path):
 
 def test_a_full_disk_names_the_folder(tmp_path, monkeypatch):
     """ENOSPC while the output is written: one line with OUT and the fix, OUT as it was."""
-    from twinreg.outdir import staged_folder
     from twinreg.errors import ExportError
+    from twinreg.io.outdir import staged_folder
 
     out = tmp_path / "out"
     with pytest.raises(ExportError, match="out: cannot write the output: No space left on device.*free space"):

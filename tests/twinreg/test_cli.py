@@ -107,8 +107,8 @@ def test_cluster_a_scene_file(tmp_path):
     """Objects detected in a scan cluster by model: two cars of each of three parametric models (no tree: a car
     half hidden by a canopy has other sections and may stand alone)."""
     from twinreg.io.ply import write_ply
-    from twinreg.parametric import LIBRARY, car_mesh
-    from twinreg.simulate import car_park
+    from twinreg.sim.parametric import LIBRARY, car_mesh
+    from twinreg.sim.scan import car_park
 
     specs = [LIBRARY[0], LIBRARY[2], LIBRARY[5]]  # supermini, sedan, van
     models = [car_mesh(s) for s in specs]

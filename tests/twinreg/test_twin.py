@@ -2,8 +2,8 @@
 
 import io
 import json
-import zipfile
 import xml.etree.ElementTree as ET
+import zipfile
 
 import numpy as np
 import pytest
@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from tests.conftest import catalogue_models
 from twinreg.cli import app
 from twinreg.io.ply import write_ply
-from twinreg.simulate import car_park
+from twinreg.sim.scan import car_park
 
 KML = "{http://www.opengis.net/kml/2.2}"
 DUBLIN = ("--lat", "53.351160", "--lon", "-6.261601")
@@ -127,7 +127,7 @@ def test_kmz_reads_back(park, twin):
 
 def test_car_facing_east_has_heading_90(catalogue16, tmp_path):
     """One car, front towards +X (east): KML heading 90; the same car facing north: heading 0."""
-    from twinreg.simulate import pose_matrix, scan_meshes, transform, _ground_mesh
+    from twinreg.sim.scan import _ground_mesh, pose_matrix, scan_meshes, transform
 
     v, f, g = catalogue_models(catalogue16, ["generic_sedan_chrono"])[0]
     for scene_heading, expect in ((0.0, 90.0), (np.pi / 2, 0.0)):
@@ -199,7 +199,7 @@ def test_bad_inputs_leave_nothing_half_written(tmp_path, park, catalogue16):
 
 
 def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_path, monkeypatch):
-    from twinreg.georef import georef_from_options
+    from twinreg.geo.georef import georef_from_options
     from twinreg.pipeline import build_twin
 
     monkeypatch.setenv("TWINREG_NO_HELPER", "1")
@@ -217,7 +217,7 @@ def hang_in_helper(*args):
     import os
     import time
 
-    from twinreg.export import report
+    from twinreg.report import scene as report
 
     if os.getpid() != MAIN_PID:
         time.sleep(3600)
@@ -237,7 +237,7 @@ def _children(ignore=()):
 def test_a_stuck_helper_does_not_hang_build_twin(park, catalogue16, tmp_path, monkeypatch):
     from twinreg import pipeline
     from twinreg.errors import ExportError
-    from twinreg.georef import georef_from_options
+    from twinreg.geo.georef import georef_from_options
 
     monkeypatch.setattr(pipeline, "write_report", hang_in_helper)
     monkeypatch.setattr(pipeline, "HELPER_TIMEOUT_S", 3.0)

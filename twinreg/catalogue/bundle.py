@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BundleError, CatalogueError, ExportError
-from ..outdir import atomic_path
+from ..io.outdir import atomic_path
 from .db import DB_NAME, make_engine, upgrade, writer_lock
 from .names import is_sha256, name_problem, printable
 from .prepare import file_sha256

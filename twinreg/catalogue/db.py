@@ -19,8 +19,14 @@ BUSY_TIMEOUT_S = 60
 
 
 def migrations_dir() -> Path:
-    """The alembic script folder, shipped inside the package (``twinreg/catalogue/migrations``)."""
-    here = Path(__file__).resolve().parent / "migrations"
+    """The alembic script folder: the package ``twinreg.migrations`` (the repository's top-level ``migrations/``,
+    mapped into the package by pyproject.toml, installed or editable)."""
+    from importlib.resources import files
+
+    try:
+        here = Path(str(files("twinreg.migrations")))
+    except ModuleNotFoundError:
+        here = Path("__missing__")
     if not (here / "env.py").is_file():
         raise CatalogueError(f"{here}: the catalogue migrations are missing; reinstall twinreg")
     return here

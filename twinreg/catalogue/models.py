@@ -6,7 +6,7 @@ import json
 from datetime import datetime, timezone
 
 import numpy as np
-from sqlalchemy import (Boolean, DateTime, Float, Index, Integer, LargeBinary, MetaData, String, Text)
+from sqlalchemy import Boolean, DateTime, Float, Index, Integer, LargeBinary, MetaData, String, Text
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 NAMING = {

@@ -27,7 +27,7 @@ import cosco
 from cosco.taxonomy import descriptor
 
 from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, require_positive
-from ..outdir import atomic_path
+from ..io.outdir import atomic_path
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
 from .names import check_name, is_sha256, parse_ref, printable, safe_auto_name

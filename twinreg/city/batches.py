@@ -64,7 +64,7 @@ def _models(folder: str, params: CoscoParams):
     from pathlib import Path
 
     from ..catalogue.repository import Catalogue
-    from ..matching import ModelCache
+    from ..matching.match import ModelCache
 
     db = Path(folder) / "catalogue.sqlite"
     key = (folder, db.stat().st_mtime_ns if db.exists() else 0, repr(params))
@@ -76,8 +76,8 @@ def _models(folder: str, params: CoscoParams):
 
 
 def match_batch(batch: MatchBatch):
-    """``(outcomes, stats)`` of :func:`~twinreg.matching.match_objects` on the batch."""
-    from ..matching import match_objects
+    """``(outcomes, stats)`` of :func:`~twinreg.matching.match.match_objects` on the batch."""
+    from ..matching.match import match_objects
 
     cat, cache = _models(batch.folder, batch.params)
     return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params, clouds=batch.clouds,

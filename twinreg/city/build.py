@@ -16,21 +16,17 @@ import numpy as np
 
 from cosco.params import DEFAULT, CoscoParams
 
-from ..errors import CatalogueError, ParameterError, SceneReadError, TwinregError
+from ..errors import CatalogueError, CityError, ParameterError, SceneReadError
 from .cells import CellJob, process_cell
 from .engine import Engine
 from .grid import Grid, cell_size_for
 from .resume import CellStore, cell_key
 from .sources import Source, open_sources, split_key, split_tile
 
-
 #: a plain LAS/LAZ tile read by more cells than this is split once into them (else each cell reads it by chunks:
 #: measured on 250 m LAZ tiles of 9.4M points, a cell's full read of a tile costs about half of splitting it once)
 SPLIT_MIN_READERS = 2
 
-
-class CityError(TwinregError):
-    """Cells of a tiled run failed twice."""
 
 
 @dataclass(frozen=True)
@@ -128,19 +124,19 @@ def _say(progress, stage, done=0, total=0):
 
 def city_georef(georef, sources: list[Source]):
     """The georeference of a tiled run: the options' when given, else the CRS the headers state."""
-    from ..georef import CrsInfo, Georef, GeorefError
+    from ..geo.georef import CrsInfo, Georef, GeorefError
 
     s = sources[0]
     if georef is not None:
         if georef.crs and georef.crs_source == "--crs":
-            from ..georef import crs_info
+            from ..geo.georef import crs_info
 
             return georef.with_crs(crs_info(georef.crs, "--crs", where=f"--crs {georef.crs}"))
         return georef
     if s.crs is None:
         raise GeorefError(f"{s.path}: the tiles state no CRS; georeference them with --crs EPSG:NNNN (their "
                           "projected CRS) or --lat/--lon (the WGS84 position of their origin)")
-    from ..georef import crs_info
+    from ..geo.georef import crs_info
 
     info = crs_info(s.crs, "file header", where=s.path)
     return Georef(None, None, 0.0, (0.0, 0.0), None).with_crs(CrsInfo(info.crs, info.name, s.scale, s.z_scale,
@@ -163,7 +159,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances."""
     import twinreg
 
-    from ..outdir import check_replaceable, claim
+    from ..io.outdir import check_replaceable, claim
     from ..pipeline import _checked_params
 
     t_start = time.perf_counter()

@@ -18,7 +18,8 @@ import numpy as np
 from cosco.sections import Frame, ObjectShape, Sections, Size
 from cosco.symmetry import Symmetry
 
-from ..outdir import atomic_path
+from ..errors import CellFileError
+from ..io.outdir import atomic_path
 from .cells import CellObject, CellResult
 
 #: the classes a cell file may hold, by the name it gives them
@@ -27,9 +28,6 @@ CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry
 MAX_BYTES = 4 * 1024 ** 3
 FORMAT = "twinreg-cell/1"
 
-
-class CellFileError(ValueError):
-    """A cell file that is not one this program wrote (it is ignored and the cell computed again)."""
 
 
 def _encode(obj, arrays: dict):

@@ -110,10 +110,10 @@ def _process_cell(job: CellJob) -> CellResult:
     from cosco.footprint import min_area_rectangle
     from cosco.segment import point_spacing
 
-    from ..acceptance import sample_cloud, scene_noise
     from ..detect import describe_detected, detect_points, object_ground, object_points
     from ..export.tiles3d import scan_sample
     from ..io.points import PointSet
+    from ..matching.acceptance import sample_cloud, scene_noise
 
     cell, params = job.cell, job.params
     out = CellResult(cell.name, job.key, cell.lo, cell.hi)

@@ -17,14 +17,11 @@ import logging
 import os
 from dataclasses import dataclass
 
-from ..errors import TwinregError
+from ..errors import EngineError
 
 #: memory limit of an embedded worker (bytes); Dask pauses it at 80 % and restarts it at 95 %
 WORKER_MEMORY = 4 * 1024 ** 3
 
-
-class EngineError(TwinregError):
-    """The Dask cluster could not be started or reached."""
 
 
 @dataclass

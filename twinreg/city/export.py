@@ -16,7 +16,7 @@ from ..export.formats import write_formats
 from ..export.kmz import write_kmz
 from ..export.objects import object_output, pose
 from ..export.twin_ply import write_twin_ply
-from ..outdir import staged_folder
+from ..io.outdir import staged_folder
 from .resume import WORK
 
 
@@ -31,7 +31,7 @@ def _cell_bounds(georef, cell) -> dict:
 def export_city(out, protect, store, keys, sources, plan, georef, results, objects, tax, outcomes, stats, models,
                 catalogue, params, ply, timing, t_start, progress, reused: int = 0) -> dict:
     from ..pipeline import taxonomy_json
-    from .report import write_city_report
+    from ..report.city import write_city_report
 
     out = Path(out)
     docs, kmz_objects, meshes, per_cell_ply, outs = [], [], {}, {}, []

@@ -12,7 +12,7 @@ from .batches import compare_pairs, leader_indices, match_batch, match_batches, 
 
 def classify_and_match(eng, results, objects, catalogue, params, progress, timing):
     """(taxonomy, outcomes in object order, matching statistics, the client's ModelCache)."""
-    from ..matching import ModelCache
+    from ..matching.match import ModelCache
     from ..pipeline import classify
 
     shapes = [o.shape for o in objects]
@@ -52,7 +52,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     first = leader_indices(tax.labels)
     rest = np.setdiff1d(np.arange(len(objects)), first)
     phases = [(first, None), (rest, leaders)]
-    from .engine import EngineError
+    from ..errors import EngineError
 
     for indices, known in phases:
         if not len(indices):

@@ -27,8 +27,8 @@ def simulate_city_cmd(
 ):
     """A tiled city of LAZ files (CRS in their headers) and truth.json: streets of parked cars (the catalogue's
     models, or parametric cars when it is empty), walls, trees, poles, sloping ground."""
-    from ..city.simulate import city_models, simulate_city
-    from ..outdir import staged_folder
+    from ..io.outdir import staged_folder
+    from ..sim.city import city_models, simulate_city
 
     models, names, source = city_models(library)
     if source != "catalogue":

@@ -74,9 +74,9 @@ def coverage(
     catalogue is missing."""
     import numpy as np
 
-    from ..coverage import coverage as cover
-    from ..coverage import plot as draw
-    from ..coverage import read_objects
+    from ..catalogue.coverage import coverage as cover
+    from ..catalogue.coverage import plot as draw
+    from ..catalogue.coverage import read_objects
 
     objects = read_objects(twins)
     rows = Catalogue(library_path(library), create=False).list()
@@ -108,8 +108,8 @@ def library_report(
 ):
     """A gallery of the models, their taxonomy and near-duplicates, and which of them a scan of the given density
     confuses (library.html, library.json)."""
+    from ..catalogue.library_report import report
     from ..errors import require_positive
-    from ..library_report import report
 
     require_positive("--density", density)
     if scans < 1 or workers < 1:

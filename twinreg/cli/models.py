@@ -191,7 +191,7 @@ def show_model(
     row = cat.get(ref)
     doc = row.to_dict()
     if plot is not None:
-        from ..plots import plot_model
+        from ..report.plots import plot_model
 
         plot_model(cat.geometry(row), row.to_dict(), plot)
         doc["plot"] = str(plot)

@@ -31,7 +31,7 @@ def inspect(
     shape, points = inspect_file(obj, unit=unit)
     doc = shape_json(shape)
     if plot is not None:
-        from ..plots import plot_sections
+        from ..report.plots import plot_sections
 
         plot_sections(shape.sections, f"{obj.name}: {shape.size.length:.2f} x {shape.size.width:.2f} x "
                       f"{shape.size.height:.2f} m", plot, points=shape.frame.to_local(points))
@@ -78,7 +78,7 @@ def cluster_cmd(
            "n_clusters": result.n_clusters, "threshold_m": threshold,
            "dissimilarity": [[round(float(v), 5) for v in row] for row in matrix]}
     if plot is not None:
-        from ..plots import plot_dendrogram, plot_heatmap
+        from ..report.plots import plot_dendrogram, plot_heatmap
 
         doc["plots"] = [str(plot_heatmap(matrix, objs.names, plot / "heatmap.png")),
                         str(plot_dendrogram(result.linkage, objs.names, threshold, plot / "dendrogram.png"))]

@@ -10,7 +10,7 @@ import typer
 from cosco.params import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
-from ..outdir import check_replaceable
+from ..io.outdir import check_replaceable
 from ._common import CityProgress, JsonOpt, LibraryOpt, err_console, handled, info, print_json
 
 app = typer.Typer()
@@ -96,7 +96,7 @@ def build_twin_cmd(
     from ..catalogue.db import library_path
     from ..catalogue.repository import Catalogue
     from ..city.build import build_city_twin, is_tiled
-    from ..georef import georef_from_options
+    from ..geo.georef import georef_from_options
     from ..pipeline import build_twin
 
     georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False)
@@ -144,7 +144,7 @@ def demo(
     """Build a demo library and a simulated airborne scan, run build-twin on them, print what came out."""
     from rich.table import Table
 
-    from ..demo import run_demo
+    from ..sim.demo import run_demo
     from ._common import out_console
 
     with err_console.status("demo") as status:

@@ -18,7 +18,7 @@ def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: lis
     """``outputs``: the objects' :class:`~twinreg.export.objects.ObjectOutput`; ``offsets``: (3,) each, from
     its local frame to the scene frame; ``groups``: (tile name, indices into outputs); ``scans``: (tile name,
     (n, 3) scene points, (n, 3) uint8 colours), or None; ``models``: the matcher's
-    :class:`~twinreg.matching.ModelCache` (the tiles' lighter meshes). Returns the tiles' summary."""
+    :class:`~twinreg.matching.match.ModelCache` (the tiles' lighter meshes). Returns the tiles' summary."""
     stage = Path(stage)
     instances = [instance_of(o, np.asarray(off)) for o, off in zip(outputs, offsets)]
     meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}

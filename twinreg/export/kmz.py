@@ -10,7 +10,7 @@ from xml.sax.saxutils import escape as _escape
 
 import numpy as np
 
-from ..outdir import atomic_path
+from ..io.outdir import atomic_path
 from .collada import decimate, write_collada
 
 # COLLADA files are authored with the car's front along +Y (north), so a KML heading is the front's bearing

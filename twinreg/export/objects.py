@@ -72,10 +72,10 @@ def trust_text(match_doc: dict) -> str:
 
 def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, georef, models,
                   where=None) -> ObjectOutput:
-    """The exports of one matched (or unmatched) object. ``res``: its :class:`~twinreg.matching.ObjectMatch`;
+    """The exports of one matched (or unmatched) object. ``res``: its :class:`~twinreg.matching.match.ObjectMatch`;
     ``offset``: (3,) added to the object's local frame gives the scene frame; ``models``: the matcher's
-    :class:`~twinreg.matching.ModelCache` (rows, twin meshes and sections read once per model). ``where``:
-    ``(lon, lat, bearing)`` computed for many objects at once (:meth:`~twinreg.georef.Georef.placements`), or
+    :class:`~twinreg.matching.match.ModelCache` (rows, twin meshes and sections read once per model). ``where``:
+    ``(lon, lat, bearing)`` computed for many objects at once (:meth:`~twinreg.geo.georef.Georef.placements`), or
     None to compute them here."""
     shape, m = res.shape, res.match
     rgb = cluster_color(label)

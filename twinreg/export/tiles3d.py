@@ -1,6 +1,6 @@
 """The twin as OGC 3D Tiles 1.1 (``tiles/tileset.json``) and as one glTF (``twin.glb``).
 
-- The root tile's ``transform`` takes the twin's east-north-up frame (:class:`~twinreg.export.earth.EnuFrame`,
+- The root tile's ``transform`` takes the twin's east-north-up frame (:class:`~twinreg.geo.earth.EnuFrame`,
   about the objects' centre) to ECEF; ``refine: ADD``.
 - One child per processing cell (one for a scene), placed by a translation to its centre, with a box bounding
   volume and a GLB: every catalogue model the cell uses is one mesh on one node drawn with
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .earth import EnuFrame, enu_angles
+from ..geo.earth import EnuFrame, enu_angles
 from .gltf import Glb
 from .kmz import box_mesh
 

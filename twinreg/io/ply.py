@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..outdir import atomic_path
+from .outdir import atomic_path
 
 
 def write_ply(path, vertices, faces=None, colors=None, comments=()) -> Path:

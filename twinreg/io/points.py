@@ -193,7 +193,7 @@ def _read_o3d(path: Path) -> np.ndarray:
 
 def _crs_and_units(path: Path, unit: str, crs, header_crs, header_error):
     """(CrsInfo or None, unit name, horizontal scale, vertical scale) for a file, or SceneReadError."""
-    from ..georef import crs_info
+    from ..geo.georef import crs_info
 
     info = None
     if crs:

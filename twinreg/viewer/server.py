@@ -20,7 +20,7 @@ from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
-from ..errors import TwinregError
+from ..errors import ViewerError
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: seconds an idle connection is kept open
@@ -28,9 +28,6 @@ IDLE_TIMEOUT_S = 15
 #: the Host names a request may use
 LOCAL_HOSTS = ("127.0.0.1", "localhost")
 
-
-class ViewerError(TwinregError):
-    """The twin folder or the viewer's JavaScript is missing."""
 
 
 def content_policy() -> str:

@@ -23,7 +23,7 @@ BIN = Path(sys.executable).parent
 @pytest.fixture(scope="session")
 def small_city(tmp_path_factory, parametric_catalogue):
     """2 x 2 tiles of 40 m (about 1M points, 67 parked cars of the 8 parametric models), LAZ and COPC."""
-    from twinreg.city.simulate import simulate_city
+    from twinreg.sim.city import simulate_city
 
     cat = parametric_catalogue
     rows = sorted(cat.list(), key=lambda r: r.name)
@@ -46,7 +46,7 @@ def city_twin(small_city, parametric_catalogue):
 def _merged(folder: Path, dst: Path) -> Path:
     import laspy
 
-    from twinreg.city.simulate import write_laz
+    from twinreg.sim.city import write_laz
 
     pts = []
     for f in sorted(folder.glob("*.laz")):
@@ -237,7 +237,7 @@ def test_the_citys_formats_have_a_tile_per_cell_and_its_crs(small_city, city_twi
     object once; CityJSON in the tiles' CRS (EPSG:28992) valid against the schema; GLBs valid."""
     import jsonschema
 
-    from tests.twinreg.test_formats import ROOT, _instances, _node
+    from tests.twinreg.export.test_formats import ROOT, _instances, _node
 
     root, _ = small_city
     out = root / "out"

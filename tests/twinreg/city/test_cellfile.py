@@ -11,9 +11,10 @@ import numpy as np
 
 from cosco import describe_object
 from tests.conftest import toy_car
-from twinreg.city.cellfile import CellFileError, load, save
+from twinreg.city.cellfile import load, save
 from twinreg.city.cells import CellObject, CellResult
 from twinreg.city.resume import CellStore
+from twinreg.errors import CellFileError
 
 
 def _result() -> CellResult:

@@ -41,9 +41,9 @@ def test_simulate_city_writes_tiles_with_a_crs_and_the_truth(tmp_path, parametri
 
 
 def test_bad_tiling_options_are_refused_with_one_line(tmp_path, parametric_catalogue):
-    from tests.conftest import write_las
-
     import numpy as np
+
+    from tests.conftest import write_las
 
     tiles = tmp_path / "tiles"
     tiles.mkdir()
@@ -58,9 +58,9 @@ def test_bad_tiling_options_are_refused_with_one_line(tmp_path, parametric_catal
 
 
 def test_an_unreachable_scheduler_is_one_line(tmp_path, parametric_catalogue):
-    from tests.conftest import write_las
-
     import numpy as np
+
+    from tests.conftest import write_las
 
     tiles = tmp_path / "tiles"
     tiles.mkdir()

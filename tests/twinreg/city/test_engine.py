@@ -48,9 +48,9 @@ def test_embedded_workers_start_with_the_allocator_settings():
 
 def test_a_broken_tile_fails_its_cells_only_and_a_rerun_resumes(tmp_path, parametric_catalogue):
     from tests.twinreg.city.test_build import CELL
-    from twinreg.city.build import CityError, build_city_twin
-    from twinreg.city.simulate import simulate_city
-    from twinreg.errors import SceneReadError
+    from twinreg.city.build import build_city_twin
+    from twinreg.errors import CityError, SceneReadError
+    from twinreg.sim.city import simulate_city
 
     cat = parametric_catalogue
     rows = sorted(cat.list(), key=lambda r: r.name)

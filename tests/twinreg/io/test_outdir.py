@@ -1,0 +1,139 @@
+"""Output folders: a user's files are never deleted, inputs and the catalogue are never inside OUT, and a run killed
+between the two renames of the swap loses nothing (the next run finishes it)."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from twinreg.cli import app
+from twinreg.errors import ExportError
+from twinreg.io.outdir import MARKER, recover, staged_folder
+from twinreg.io.ply import write_ply
+
+runner = CliRunner()
+
+
+def listing(folder):
+    return sorted((str(p.relative_to(folder)), p.read_bytes()) for p in folder.rglob("*") if p.is_file())
+
+
+@pytest.fixture
+def scans(tmp_path):
+    """A folder of a user's scans: a small scene and other files."""
+    from twinreg.sim.parametric import LIBRARY, car_mesh
+    from twinreg.sim.scan import car_park
+
+    folder = tmp_path / "scans"
+    folder.mkdir()
+    park = car_park([car_mesh(LIBRARY[2])], n_cars=2, seed=1, distractors=False)
+    write_ply(folder / "park.ply", park.points)
+    (folder / "notes.txt").write_text("field notes")
+    return folder
+
+
+def test_detect_into_the_scans_own_folder_is_refused(scans):
+    before = listing(scans)
+    res = runner.invoke(app, ["detect", str(scans / "park.ply"), "--out", str(scans)])
+    assert res.exit_code == 1 and res.output.startswith("error:") and "park.ply" in res.output
+    assert "\n" not in res.output.strip()
+    assert listing(scans) == before
+
+
+def test_build_twin_into_the_current_folder_is_refused(scans, monkeypatch, tmp_path):
+    lib = scans / "lib"
+    lib.mkdir()
+    monkeypatch.chdir(scans)
+    before = listing(scans)
+    res = runner.invoke(app, ["build-twin", "park.ply", "--lat", "53.35", "--lon", "-6.26", "--library", "lib",
+                              "--out", "."])
+    assert res.exit_code == 1 and "error:" in res.output and "choose another --out" in res.output
+    assert listing(scans) == before
+    # an output folder inside which the catalogue lies is refused even when it is twinreg's own
+    out = tmp_path / "twin"
+    with staged_folder(out) as stage:
+        (stage / "twin.json").write_text("{}")
+    with pytest.raises(ExportError, match="which this run reads"):
+        with staged_folder(out, protect=[out / "twin.json"]):
+            pass
+
+
+def test_only_a_folder_twinreg_wrote_is_replaced(tmp_path):
+    out = tmp_path / "out"
+    with staged_folder(out) as stage:
+        (stage / "a.txt").write_text("first")
+        (stage / "sub").mkdir()
+        (stage / "sub" / "b.txt").write_text("first")
+    assert json.loads((out / MARKER).read_text())["files"] == ["a.txt", "sub/b.txt"]
+    with staged_folder(out) as stage:
+        (stage / "a.txt").write_text("second")
+    assert (out / "a.txt").read_text() == "second" and not (out / "sub").exists()
+    (out / "mine.txt").write_text("the user's")
+    with pytest.raises(ExportError, match="mine.txt"):
+        with staged_folder(out):
+            pass
+    assert (out / "mine.txt").read_text() == "the user's"
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "thesis.pdf").write_text("years of work")
+    with pytest.raises(ExportError, match="did not write"):
+        with staged_folder(foreign):
+            pass
+    assert listing(foreign) == [("thesis.pdf", b"years of work")]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with staged_folder(empty) as stage:
+        (stage / "x.txt").write_text("x")
+        (stage / ".tmp-abc.png").write_text("a killed helper's half picture")
+    assert sorted(p.name for p in empty.iterdir()) == sorted([MARKER, "x.txt"])  # no temporary file published
+
+
+CRASH = """
+import os, sys
+from pathlib import Path
+from twinreg.io import outdir
+real = os.replace
+calls = []
+def replace(a, b):
+    real(a, b)
+    calls.append(b)
+    if Path(b).name.startswith(".out.old-"):
+        os._exit(9)  # killed between the two renames of the swap
+outdir.os.replace = replace
+with outdir.staged_folder(Path(sys.argv[1])) as stage:
+    (stage / "twin.json").write_text("new")
+"""
+
+
+def test_a_run_killed_between_the_renames_is_finished_by_the_next(tmp_path):
+    out = tmp_path / "out"
+    with staged_folder(out) as stage:
+        (stage / "twin.json").write_text("old")
+    proc = subprocess.run([sys.executable, "-c", CRASH, str(out)], capture_output=True, text=True)
+    assert proc.returncode == 9, proc.stderr
+    assert not out.exists()  # the crash left OUT missing, with the journal beside it
+    assert (tmp_path / ".out.swap").exists()
+    assert recover(out) == "finished"
+    assert (out / "twin.json").read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    # and the next run through staged_folder does the same by itself
+    proc = subprocess.run([sys.executable, "-c", CRASH, str(out)], capture_output=True, text=True)
+    assert proc.returncode == 9 and not out.exists()
+    with staged_folder(out) as stage:
+        (stage / "twin.json").write_text("third")
+    assert (out / "twin.json").read_text() == "third"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_failed_run_leaves_the_old_folder(tmp_path):
+    out = tmp_path / "out"
+    with staged_folder(out) as stage:
+        (stage / "twin.json").write_text("old")
+    with pytest.raises(RuntimeError):
+        with staged_folder(out) as stage:
+            (stage / "twin.json").write_text("half")
+            raise RuntimeError("export failed")
+    assert (out / "twin.json").read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]

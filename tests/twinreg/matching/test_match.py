@@ -1,0 +1,36 @@
+"""Matching as a whole (twinreg/matching/match.py): each object gets its own model, the members of a cluster try
+fewer models than its leader, and without clouds the lowest section RMSE wins unverified."""
+
+import numpy as np
+
+from tests.conftest import catalogue_models
+
+
+def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_catalogue):
+    from twinreg.detect import describe_detected, detect_points, object_points
+    from twinreg.io.points import PointSet
+    from twinreg.matching import match_objects
+    from twinreg.matching.acceptance import scene_noise
+    from twinreg.sim.scan import _ground_mesh, ground_height, pose_matrix, scan_meshes, transform
+
+    names = ["demo_sedan", "demo_sedan", "demo_suv"]
+    meshes, xs = [], [0.0, 6.0, 12.0]
+    for x, (v, f, g) in zip(xs, catalogue_models(parametric_catalogue, names)):
+        meshes.append((transform(v, pose_matrix(x, 0.0, 0.3, float(ground_height(x, 0.0)))), f, g))
+    meshes.append(_ground_mesh(-5, 17, -6, 6))
+    scan = scan_meshes(meshes, seed=3)
+    det = detect_points(PointSet(path=None, points=scan.points, offset=np.zeros(3), unit="m"))
+    shapes = describe_detected(det)
+    order = np.argsort([s.centroid[0] for s in shapes])
+    shapes = [shapes[k] for k in order]
+    clouds = [object_points(det, det.objects[k]) for k in order]
+    noise = scene_noise(det.hag, det.is_ground)
+    labels = np.array([0, 0, 1])
+    results, stats = match_objects(shapes, parametric_catalogue, labels=labels, clouds=clouds, noise=noise)
+    assert [r.match.name for r in results] == names
+    assert all(r.match.verdict.accepted and r.match.confidence > 0.5 for r in results)
+    assert stats["n_trials"] < sum(len(r.candidates) for r in results) + stats["n_trials_saved_by_clusters"] + 1
+    assert stats["leaders"][0][0][0] == results[0].match.model_id
+    assert len(results[1].candidates) <= len(results[0].candidates)
+    unverified, _ = match_objects(shapes, parametric_catalogue)
+    assert [r.match.name for r in unverified] == names and all(r.match.verdict is None for r in unverified)

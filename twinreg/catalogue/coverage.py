@@ -1,0 +1,102 @@
+"""What the catalogue lacks, read from real twins: ``twinreg coverage OUT/twin.json ...``.
+
+The objects of the twins that got no model, or one outside the size window, are grouped by their measured size
+(cells of ``LENGTH_BIN`` x ``WIDTH_BIN`` metres); each group is reported with its size range and the catalogue model
+nearest to it, and a group with no model within the paper's 0.2 m is a size the catalogue is missing.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneReadError
+
+LENGTH_BIN = 0.5
+WIDTH_BIN = 0.3
+TOL = 0.2
+
+
+def read_objects(paths) -> list[dict]:
+    """Every object of the twin.json files (each with its ``twin`` path)."""
+    out = []
+    for p in paths:
+        p = Path(p)
+        try:
+            doc = json.loads(p.read_text(encoding="utf-8"))
+            objs = doc["objects"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise SceneReadError(f"{p}: not a twin.json written by build-twin ({exc}); give OUT/twin.json") from exc
+        out += [o | {"twin": str(p)} for o in objs]
+    return out
+
+
+def coverage(objects: list[dict], models: np.ndarray, names: list[str]) -> dict:
+    """Groups of the objects with no model (or one outside the window) by measured size, each with the nearest
+    catalogue model. ``models``: (m, 3) L, W, H of the catalogue's models, ``names`` theirs."""
+    lacking = [o for o in objects if not o.get("match") or o["match"].get("outside_tolerance")]
+    sizes = np.array([[o["measured_size"]["length"], o["measured_size"]["width"], o["measured_size"]["height"]]
+                      for o in lacking]).reshape(-1, 3)
+    groups = {}
+    for o, s in zip(lacking, sizes):
+        groups.setdefault((int(s[0] // LENGTH_BIN), int(s[1] // WIDTH_BIN)), []).append((o, s))
+    out = []
+    for _, members in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0])):
+        s = np.array([m[1] for m in members])
+        lo, hi = s.min(0), s.max(0)
+        centre = (lo + hi) / 2
+        g = {"n_objects": len(members), "length_m": [round(lo[0], 2), round(hi[0], 2)],
+             "width_m": [round(lo[1], 2), round(hi[1], 2)], "height_m": [round(lo[2], 2), round(hi[2], 2)],
+             "n_no_model": sum(1 for m in members if not m[0].get("match")), "objects": [m[0]["id"] for m in members]}
+        if len(models):
+            # how far each model's size lies outside the group's range (0 inside), in metres summed
+            gap = np.maximum(np.maximum(lo - TOL - models, models - hi - TOL), 0).sum(1)
+            k = int(np.argmin(np.abs(models - centre).sum(1)))
+            g["nearest_model"] = {"name": names[k], "size_gap_m": [round(v, 2) for v in models[k] - centre]}
+            g["models_within_tol"] = int((gap == 0).sum())
+        g["text"] = _text(g)
+        out.append(g)
+    return {"n_objects": len(objects), "n_lacking": len(lacking), "groups": out}
+
+
+def _text(g: dict) -> str:
+    """One line for a group, e.g. "14 objects 3.2-3.6 m long, 1.5-1.7 m wide: no model within 0.2 m"."""
+    what = (f"{g['n_objects']} object{'s' if g['n_objects'] != 1 else ''} {g['length_m'][0]:.1f}-{g['length_m'][1]:.1f}"
+            f" m long, {g['width_m'][0]:.1f}-{g['width_m'][1]:.1f} m wide")
+    if g.get("models_within_tol") == 0:
+        near = g["nearest_model"]
+        gap = near["size_gap_m"]
+        return (f"{what}: no model within {TOL} m (nearest: {near['name']}, {gap[0]:+.2f} m in length, "
+                f"{gap[1]:+.2f} m in width, {gap[2]:+.2f} m in height)")
+    if "models_within_tol" in g:
+        return f"{what}: {g['models_within_tol']} model(s) near in size, none accepted on its fit"
+    return what
+
+
+def plot(objects: list[dict], models: np.ndarray, names: list[str], path) -> Path:
+    """Object sizes (length x width; got a model or not) over the catalogue's models."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.6))
+    lw = np.array([[o["measured_size"]["length"], o["measured_size"]["width"]] for o in objects]).reshape(-1, 2)
+    ok = np.array([bool(o.get("match")) and not o["match"].get("outside_tolerance") for o in objects], dtype=bool)
+    for mask, colour, label in ((ok, "#2a7", "given a model"), (~ok, "#d33", "no model / outside the window")):
+        ax.scatter(lw[mask, 0], lw[mask, 1], s=10, c=colour, alpha=0.6, label=f"{label} ({int(mask.sum())})")
+    if len(models):
+        for (length, width, _), name in zip(models, names):
+            ax.add_patch(plt.Rectangle((length - TOL, width - TOL), 2 * TOL, 2 * TOL, fill=False, ec="#36c", lw=0.6))
+            ax.annotate(name, (length, width), fontsize=6, color="#36c", ha="center")
+        ax.scatter(models[:, 0], models[:, 1], marker="s", s=18, c="#36c", label="catalogue models (+-0.2 m)")
+    ax.set_xlabel("length (m)")
+    ax.set_ylabel("width (m)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,200 @@
+"""Georeferencing scene coordinates with pyproj.
+
+Two ways, as in the contract:
+
+- ``--lat/--lon [--alt] [--anchor X Y]``: the scene is a local east/north/up tangent plane whose point (X, Y, 0)
+  sits at (lat, lon, alt) on the WGS84 ellipsoid. Scene points go east/north/up -> ECEF -> geodetic, exactly.
+- ``--crs EPSG:NNNN`` (or the CRS a LAS/LAZ header states): the file's coordinates are in that projected CRS;
+  every point is converted by pyproj. The scene frame is metric (file coordinates times the CRS's unit, e.g.
+  0.3048 for international feet, 1200/3937 for US survey feet), so positions are divided by that unit again
+  before pyproj sees them: pyproj always gets the CRS's own units.
+
+Headings: a scene direction (rad, counter-clockwise from +X) becomes a bearing (degrees clockwise from true north)
+by converting the point and a point one metre ahead and taking the geodesic azimuth between them, so grid
+convergence is accounted for.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import GeorefError
+
+
+@dataclass(frozen=True)
+class CrsInfo:
+    """A projected CRS as the scene uses it: ``crs`` (an authority code when PROJ knows one, else WKT),
+    metres per horizontal and per vertical unit (the vertical one from a compound CRS's vertical part, else equal
+    to the horizontal one), and where it came from."""
+
+    crs: str
+    name: str
+    unit_m: float
+    vertical_unit_m: float
+    source: str
+
+
+def crs_info(user_input, source: str, where: str = "--crs", error=GeorefError) -> CrsInfo:
+    """Parse a CRS and read its units; a geographic, geocentric or unparseable CRS raises ``error`` with one line
+    naming ``where`` and the fix.
+
+    >>> c = crs_info("EPSG:2994", "--crs")
+    >>> c.crs, c.unit_m, c.vertical_unit_m
+    ('EPSG:2994', 0.3048, 0.3048)
+    >>> round(crs_info("EPSG:2994+6360", "--crs").vertical_unit_m, 9)
+    0.30480061
+    """
+    from pyproj import CRS
+    from pyproj.exceptions import CRSError
+
+    try:
+        c = CRS.from_user_input(user_input)
+    except CRSError as exc:
+        raise error(f"{where}: the CRS cannot be parsed ({str(exc).splitlines()[0]}); pass --crs EPSG:NNNN (and "
+                    "--unit if the coordinates are not in its unit)") from exc
+    if c.is_geographic or c.is_geocentric or not c.is_projected:
+        raise error(f"{where}: the CRS {c.name} is not projected (its coordinates are degrees or geocentric); "
+                    "reproject the scan to a projected CRS in metres or feet (e.g. UTM) first, or georeference "
+                    "local coordinates with --lat/--lon")
+    horizontal = c.sub_crs_list[0] if c.is_compound else c
+    vertical = c.sub_crs_list[1] if c.is_compound and len(c.sub_crs_list) > 1 else None
+    unit = float(horizontal.axis_info[0].unit_conversion_factor)
+    v_unit = float(vertical.axis_info[0].unit_conversion_factor) if vertical is not None and vertical.axis_info \
+        else unit
+    auth = c.to_authority(min_confidence=90)
+    code = f"{auth[0]}:{auth[1]}" if auth else c.to_wkt()
+    return CrsInfo(code, c.name, unit, v_unit, source)
+
+
+@functools.lru_cache(maxsize=16)
+def transformer(source: str, target: str):
+    """A pyproj Transformer (always x/y order), made once per pair of CRSs: making one costs milliseconds, which
+    a city of thousands of objects would pay for each."""
+    from pyproj import Transformer
+
+    return Transformer.from_crs(source, target, always_xy=True)
+
+
+@dataclass
+class Georef:
+    """Scene -> WGS84. Build with :func:`georef_from_options`, then :func:`scene_georef` once the scene is read.
+
+    ``crs_unit_m`` / ``vertical_unit_m``: metres per CRS unit (scene coordinates are metric; pyproj gets scene
+    coordinates divided by these)."""
+
+    lat: float | None
+    lon: float | None
+    alt: float
+    anchor: tuple[float, float]
+    crs: str | None
+    crs_unit_m: float = 1.0
+    vertical_unit_m: float = 1.0
+    crs_name: str | None = None
+    crs_source: str | None = None
+
+    def to_json(self) -> dict:
+        doc = {"lat": self.lat, "lon": self.lon, "alt": self.alt, "anchor": [float(a) for a in self.anchor],
+               "crs": self.crs}
+        if self.crs:
+            doc.update(crs_name=self.crs_name, crs_source=self.crs_source, crs_unit_m=self.crs_unit_m,
+                       vertical_unit_m=self.vertical_unit_m)
+        return doc
+
+    def with_crs(self, info: CrsInfo) -> "Georef":
+        return Georef(None, None, self.alt, (0.0, 0.0), info.crs, info.unit_m, info.vertical_unit_m, info.name,
+                      info.source)
+
+    def _ltp(self):
+        to_ecef = transformer("EPSG:4979", "EPSG:4978")
+        to_geo = transformer("EPSG:4978", "EPSG:4979")
+        x0, y0, z0 = to_ecef.transform(self.lon, self.lat, self.alt)
+        la, lo = np.radians(self.lat), np.radians(self.lon)
+        # columns: east, north, up unit vectors in ECEF
+        enu = np.array([[-np.sin(lo), -np.sin(la) * np.cos(lo), np.cos(la) * np.cos(lo)],
+                        [np.cos(lo), -np.sin(la) * np.sin(lo), np.cos(la) * np.sin(lo)],
+                        [0.0, np.cos(la), np.sin(la)]])
+        return np.array([x0, y0, z0]), enu, to_geo
+
+    def to_wgs84(self, points) -> np.ndarray:
+        """(n, 3) scene points -> (n, 3) longitude, latitude (degrees), ellipsoidal height (m)."""
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        if self.crs:
+            t = transformer(self.crs, "EPSG:4326")
+            lon, lat = t.transform(pts[:, 0] / self.crs_unit_m, pts[:, 1] / self.crs_unit_m)
+            return np.column_stack([lon, lat, pts[:, 2]])
+        origin, enu, to_geo = self._ltp()
+        local = np.column_stack([pts[:, 0] - self.anchor[0], pts[:, 1] - self.anchor[1], pts[:, 2]])
+        ecef = origin + local @ enu.T
+        lon, lat, h = to_geo.transform(ecef[:, 0], ecef[:, 1], ecef[:, 2])
+        return np.column_stack([lon, lat, h])
+
+    def centre_of(self, points) -> dict:
+        """WGS84 latitude and longitude of the centre of (n, 3) scene points' bounding box (where a scan is)."""
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        lon, lat, _ = self.to_wgs84(((pts.min(0) + pts.max(0)) / 2)[None])[0]
+        return {"lat": float(lat), "lon": float(lon)}
+
+    def bearing(self, point, heading: float) -> float:
+        """Degrees clockwise from true north of the scene direction ``heading`` (rad CCW from +X) at ``point``."""
+        return float(self.placements(np.asarray(point, dtype=np.float64)[None, :3], np.array([heading]))[1][0])
+
+    def placements(self, points, headings) -> tuple[np.ndarray, np.ndarray]:
+        """For (n, 3) scene points and (n,) headings (rad): their (n, 3) WGS84 longitude, latitude, height and
+        (n,) bearings (degrees clockwise from true north), in two vectorised transformations."""
+        from pyproj import Geod
+
+        p = np.atleast_2d(np.asarray(points, dtype=np.float64))[:, :3]
+        h = np.asarray(headings, dtype=np.float64).ravel()
+        ahead = p + np.column_stack([np.cos(h), np.sin(h), np.zeros(len(h))])
+        both = self.to_wgs84(np.vstack([p, ahead]))
+        a, b = both[:len(p)], both[len(p):]
+        az, _, _ = Geod(ellps="WGS84").inv(a[:, 0], a[:, 1], b[:, 0], b[:, 1])
+        return a, np.mod(np.asarray(az, dtype=np.float64), 360.0)
+
+
+def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: str | None = None,
+                        required: bool = True) -> Georef | None:
+    """Validate the georeferencing options. Raises :class:`GeorefError` with the fix. With ``required`` False,
+    no option at all gives None (the scene's own CRS is used once it is read: :func:`scene_georef`)."""
+    import math
+
+    for flag, value in (("--lat", lat), ("--lon", lon), ("--alt", alt)) + tuple(
+            (f"--anchor {'XY'[k]}", v) for k, v in enumerate(anchor or ())):
+        if value is not None and not (math.isfinite(float(value)) and abs(float(value)) < 1e8):
+            raise GeorefError(f"{flag} {value}: not a finite number; give a position in degrees, metres or the "
+                              "scene's units")
+    if crs:
+        if lat is not None or lon is not None:
+            raise GeorefError("give either --crs or --lat/--lon, not both")
+        info = crs_info(crs, "--crs", where=f"--crs {crs}")
+        return Georef(None, None, float(alt or 0.0), (0.0, 0.0), None).with_crs(info)
+    if lat is None and lon is None and not required:
+        return None
+    if lat is None or lon is None:
+        raise GeorefError("georeference the scene with --lat and --lon (the scene origin's WGS84 position) or "
+                          "--crs EPSG:NNNN")
+    if not -90.0 < float(lat) < 90.0:
+        raise GeorefError(f"--lat {lat} is out of range; a local east/north/up frame needs a latitude strictly "
+                          "between -90 and 90 degrees (at a pole east is undefined)")
+    if not -180.0 <= float(lon) <= 180.0:
+        raise GeorefError(f"--lon {lon} is out of range; longitude is between -180 and 180 degrees")
+    a = (0.0, 0.0) if anchor is None else (float(anchor[0]), float(anchor[1]))
+    return Georef(float(lat), float(lon), float(alt or 0.0), a, None)
+
+
+def scene_georef(georef: Georef | None, scene) -> Georef:
+    """The georeference of a read scene (:class:`~twinreg.io.points.PointSet`): the options' when given (a
+    ``--crs`` takes the units the reader resolved for it), else the CRS the file states, else an error naming the
+    file and the fix."""
+    info = getattr(scene, "crs_info", None)
+    if georef is None:
+        if info is None:
+            raise GeorefError(f"{scene.path}: the file states no CRS; georeference it with --crs EPSG:NNNN (its "
+                              "projected CRS) or --lat/--lon (the WGS84 position of its origin)")
+        return Georef(None, None, 0.0, (0.0, 0.0), None).with_crs(info)
+    if georef.crs and info is not None:
+        return georef.with_crs(info) if info.source == "--crs" else georef
+    return georef

@@ -1,0 +1,105 @@
+"""Catalogue models loaded once per run: rows, arrays, section pairs, frames, meshes, distance indexes and top
+surfaces, shared by every object that tries a model (and by the export, which reuses the rows and meshes)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import cosco
+from cosco.params import DEFAULT, CoscoParams
+
+from ..catalogue.repository import Catalogue, ModelGeometry
+
+
+class ModelCache:
+    """Catalogue models loaded once (arrays, section pairs and frames)."""
+
+    def __init__(self, catalogue: Catalogue, params: CoscoParams = DEFAULT):
+        self.catalogue = catalogue
+        self.params = params
+        self._geo: dict[int, ModelGeometry] = {}
+        self._pairs: dict[int, cosco.SectionPair] = {}
+        self._frames: dict[int, cosco.Frame] = {}
+        self._rows: dict[int, object] = {}
+        self._meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._surfaces: dict[int, object] = {}
+        self._tops: dict[int, np.ndarray] = {}
+        self._trees: dict[int, object] = {}
+        self._index = None
+
+    def row(self, model_id):
+        return self._rows[model_id]
+
+    def known(self):
+        return self._rows.keys()
+
+    def size_index(self):
+        """Every model's descriptor (:class:`~twinreg.matching.prefilter.SizeIndex`), loaded once."""
+        if self._index is None:
+            from .prefilter import SizeIndex
+
+            self._index = SizeIndex(self.catalogue)
+        return self._index
+
+    def tree(self, model_id: int):
+        """A cKDTree of the model's sampled points (model frame), for pose refinement."""
+        if model_id not in self._trees:
+            from scipy.spatial import cKDTree
+
+            self._trees[model_id] = cKDTree(self.geometry(model_id).points)
+        return self._trees[model_id]
+
+    def top(self, model_id: int) -> np.ndarray:
+        """The model's top surface (:func:`twinreg.matching.decision.top_surface` of its sampled points), model frame."""
+        if model_id not in self._tops:
+            from .decision import top_surface
+
+            self._tops[model_id] = top_surface(self.geometry(model_id).points)
+        return self._tops[model_id]
+
+    def add_rows(self, rows):
+        for r in rows:
+            self._rows.setdefault(r.id, r)
+
+    def geometry(self, model_id: int) -> ModelGeometry:
+        if model_id not in self._geo:
+            self._geo[model_id] = self.catalogue.geometry(self._rows[model_id], with_mesh=False)
+        return self._geo[model_id]
+
+    def pair(self, model_id: int) -> cosco.SectionPair:
+        if model_id not in self._pairs:
+            self._pairs[model_id] = cosco.SectionPair(self.geometry(model_id).sections, self.params)
+        return self._pairs[model_id]
+
+    def mesh(self, model_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """The model's mesh as the twin carries it (decimated to Google Earth's limit, cached in the catalogue)."""
+        if model_id not in self._meshes:
+            self._meshes[model_id] = self.catalogue.ge_mesh(self._rows[model_id])
+        return self._meshes[model_id]
+
+    def light_mesh(self, model_id: int, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+        """The model's mesh decimated to ``max_faces`` triangles (a city's tiles), cached in the catalogue."""
+        key = (model_id, max_faces)
+        if key not in self._meshes:
+            self._meshes[key] = self.catalogue.ge_mesh(self._rows[model_id], max_faces)
+        return self._meshes[key]
+
+    def surface(self, model_id: int):
+        """The twin's mesh of the model as a :class:`~twinreg.matching.acceptance.SurfaceIndex` (distance queries)."""
+        if model_id not in self._surfaces:
+            from .acceptance import SurfaceIndex
+
+            self._surfaces[model_id] = SurfaceIndex(*self.mesh(model_id))
+        return self._surfaces[model_id]
+
+    def frame(self, model_id: int) -> cosco.Frame:
+        """The model's section frame as stored by add-model (recomputed from its points for older entries)."""
+        if model_id not in self._frames:
+            row = self._rows[model_id]
+            if row.frame_x is not None:
+                self._frames[model_id] = cosco.Frame(np.array([row.frame_x, row.frame_y]), row.frame_heading, 0.0)
+            else:
+                geo = self.geometry(model_id)
+                shape = cosco.describe_object(geo.points, self.params, ground_z=0.0, front_hint=0.0)
+                self._frames[model_id] = shape.frame
+        return self._frames[model_id]

@@ -1,0 +1,286 @@
+"""Matching detected objects to catalogue models (paper 4.3, and beyond it for sparse scans and large catalogues).
+
+1. Candidates (:mod:`twinreg.matching.prefilter`): every model's descriptor is read once; an object's candidates are the
+   models in its density-aware size window, ranked by descriptor (the best ``match_register_k``), and the
+   ``match_nearest_k`` nearest outside the window.
+2. Registration (the paper): each candidate's sections are registered to the object's over rz in {0, pi/2, pi,
+   3pi/2}, a continuous tz and a small axial shift du, and ranked by RMSE. Objects of one cluster share work: the
+   cluster's first object (its leader) tries every candidate, the others first the leader's favourites and their
+   own nearest, and all of their candidates only when those fit clearly worse (by ``share_margin``).
+3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best ``accept_candidates`` are
+   placed, their pose refined on the points (:mod:`twinreg.matching.refine`), checked (:mod:`twinreg.matching.acceptance`) and
+   scored on all the evidence; the lowest acceptable score wins, with a confidence, the models it cannot be told
+   from, and whether it lies outside the size window. An object no candidate explains gets no model (a box, a
+   skip or a kiosk of car size), with the reason.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import cosco
+from cosco.params import DEFAULT, CoscoParams
+
+from ..catalogue.repository import Catalogue
+from .cache import ModelCache
+
+
+@dataclass
+class Match:
+    """A registered model: ``transform`` (4, 4) takes the model's normalised mesh to the scene (local frame);
+    ``heading`` (rad) is the direction of the model's front in the scene."""
+
+    model_id: int
+    name: str
+    rmse: float
+    rz: float
+    tz: float
+    du: float
+    transform: np.ndarray
+    heading: float
+    centre: np.ndarray
+    runner_up: dict | None = None
+    n_candidates: int = 0
+    n_trials: int = 0
+    verdict: object = None
+    confidence: float | None = None
+    margin_sigma: float | None = None
+    ambiguous_with: list = field(default_factory=list)
+    outside_tolerance: bool = False
+    evidence: dict | None = None
+
+
+@dataclass
+class ObjectMatch:
+    """One object's outcome: its COSCO shape, its match (or None with a reason)."""
+
+    shape: cosco.ObjectShape
+    match: Match | None
+    reason: str = ""
+    candidates: list = field(default_factory=list)
+    rejected: dict | None = None
+
+
+def _rot(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0, 0.0], [s, c, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+
+
+def _shift(x: float, y: float, z: float) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = [x, y, z]
+    return m
+
+
+def placement(obj_frame: cosco.Frame, model_frame: cosco.Frame, reg: cosco.Registration) -> np.ndarray:
+    """(4, 4) transform: model coordinates -> model frame -> (registration) object frame -> scene."""
+    to_model_frame = _rot(-model_frame.heading) @ _shift(-model_frame.origin_xy[0], -model_frame.origin_xy[1],
+                                                          -model_frame.ground_z)
+    registered = _shift(reg.du, 0.0, reg.tz) @ _rot(reg.rz)
+    to_scene = _shift(obj_frame.origin_xy[0], obj_frame.origin_xy[1], obj_frame.ground_z) @ _rot(obj_frame.heading)
+    return to_scene @ registered @ to_model_frame
+
+
+def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams, polish: bool = False):
+    return cosco.register_sections(obj_pair, cache.pair(model_id), params, polish=polish)
+
+
+def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
+                  params: CoscoParams = DEFAULT, share: int = 4, progress=None, clouds: list | None = None,
+                  noise=None, cache: ModelCache | None = None, spacings: list | None = None,
+                  leaders: dict | None = None) -> tuple[list[ObjectMatch], dict]:
+    """Match every object; returns the per-object outcomes and statistics (trials, timings).
+
+    labels : cluster label per object (objects of one cluster share work), or None. clouds : each object's points
+    ((n, 3) metres, the frame of its shape) and noise : the scan's range noise (m), to verify the best candidates
+    against all the points (:mod:`twinreg.matching.acceptance`); without them the lowest RMSE wins unverified. noise may
+    be one value or one per object (tiles of a city); spacings : each object's point spacing (m) when ``clouds``
+    are samples of the objects' points, else None (measured on the clouds). leaders : ``{label: (ranking,
+    best RMSE)}`` of clusters whose leader was matched in another call (``stats["leaders"]`` of that call): all
+    the objects given for those labels are members, so one cluster's members can be matched in several batches
+    with exactly the outcome of one call. cache : a
+    :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
+    """
+    from cosco.segment import point_spacing
+
+    cache = ModelCache(catalogue, params) if cache is None else cache
+    stats = {"prefilter_s": 0.0, "registration_s": 0.0, "verification_s": 0.0, "n_trials": 0,
+             "n_pairs_without_prefilter": 0}
+    pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
+    t = time.perf_counter()
+    index = cache.size_index()
+    total_models = len(index)
+    if spacings is None:
+        spacings = [point_spacing(np.asarray(c)) if c is not None and len(c) >= 3 else 0.0
+                    for c in (clouds if clouds is not None else [None] * len(shapes))]
+    found = [index.candidates(s, spacings[i], params) for i, s in enumerate(shapes)]
+    cands = [f.all for f in found]
+    cache.add_rows(catalogue.rows(sorted({m for c in cands for m in c} - set(cache.known()))))
+    stats["prefilter_s"] = time.perf_counter() - t
+    stats["n_pairs_without_prefilter"] = total_models * len(shapes)
+    stats["n_without_window"] = sum(f.outside for f in found)
+
+    # the distance fields of a model are built the first time it is tried (counted in the registration time): a
+    # member of a cluster tries only a few of its candidates
+    stats["model_prep_s"] = 0.0
+
+    # order: per cluster, the leader (its first object) first: it tries every candidate; then the members
+    groups: dict[int, list[int]] = {}
+    for i in range(len(shapes)):
+        groups.setdefault(int(labels[i]) if labels is not None else -1 - i, []).append(i)
+    results: list[ObjectMatch | None] = [None] * len(shapes)
+    t = time.perf_counter()
+    stats["leaders"] = {}
+    for label, members in groups.items():
+        # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
+        known = leaders is not None and labels is not None and label in leaders
+        ranked_by_leader, leader_best = (list(leaders[label][0]), float(leaders[label][1])) if known else ([], np.inf)
+        for k, i in enumerate(members):
+            leads = k == 0 and not known
+            ids = cands[i]
+            if not leads and share and ranked_by_leader:
+                # the leader's favourites, and this object's own nearest by descriptor (a cluster may hold two
+                # kinds of car that the leader's ranking alone would not tell apart)
+                own = [m for m in ids[:share] if m not in ranked_by_leader[:share]]
+                preferred = [m for m in ranked_by_leader[:share] if m in ids] + own
+                ids = preferred or ids
+            regs = []
+            for mid in ids:
+                regs.append((_trial(pairs[i], cache, mid, params), mid))
+                stats["n_trials"] += 1
+                if progress:
+                    progress(1)
+            regs.sort(key=lambda r: r[0].rmse)
+            if not leads and regs and regs[0][0].rmse > leader_best + params.share_margin:
+                # this member fits the leader's favourites clearly worse than the leader did: not the same kind
+                # of car after all, so it tries the rest of its own candidates too
+                for mid in [m for m in cands[i] if m not in ids]:
+                    regs.append((_trial(pairs[i], cache, mid, params), mid))
+                    stats["n_trials"] += 1
+                regs.sort(key=lambda r: r[0].rmse)
+            if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
+                regs[0] = (_trial(pairs[i], cache, regs[0][1], params, polish=True), regs[0][1])
+            if leads:
+                ranked_by_leader = [m for _, m in regs]
+                leader_best = regs[0][0].rmse if regs else np.inf
+                if labels is not None:
+                    stats["leaders"][label] = (ranked_by_leader, leader_best)
+            cloud = clouds[i] if clouds is not None else None
+            noise_i = noise if noise is None or np.ndim(noise) == 0 else float(noise[i])
+            t_v = time.perf_counter()
+            results[i] = _outcome(shapes[i], regs, cache, found[i], cloud, noise_i, pairs[i], params, spacings[i])
+            stats["verification_s"] += time.perf_counter() - t_v
+    stats["registration_s"] = time.perf_counter() - t - stats["verification_s"]
+    stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]
+    return results, stats
+
+
+def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
+    """Score the best ``accept_candidates`` registrations on all of the object's evidence
+    (:mod:`twinreg.matching.decision`)."""
+    from scipy.spatial import cKDTree
+
+    from .acceptance import sample_cloud
+    from .decision import decide, evidence
+    from .refine import refine
+
+    # the same sample whether the cloud is all of the object's points (a scene) or already its sample (a city cell)
+    sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
+    tree = cKDTree(sample)
+    measured = shape.size.as_array()
+    def scored_pose(reg, mid):
+        m = placement(shape.frame, cache.frame(mid), reg)
+        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
+        in_model = (sample - m[:3, 3]) @ m[:3, :3]
+        # the pose sharpened on the points (a turn about the vertical and a shift: twinreg/refine.py)
+        c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
+        in_model = in_model @ c[:3, :3].T + c[:3, 3]
+        m = m @ np.linalg.inv(c)
+        top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
+        row = cache.row(mid)
+        # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
+        e = evidence(mid, reg.rmse, cache.surface(mid).distances(in_model), top, tree,
+                     np.array([row.length, row.width, row.height]), measured, noise, spacing, params,
+                     sink=float(shape.frame.ground_z - m[2, 3]))
+        e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)))
+        return e
+
+    scored = [scored_pose(reg, mid) for reg, mid in regs[:params.accept_candidates]]
+    if scored:  # the favourite end for end too: a box-like van's sections hardly tell its front from its back
+        k = int(np.argmin([e.score for e in scored]))
+        reg, mid = regs[k]
+        turned = scored_pose(cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du), mid)
+        if turned.score < scored[k].score:
+            scored[k] = turned
+    return decide(scored, noise, params)
+
+
+def _size_gap_text(gap: np.ndarray) -> str:
+    """How a model differs in size from an object (``gap``: its L, W, H minus the object's, m).
+
+    >>> _size_gap_text(np.array([0.36, -0.04, 0.0]))
+    '0.36 m longer, 0.04 m narrower'
+    """
+    words = (("longer", "shorter"), ("wider", "narrower"), ("taller", "lower"))
+    out = [f"{abs(g):.2f} m {w[0] if g > 0 else w[1]}" for g, w in zip(gap, words) if abs(g) >= 0.005]
+    return ", ".join(out) or "of the same size"
+
+
+def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=None, noise=None,
+             obj_pair=None, params: CoscoParams = DEFAULT, spacing=0.0) -> ObjectMatch:
+    n_candidates = found.n_window
+    if not regs:
+        near = cache.size_index().nearest_gap(shape.size.as_array(), spacing, params)
+        reason = "no catalogue model within the size tolerance"
+        if near is not None:
+            cache.add_rows(cache.catalogue.rows([near[0]]))
+            reason += f"; the nearest, {cache.row(near[0]).name}, is {_size_gap_text(near[1])} than the object"
+        return ObjectMatch(shape, None, reason, [])
+    decision = None
+    if cloud is not None:
+        decision = _decided(shape, regs, cache, cloud, noise, spacing, params)
+        if decision.best is None:
+            best = decision.scored[0]
+            name = cache.row(best.model_id).name
+            reason = best.reason(name, params)
+            if found.outside:
+                near = cache.row(found.nearest[0])
+                gap = np.array([near.length, near.width, near.height]) - shape.size.as_array()
+                reason = (f"no catalogue model within the size tolerance; the nearest, {near.name}, is "
+                          f"{_size_gap_text(gap)} than the object, and none of the nearest fits it ({reason})")
+            return ObjectMatch(shape, None, reason, [m for _, m in regs],
+                               rejected={"name": name, "rmse_m": round(best.rmse, 4), **best.verdict.as_dict(),
+                                         **best.as_dict()})
+        k = next(j for j, (_, mid) in enumerate(regs) if mid == decision.best.model_id)
+        if k > 0:  # the winner's pose polished (the first by RMSE already was)
+            regs[k] = (_trial(obj_pair, cache, regs[k][1], params, polish=True), regs[k][1])
+        regs.insert(0, regs.pop(k))
+    reg, mid = regs[0]
+    row = cache.row(mid)
+    m = decision.best.extra["transform"] if decision is not None else placement(shape.frame, cache.frame(mid), reg)
+    front = m[:2, :2] @ np.array([1.0, 0.0])
+    heading = float(np.mod(np.arctan2(front[1], front[0]), 2 * np.pi))
+    centre = (m @ np.array([0.0, 0.0, row.height / 2, 1.0]))[:3]
+    runner = None
+    if decision is not None:
+        others = [e for e in decision.scored if e.model_id != mid]
+        if others:
+            runner = {"model_id": others[0].model_id, "name": cache.row(others[0].model_id).name,
+                      "rmse_m": round(others[0].rmse, 4), "score_m": round(others[0].score, 4)}
+    elif len(regs) > 1:
+        r2, m2 = regs[1]
+        runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}
+    rz = decision.best.extra["rz"] if decision is not None else reg.rz
+    match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=rz, tz=reg.tz, du=reg.du, transform=m,
+                  heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
+                  verdict=decision.best.verdict if decision else None,
+                  confidence=(decision.confidence * (params.decision_outside_factor if mid in found.nearest else 1.0)
+                              if decision else None),
+                  margin_sigma=decision.margin_sigma if decision else None,
+                  ambiguous_with=[cache.row(a).name for a in decision.ambiguous_with] if decision else [],
+                  outside_tolerance=mid in found.nearest,
+                  evidence=decision.best.as_dict() if decision else None)
+    return ObjectMatch(shape, match, "", [m for _, m in regs])

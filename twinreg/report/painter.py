@@ -1,0 +1,133 @@
+"""A helper process that draws the report's pictures while the main process matches and writes the twin.
+
+The helper is forked at the start of a run (it starts at once with this process's imports), warms matplotlib up,
+then runs the drawing calls it is sent. It is a speed-up only: every wait on it has a time limit, on every path,
+and it is stopped with :class:`multiprocessing.Process`'s public ``terminate``/``kill``; when it is unavailable,
+stuck or failed, the caller draws in its own process. The helper also dies with its parent (Linux
+``PR_SET_PDEATHSIG``), so a killed run leaves no orphan.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+from ..errors import HelperError
+
+#: seconds the main process waits for the helper's pictures before drawing them itself
+HELPER_TIMEOUT_S = 30.0
+
+
+def _die_with_parent() -> None:
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except Exception:  # pragma: no cover - not Linux
+        pass
+
+
+def _serve(conn) -> None:
+    _die_with_parent()
+    while True:
+        try:
+            task = conn.recv()
+        except (EOFError, OSError):
+            return
+        if task is None:
+            return
+        key, fn, args = task
+        try:
+            conn.send((key, True, fn(*args)))
+        except BaseException as exc:  # reported to the caller, who draws in-process instead
+            try:
+                conn.send((key, False, f"{type(exc).__name__}: {exc}"))
+            except Exception:
+                return
+
+
+
+class Painter:
+    """One forked helper process running drawing calls in order.
+
+    >>> p = Painter.start()
+    >>> k = p.submit(sum, [1, 2, 3]) if p else None
+    >>> (p.result(k, timeout=10) if p else 6), (p.stop() if p else None)
+    (6, None)
+    """
+
+    def __init__(self, proc, conn):
+        self._proc, self._conn = proc, conn
+        self._next = 0
+        self._done: dict[int, tuple[bool, object]] = {}
+
+    @classmethod
+    def start(cls, warm=None) -> "Painter | None":
+        """A started helper (``warm`` is sent first), or None with TWINREG_NO_HELPER=1 or where fork is missing."""
+        if os.environ.get("TWINREG_NO_HELPER"):
+            return None
+        try:
+            import multiprocessing
+
+            ctx = multiprocessing.get_context("fork")
+            conn, child = ctx.Pipe()
+            proc = ctx.Process(target=_serve, args=(child,), daemon=True, name="twinreg-painter")
+            proc.start()
+            child.close()
+        except (OSError, ValueError):  # pragma: no cover - no fork on this platform
+            return None
+        painter = cls(proc, conn)
+        if warm is not None:
+            painter.submit(warm)
+        return painter
+
+    def submit(self, fn, *args) -> int:
+        """Send a call (a module-level function and picklable arguments); returns its key."""
+        key = self._next
+        self._next += 1
+        try:
+            self._conn.send((key, fn, args))
+        except (OSError, ValueError) as exc:
+            self._done[key] = (False, f"cannot send to the helper ({exc})")
+        return key
+
+    def result(self, key: int, timeout: float = HELPER_TIMEOUT_S):
+        """The return value of call ``key``; :class:`HelperError` when it failed, or after ``timeout`` seconds."""
+        deadline = time.monotonic() + timeout
+        while key not in self._done:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise HelperError(f"the helper did not answer within {timeout:g} s")
+            try:
+                if not self._conn.poll(min(left, 0.5)):
+                    if not self._proc.is_alive():
+                        raise HelperError("the helper process is gone")
+                    continue
+                k, ok, value = self._conn.recv()
+            except (EOFError, OSError) as exc:
+                raise HelperError(f"the helper process is gone ({exc})") from exc
+            self._done[k] = (ok, value)
+        ok, value = self._done.pop(key)
+        if not ok:
+            raise HelperError(str(value))
+        return value
+
+    def stop(self, grace: float = 1.0) -> None:
+        """Stop the helper: ask it to leave, then terminate, then kill; each wait at most ``grace`` seconds."""
+        try:
+            self._conn.send(None)
+        except (OSError, ValueError):
+            pass
+        self._proc.join(grace)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(grace)
+        if self._proc.is_alive():
+            self._proc.kill()
+            self._proc.join(grace)
+        self._conn.close()
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid

@@ -1,0 +1,133 @@
+"""report.html and its PNGs: the top view with placed models, the dissimilarity heat map, the dendrogram and each
+object's sections against its best model's."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import numpy as np
+
+from .plots import _plt, plot_dendrogram, plot_heatmap, save_figure
+
+
+def warm_up() -> bool:
+    """Import matplotlib and draw a first tiny figure (font set-up): run in the helper process at the start."""
+    import io
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(1, 1))
+    ax.text(0.5, 0.5, "warm")
+    fig.savefig(io.BytesIO(), format="png")
+    plt.close(fig)
+    return True
+
+
+def _height_image(scene_local: np.ndarray, heights: np.ndarray, cell: float):
+    lo = scene_local[:, :2].min(0)
+    ij = np.floor((scene_local[:, :2] - lo) / cell).astype(np.int64)
+    shape = tuple(ij.max(0) + 1)
+    img = np.full(shape, np.nan)
+    flat = np.full(shape[0] * shape[1], -np.inf)
+    np.maximum.at(flat, ij[:, 0] * shape[1] + ij[:, 1], heights)
+    img = flat.reshape(shape)
+    img[~np.isfinite(img)] = np.nan
+    return img, lo
+
+
+def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: list[dict], path, title: str,
+                  hag: np.ndarray | None = None):
+    """Top view: the scan as a height-above-ground image (a raster, fast at any size) with each placed model's
+    footprint, front arrow and label."""
+    plt = _plt()
+    ext = np.ptp(scene_local[:, :2], axis=0)
+    scale = 14.0 / max(ext.max(), 1.0)
+    fig, ax = plt.subplots(figsize=(max(4, ext[0] * scale + 1), max(3, ext[1] * scale + 1)))
+    heights = np.where(is_ground, 0.0, hag if hag is not None else 1.0)
+    cell = max(0.1, float(ext.max()) / 1500)
+    img, lo = _height_image(scene_local, heights, cell)
+    ax.imshow(np.clip(img.T, 0, 3), origin="lower", cmap="Greys", vmin=-0.5, vmax=3.0,
+              extent=[lo[0], lo[0] + img.shape[0] * cell, lo[1], lo[1] + img.shape[1] * cell],
+              interpolation="nearest")
+    for fp in footprints:
+        c = np.asarray(fp["corners"])
+        ax.fill(c[:, 0], c[:, 1], color=fp["color"], alpha=0.45, lw=0)
+        ax.plot(*np.vstack([c, c[:1]]).T, color=fp["color"], lw=1)
+        ax.annotate("", xy=fp["front"], xytext=fp["centre"], arrowprops=dict(arrowstyle="->", lw=0.8))
+        ax.text(fp["centre"][0], fp["centre"][1], fp["label"], fontsize=5, ha="center", va="center")
+    ax.set_aspect("equal")
+    ax.set_title(title)
+    fig.subplots_adjust(left=0.05, right=0.98, bottom=0.05, top=0.94)
+    return save_figure(fig, path, tight=False, dpi=100)
+
+
+def plot_object_sections(items: list[dict], path):
+    """Each object's sections (blue squares) with its registered best model's (orange dots), stacked in two
+    panels: longitudinal (left) and transverse (right), one row of 2.5 m per object."""
+    plt = _plt()
+    n = max(1, len(items))
+    fig, (ax_l, ax_t) = plt.subplots(1, 2, figsize=(10, 1.0 + 0.9 * n), gridspec_kw={"width_ratios": [2.4, 1.0]})
+    step = 2.5
+    for ax, key in ((ax_l, "lon"), (ax_t, "tra")):
+        for who, style in (("object", dict(s=4, marker="s", color="tab:blue")),
+                           ("model", dict(s=2, color="tab:orange"))):
+            parts = [np.asarray(it.get(who, {}).get(key)) + [0.0, -k * step] for k, it in enumerate(items)
+                     if it.get(who, {}).get(key) is not None and len(it[who][key])]
+            if parts:
+                p = np.vstack(parts)
+                ax.scatter(p[:, 0], p[:, 1], linewidths=0, **style)
+    for k, it in enumerate(items):
+        ax_l.text(-3.6, -k * step + 2.0, it["title"], fontsize=6, va="top")
+    for ax, xl in ((ax_l, "u along heading (m)"), (ax_t, "v across (m)")):
+        ax.set_aspect("equal")
+        ax.set_yticks([])
+        ax.set_xlabel(xl)
+    ax_l.set_xlim(-3.7, 3.2)
+    ax_l.set_title("longitudinal sections (blue: object, orange: registered model)", fontsize=8)
+    ax_t.set_title("transverse sections", fontsize=8)
+    fig.subplots_adjust(left=0.02, right=0.99, bottom=0.3 / (1.0 + 0.9 * n) + 0.02, top=0.97, wspace=0.05)
+    return save_figure(fig, path, tight=False, dpi=100)
+
+
+def plot_taxonomy(folder: Path, names: list[str], matrix: np.ndarray, linkage: np.ndarray,
+                  threshold: float) -> list[Path]:
+    """heatmap.png and dendrogram.png (known as soon as the objects are clustered)."""
+    folder = Path(folder)
+    if len(names) < 2:
+        return []
+    return [plot_heatmap(matrix, names, folder / "heatmap.png"),
+            plot_dendrogram(linkage, names, threshold, folder / "dendrogram.png")]
+
+
+def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: list[dict]) -> list[Path]:
+    """topview.png, sections.png and report.html (which also shows heatmap.png and dendrogram.png)."""
+    folder = Path(folder)
+    files = [plot_twin_top(path=folder / "topview.png", **top_png_args)]
+    files += [folder / n for n in ("heatmap.png", "dendrogram.png")
+              if len(twin["objects"]) >= 2 and twin.get("dissimilarity") is not None]
+    files.append(plot_object_sections(section_items, folder / "sections.png"))
+    rows = []
+    for o in twin["objects"]:
+        m = o["match"]
+        doubt = ", ".join(m.get("ambiguous_with") or []) if m else ""
+        if m and m.get("outside_tolerance"):
+            doubt += " (outside the size tolerance)"
+        rows.append("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in (
+            o["id"], o["n_points"], f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}",
+            o["cluster"], m["name"] if m else "no match: " + o.get("reason", ""),
+            f"{m['rmse_m'] * 100:.1f} cm" if m else "",
+            "" if not m or m.get("confidence") is None else f"{m['confidence']:.2f}",
+            doubt,
+            f"{o['bearing_deg']:.1f}",
+            (m.get("runner_up") or {}).get("name", "") if m else "")) + "</tr>")
+    pics = "".join(f'<h2>{html.escape(p.stem)}</h2><img src="{p.name}" style="max-width:100%">' for p in files)
+    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {html.escape(twin['scene'])}"
+            "</title><style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 8px;border-bottom:1px solid #ddd}"
+            "</style></head><body>"
+            f"<h1>Digital twin of {html.escape(twin['scene'])}</h1><p>{len(twin['objects'])} objects, "
+            f"{sum(1 for o in twin['objects'] if o['match'])} matched; total {twin['timing_s']['total']:.2f} s.</p>"
+            "<table><tr><th>object</th><th>points</th><th>size (m)</th><th>cluster</th><th>model</th><th>RMSE</th>"
+            "<th>confidence</th><th>ambiguous with</th><th>bearing (deg)</th><th>runner-up</th></tr>"
+            + "".join(rows) + "</table>" + pics + "</body></html>")
+    (folder / "report.html").write_text(page, encoding="utf-8")
+    return files + [folder / "report.html"]
