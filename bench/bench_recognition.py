@@ -1,5 +1,5 @@
 """Recognition accuracy against scan density (docs/PERFORMANCE.md, "Recognition against density"): simulated car
-parks of the 16 shared cars (twinreg/accuracy.py), ``--seeds`` parks per density, COSCO as build-twin runs it, and
+parks of the 16 shared cars (twinreg/sim/accuracy.py), ``--seeds`` parks per density, COSCO as build-twin runs it, and
 a peer on the same detected objects: Open3D's FPFH features + RANSAC global registration + point-to-plane ICP of
 every catalogue model's sampled points to the object's points, the model of the best ICP fitness (then the lowest
 inlier RMSE) winning.

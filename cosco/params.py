@@ -6,6 +6,7 @@ where it gives a value and were tuned on the shared data otherwise (see docs/MET
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 
@@ -159,6 +160,18 @@ class CoscoParams:
     uses at most half of its limit, falling to 0.5 at ``decision_poor_fit`` of a limit (a poor fit is never above
     0.5) and to 0.25 at the limit.
 
+    Joining and cutting objects (cosco/segment.py; docs/METHOD.md, "Sparse scans: one object per car"): a
+    component of fewer than ``seg_fragment_points`` points and at most ``seg_fragment_share`` of a larger one's,
+    whose centre lies within that one's footprint rectangle grown by ``seg_fragment_margin`` (m), joins it; a
+    piece continuing a larger one in line (its centre within ``seg_join_offset`` of the host's width from its axis,
+    within ``seg_join_gap`` m plus one point spacing of its end, spanning ``seg_join_cover`` of its width, the union
+    at most ``seg_join_widen`` m wider and ``seg_join_max_length`` m long) joins it; a too-large object is cut where
+    its slices (``seg_split_bin`` m, or the spacing) top out below ``seg_split_ratio`` of the tops on both sides.
+    An object's height is the ``seg_height_quantile`` of its heights above ground; its lowest point may be
+    ``seg_max_base`` m plus one spacing above the ground. Symmetry (cosco/symmetry.py): start planes every
+    ``sym_sweep_step`` (rad) besides the guided ones; a plane within ``sym_along_axis`` of the footprint's long
+    axis is "along" it; two planes within ``sym_same_plane`` are the same.
+
     Taxonomy at scale (cosco/taxonomy.py; docs/METHOD.md): up to ``taxonomy_full_max`` objects, the full matrix
     and the dendrogram (the paper); beyond, each object is compared with its ``taxonomy_neighbours`` nearest
     objects by size and sections only, and clusters are the connected parts of the graph of pairs closer than
@@ -247,6 +260,22 @@ class CoscoParams:
     accept_sink_tol: float = 0.03
     accept_max_float: float = 0.25
     decision_poor_fit: float = 0.75
+
+    seg_fragment_points: int = 100
+    seg_fragment_share: float = 0.25
+    seg_fragment_margin: float = 0.2
+    seg_join_gap: float = 0.8
+    seg_join_cover: float = 0.5
+    seg_join_widen: float = 0.3
+    seg_join_offset: float = 0.25
+    seg_join_max_length: float = 6.0
+    seg_split_ratio: float = 0.75
+    seg_split_bin: float = 0.1
+    seg_height_quantile: float = 0.99
+    seg_max_base: float = 1.0
+    sym_sweep_step: float = math.pi / 12
+    sym_along_axis: float = math.radians(20.0)
+    sym_same_plane: float = math.radians(8.0)
 
     taxonomy_full_max: int = 32
     taxonomy_neighbours: int = 3

@@ -137,11 +137,11 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
     return sizes[comp] <= params.outlier_points
 
 
-def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, big: int = 100,
-                      share: float = 0.25, margin: float = 0.2) -> np.ndarray:
+def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams) -> np.ndarray:
     """A small component whose centre lies inside a larger, at most target-sized one's footprint rectangle (a piece
     of a car's side that scan-line gaps cut off, a mirror) joins it; neighbours side by side keep apart (their
     centres are outside), and nothing joins a hedge or an island (larger than the target class)."""
+    big, share, margin = params.seg_fragment_points, params.seg_fragment_share, params.seg_fragment_margin
     labels, counts = np.unique(comp, return_counts=True)
     if len(labels) < 2:
         return comp
@@ -182,15 +182,16 @@ def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params:
     return out
 
 
-def _join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, gap: float = 1.5,
-                  min_cover: float = 0.5, widen: float = 0.3, offset: float = 0.25,
-                  max_length: float = 6.0) -> np.ndarray:
+def _join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams,
+                  spacing: float) -> np.ndarray:
     """A piece shorter than the target class (a bonnet or a boot that the glass drop-out of a windscreen cut off
     the roof) joins a larger component it continues in line: its centre within ``offset`` of that one's width from
     its long axis, within ``gap`` (m) of its end, spanning at least ``min_cover`` of its width, and their union at
     most ``widen`` (m) wider than the wider of the two and at most ``max_length`` (m) long (a long car; two cars
     nose to tail, of which a scan saw one only in part, are longer). A bin or a bollard by a car is narrower than
     the car and stays apart; two cars side by side are off each other's axis."""
+    gap, min_cover = params.seg_join_gap + spacing, params.seg_join_cover
+    widen, offset, max_length = params.seg_join_widen, params.seg_join_offset, params.seg_join_max_length
     labels, counts = np.unique(comp, return_counts=True)
     if len(labels) < 2:
         return comp
@@ -269,7 +270,7 @@ def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing
     r = min_area_rectangle(xy)
     if r.length <= params.car_length[1] and r.width <= params.car_width[1] or depth == 0 or len(xy) < 6:
         return None
-    bin_ = max(0.1, spacing)
+    bin_ = max(params.seg_split_bin, spacing)
     edge = params.car_width[0]
     best = None
     for a in (r.angle, r.angle + np.pi / 2):
@@ -283,7 +284,7 @@ def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing
         centres = (np.arange(n) + 0.5) * bin_
         for j in np.flatnonzero((centres >= edge) & (centres <= n * bin_ - edge)):
             ratio = top[j] / max(min(top[:j].max(), top[j + 1:].max()), 1e-9)
-            if ratio < 0.75 and (best is None or ratio < best[0]):
+            if ratio < params.seg_split_ratio and (best is None or ratio < best[0]):
                 best = (ratio, (k > j).astype(np.int64), k != j)
     if best is None:
         return None
@@ -313,7 +314,7 @@ def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing
     return out
 
 
-def _footprint_split(xy: np.ndarray, params: CoscoParams, cell: float = 0.1) -> np.ndarray | None:
+def _footprint_split(xy: np.ndarray, params: CoscoParams, cell: float) -> np.ndarray | None:
     """Labels splitting one object's footprint at its necks into parts of at least the class's smallest area,
     or None when it does not fall apart."""
     from scipy import ndimage
@@ -341,7 +342,7 @@ def _footprint_split(xy: np.ndarray, params: CoscoParams, cell: float = 0.1) -> 
 
 
 def _describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: CoscoParams,
-              cell: float = 0.1, spacing: float = 0.0) -> DetectedObject:
+              cell: float, spacing: float = 0.0) -> DetectedObject:
     """Sizes of one object; its footprint area counts occupied ``cell`` squares (no finer than the spacing). Its
     lowest point may be up to 1 m and one point spacing above the ground (a sparse scan's steep sides)."""
     p = points[idx]
@@ -349,12 +350,12 @@ def _describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosc
     area = n_cells(p, cell) * cell * cell
     length = rect.length if rect else 0.0
     width = rect.width if rect else 0.0
-    height = float(np.quantile(hag[idx], 0.99))
+    height = float(np.quantile(hag[idx], params.seg_height_quantile))
     base = float(hag[idx].min())
     target = (params.car_length[0] <= length <= params.car_length[1]
               and params.car_width[0] <= width <= params.car_width[1]
               and params.car_height[0] <= height <= params.car_height[1]
-              and params.car_area[0] <= area <= params.car_area[1] and base <= 1.0 + spacing)
+              and params.car_area[0] <= area <= params.car_area[1] and base <= params.seg_max_base + spacing)
     return DetectedObject(np.sort(idx), float(length), float(width), height, float(area), base, bool(target))
 
 
@@ -388,7 +389,7 @@ def _parts(pts, hag, cand, rows, params: CoscoParams, cell: float, spacing: floa
     obj = _describe(pts, hag, idx, params, cell, spacing)
     if not _too_big(obj, params) or obj.height > params.car_height[1]:
         return [rows]
-    labels = _footprint_split(pts[idx, :2], params, cell=max(0.1, spacing / 2))
+    labels = _footprint_split(pts[idx, :2], params, cell=max(params.seg_split_bin, spacing / 2))
     if labels is None and obj.length <= 2 * params.car_length[1] and obj.width <= 2 * params.car_width[1]:
         # a few cars a sparse scan joined, not a hedge or a row of planters cut into car-sized pieces
         labels = _profile_split(pts[idx, :2], hag[idx], params, spacing)
@@ -440,7 +441,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
     comp = _absorb_fragments(pts[cand, :2], hag[cand], comp, params)
     comp = _split_too_big(pts, hag, cand, comp, params, cell, spacing)
     # a windscreen's drop-out leaves a gap of about a metre in plan, plus a scan line
-    comp = _join_in_line(pts[cand, :2], hag[cand], comp, params, gap=0.8 + spacing)
+    comp = _join_in_line(pts[cand, :2], hag[cand], comp, params, spacing)
     order = stable_argsort(comp)
     bounds = np.flatnonzero(np.r_[True, comp[order][1:] != comp[order][:-1], True])
     objects = []

@@ -117,14 +117,14 @@ class _Objective:
         return pcr, rmse
 
 
-def _start_angles(xy: np.ndarray) -> np.ndarray:
-    """Candidate normal angles: rectangle sides, principal axes and a 15-degree sweep."""
+def _start_angles(xy: np.ndarray, params: CoscoParams) -> np.ndarray:
+    """Candidate normal angles: rectangle sides, principal axes and a sweep every ``params.sym_sweep_step``."""
     rect = min_area_rectangle(xy)
     centred = xy - xy.mean(0)
     _, vecs = np.linalg.eigh(centred.T @ centred)
     pca = np.arctan2(vecs[1, -1], vecs[0, -1])
     guided = [rect.angle + np.pi / 2, rect.angle, pca + np.pi / 2, pca]
-    sweep = np.arange(0, np.pi, np.pi / 12)
+    sweep = np.arange(0, np.pi, params.sym_sweep_step)
     return np.mod(np.concatenate([guided, sweep]), np.pi)
 
 
@@ -196,7 +196,7 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
 
     rect = min_area_rectangle(down[:, :2])
     scored = []
-    for phi in _start_angles(down[:, :2]):
+    for phi in _start_angles(down[:, :2], params):
         rho = float(rect.centre @ np.array([np.cos(phi), np.sin(phi)]))
         scored.append((obj.soft(phi, rho), phi, rho))
     scored.sort(key=lambda t: -t[0])
@@ -214,14 +214,14 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     # the best start overall, and the best start whose plane contains the footprint's long axis (a vehicle's
     # mirror plane does; a box-like van is nearly symmetric front to back too)
     long_normal = rect.angle + np.pi / 2
-    along = [t for t in scored if axis_difference(t[1], long_normal) < np.radians(20)]
+    along = [t for t in scored if axis_difference(t[1], long_normal) < params.sym_along_axis]
     candidates = []
     for k, (_, phi0, rho0) in enumerate([scored[0]] + along[:1]):
-        if k == 1 and axis_difference(phi0, scored[0][1]) < np.radians(8):
+        if k == 1 and axis_difference(phi0, scored[0][1]) < params.sym_same_plane:
             break
         phi, rho = optimise(phi0, rho0)
         pcr, rmse = obj.hard(phi, rho)
-        candidates.append((pcr, rmse, phi, rho, axis_difference(phi, long_normal) < np.radians(20)))
+        candidates.append((pcr, rmse, phi, rho, axis_difference(phi, long_normal) < params.sym_along_axis))
     best = max(candidates, key=lambda c: c[0])
     longitudinal = [c for c in candidates if c[4]]
     if longitudinal and longitudinal[0][0] >= best[0] - params.sym_long_axis_margin:

@@ -160,9 +160,9 @@ def plot_detection(det: Detection, path, all_objects: bool = False, title: str |
     """Top view: ground in grey, other points by height, target objects outlined and numbered."""
     from cosco.footprint import min_area_rectangle
 
-    from .report.plots import _plt, save_figure
+    from .report.plots import pyplot, save_figure
 
-    plt = _plt()
+    plt = pyplot()
     local = det.scene.local
     ext = np.ptp(local[:, :2], axis=0)
     scale = 16.0 / max(ext.max(), 1.0)

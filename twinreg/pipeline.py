@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import cosco
@@ -17,6 +18,7 @@ from .export.formats import write_formats
 from .export.kmz import write_kmz
 from .export.objects import object_output
 from .export.tiles3d import scan_sample
+from .export.twin_json import MatchSummary, ScanSummary, twin_document
 from .export.twin_ply import write_twin_ply
 from .geo.georef import Georef, scene_georef
 from .io.outdir import check_replaceable, staged_folder
@@ -41,6 +43,49 @@ def _checked_params(params: CoscoParams, tol: float | None, threshold: float | N
     return params.with_(size_tol=params.size_tol if tol is None else tol,
                         size_spacing_k=params.size_spacing_k if tol is None else 0.0,
                         cluster_threshold=params.cluster_threshold if threshold is None else threshold)
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """The options of a build-twin run (the command's, in one object): the unit, the size tolerance and cluster
+    threshold (None: the defaults), the tiled run's cell, buffer, workers, scheduler and restart, and whether to
+    write PLY (None: twin.ply for one scene, none for tiles)."""
+
+    unit: str = "auto"
+    tol: float | None = None
+    threshold: float | None = None
+    cell: float | None = None
+    buffer: float | None = None
+    workers: int | None = None
+    scheduler: str | None = None
+    restart: bool = False
+    ply: bool | None = None
+
+    def tiled(self, paths) -> bool:
+        """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
+        tiled option given)."""
+        from .city.build import is_tiled
+
+        explicit = any(v is not None for v in (self.cell, self.buffer, self.workers, self.scheduler))
+        return is_tiled(paths, explicit=explicit or self.restart or bool(self.ply))
+
+
+def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: RunSettings = RunSettings(),
+          progress=None) -> dict:
+    """build-twin: one scene (:func:`build_twin`) or tiles cell by cell on Dask
+    (:func:`twinreg.city.build.build_city_twin`), as :meth:`RunSettings.tiled` decides. ``progress(stage, done,
+    total)`` is called as work advances (``done`` and ``total`` None for a scene's stage messages)."""
+    paths = [Path(p) for p in paths]
+    s = settings
+    if s.tiled(paths):
+        from .city.build import build_city_twin
+
+        return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
+                               cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
+                               scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress)
+    say = (lambda msg: progress(msg, None, None)) if progress else None
+    return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
+                      progress=say, ply=s.ply is not False)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
@@ -122,20 +167,6 @@ def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances
     return Taxonomy(c.labels, "full", c.threshold, matrix=matrix, linkage=c.linkage)
 
 
-def taxonomy_json(tax) -> dict:
-    """twin.json's ``dissimilarity`` (the matrix, or None past ``taxonomy_full_max`` objects, when
-    ``dissimilarity_pairs`` lists the compared pairs as [i, j, metres]) and ``clustering``."""
-    doc = {"clustering": {"threshold_m": tax.threshold, "n_clusters": tax.n_clusters, "method": tax.method,
-                          "n_comparisons": tax.n_comparisons}}
-    if tax.method == "full":
-        doc["dissimilarity"] = [[round(float(v), 5) for v in row] for row in tax.matrix]
-    else:
-        doc["dissimilarity"] = None
-        doc["dissimilarity_pairs"] = [[int(i), int(j), round(float(d), 5)] for (i, j), d in
-                                      zip(tax.pairs, tax.distances)]
-    return doc
-
-
 def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, clusters, params,
                       progress, timing, t_start, painter, taxonomy, ply=True) -> dict:
     local = det.scene.local
@@ -164,21 +195,9 @@ def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes
         section_items.append(out.sections)
         outs.append(out)
 
-    twin = {
-        "scene": scene_path.name, "n_points": int(len(det.scene.points)), "n_outliers": det.scene.n_outliers,
-        "unit": det.scene.unit,
-        "georef": georef.to_json() | {"scan_centre": georef.centre_of(det.scene.points)},
-        "offset": [float(v) for v in offset], "noise_m": round(noise, 4),
-        "objects": objects,
-        **taxonomy_json(clusters),
-        "matching": {"tol_m": params.size_tol, "tol_spacing_k": params.size_spacing_k,
-                     "catalogue_models": catalogue.count(), "n_trials": stats["n_trials"],
-                     "n_pairs_without_prefilter": stats["n_pairs_without_prefilter"],
-                     "n_trials_saved_by_clusters": stats["n_trials_saved_by_clusters"],
-                     "registration_ms_per_trial": round(1000 * stats["registration_s"] / max(stats["n_trials"], 1),
-                                                        3)},
-        "timing_s": {},
-    }
+    scan = ScanSummary(scene_path.name, len(det.scene.points), det.scene.n_outliers, det.scene.unit, offset, noise,
+                       det.scene.points)
+    twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,
                     "title": f"{scene_path.name}: {len(objects)} objects"}, section_items)

@@ -2,7 +2,10 @@
 
 The objects of the twins that got no model, or one outside the size window, are grouped by their measured size
 (cells of ``LENGTH_BIN`` x ``WIDTH_BIN`` metres); each group is reported with its size range and the catalogue model
-nearest to it, and a group with no model within the paper's 0.2 m is a size the catalogue is missing.
+nearest to it, and a group with no model in the matcher's size window is a size the catalogue is missing. The
+window is the one the twin was matched with (its ``matching.tol_m`` and ``tol_spacing_k``, the defaults of
+:class:`cosco.params.CoscoParams` otherwise): a model may be ``tol`` smaller and ``tol`` plus ``tol_spacing_k``
+point spacings larger in length and width (the spacing estimated from each object's points over its footprint).
 """
 
 from __future__ import annotations
@@ -12,11 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
+from cosco.params import DEFAULT
+
 from ..errors import SceneReadError
 
 LENGTH_BIN = 0.5
 WIDTH_BIN = 0.3
-TOL = 0.2
 
 
 def read_objects(paths) -> list[dict]:
@@ -27,9 +31,11 @@ def read_objects(paths) -> list[dict]:
         try:
             doc = json.loads(p.read_text(encoding="utf-8"))
             objs = doc["objects"]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+            m = doc.get("matching", {})
+            window = (float(m.get("tol_m", DEFAULT.size_tol)), float(m.get("tol_spacing_k", DEFAULT.size_spacing_k)))
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             raise SceneReadError(f"{p}: not a twin.json written by build-twin ({exc}); give OUT/twin.json") from exc
-        out += [o | {"twin": str(p)} for o in objs]
+        out += [o | {"twin": str(p), "window": window} for o in objs]
     return out
 
 
@@ -46,19 +52,32 @@ def coverage(objects: list[dict], models: np.ndarray, names: list[str]) -> dict:
     for _, members in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0])):
         s = np.array([m[1] for m in members])
         lo, hi = s.min(0), s.max(0)
+        tol, grow = window_of([m[0] for m in members])
         centre = (lo + hi) / 2
-        g = {"n_objects": len(members), "length_m": [round(lo[0], 2), round(hi[0], 2)],
+        g = {"n_objects": len(members), "window_m": {"smaller": round(tol, 3), "larger": round(tol + grow, 3)}, "length_m": [round(lo[0], 2), round(hi[0], 2)],
              "width_m": [round(lo[1], 2), round(hi[1], 2)], "height_m": [round(lo[2], 2), round(hi[2], 2)],
              "n_no_model": sum(1 for m in members if not m[0].get("match")), "objects": [m[0]["id"] for m in members]}
         if len(models):
             # how far each model's size lies outside the group's range (0 inside), in metres summed
-            gap = np.maximum(np.maximum(lo - TOL - models, models - hi - TOL), 0).sum(1)
+            larger = np.array([tol + grow, tol + grow, tol])
+            gap = np.maximum(np.maximum(lo - tol - models, models - hi - larger), 0).sum(1)
             k = int(np.argmin(np.abs(models - centre).sum(1)))
             g["nearest_model"] = {"name": names[k], "size_gap_m": [round(v, 2) for v in models[k] - centre]}
             g["models_within_tol"] = int((gap == 0).sum())
         g["text"] = _text(g)
         out.append(g)
     return {"n_objects": len(objects), "n_lacking": len(lacking), "groups": out}
+
+
+def window_of(objects: list[dict]) -> tuple[float, float]:
+    """(tol, grow) m of the matcher's size window for these objects: the twin's tolerance, and its spacing factor
+    times the objects' median point spacing (estimated as sqrt(footprint / points); 0 when a record has no point
+    count)."""
+    tol = float(np.median([o.get("window", (DEFAULT.size_tol, 0.0))[0] for o in objects]))
+    k = float(np.median([o.get("window", (0.0, DEFAULT.size_spacing_k))[1] for o in objects]))
+    spacing = np.median([np.sqrt(o["measured_size"]["length"] * o["measured_size"]["width"] / o["n_points"])
+                         if o.get("n_points") else 0.0 for o in objects])  # unknown: the plain tolerance
+    return tol, k * float(spacing)
 
 
 def _text(g: dict) -> str:
@@ -68,8 +87,10 @@ def _text(g: dict) -> str:
     if g.get("models_within_tol") == 0:
         near = g["nearest_model"]
         gap = near["size_gap_m"]
-        return (f"{what}: no model within {TOL} m (nearest: {near['name']}, {gap[0]:+.2f} m in length, "
-                f"{gap[1]:+.2f} m in width, {gap[2]:+.2f} m in height)")
+        w = g["window_m"]
+        return (f"{what}: no model in the size window ({w['smaller']:.2f} m smaller to {w['larger']:.2f} m larger; "
+                f"nearest: {near['name']}, {gap[0]:+.2f} m in length, {gap[1]:+.2f} m in width, {gap[2]:+.2f} m in "
+                "height)")
     if "models_within_tol" in g:
         return f"{what}: {g['models_within_tol']} model(s) near in size, none accepted on its fit"
     return what
@@ -77,11 +98,11 @@ def _text(g: dict) -> str:
 
 def plot(objects: list[dict], models: np.ndarray, names: list[str], path) -> Path:
     """Object sizes (length x width; got a model or not) over the catalogue's models."""
-    import matplotlib
+    from ..report.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
+    tol, grow = window_of(objects) if objects else (DEFAULT.size_tol, 0.0)
     fig, ax = plt.subplots(figsize=(7, 4.6))
     lw = np.array([[o["measured_size"]["length"], o["measured_size"]["width"]] for o in objects]).reshape(-1, 2)
     ok = np.array([bool(o.get("match")) and not o["match"].get("outside_tolerance") for o in objects], dtype=bool)
@@ -89,9 +110,12 @@ def plot(objects: list[dict], models: np.ndarray, names: list[str], path) -> Pat
         ax.scatter(lw[mask, 0], lw[mask, 1], s=10, c=colour, alpha=0.6, label=f"{label} ({int(mask.sum())})")
     if len(models):
         for (length, width, _), name in zip(models, names):
-            ax.add_patch(plt.Rectangle((length - TOL, width - TOL), 2 * TOL, 2 * TOL, fill=False, ec="#36c", lw=0.6))
+            # the objects this model would be tried for: from (tol + grow) shorter to tol longer than the model
+            ax.add_patch(plt.Rectangle((length - tol - grow, width - tol - grow), 2 * tol + grow, 2 * tol + grow,
+                                       fill=False, ec="#36c", lw=0.6))
             ax.annotate(name, (length, width), fontsize=6, color="#36c", ha="center")
-        ax.scatter(models[:, 0], models[:, 1], marker="s", s=18, c="#36c", label="catalogue models (+-0.2 m)")
+        ax.scatter(models[:, 0], models[:, 1], marker="s", s=18, c="#36c",
+                   label=f"catalogue models (size window: {tol:.2f} m, {tol + grow:.2f} m towards smaller objects)")
     ax.set_xlabel("length (m)")
     ax.set_ylabel("width (m)")
     ax.grid(alpha=0.3)

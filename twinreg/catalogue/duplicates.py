@@ -70,3 +70,11 @@ def warning_text(name: str, dups: list[NearDuplicate]) -> str:
     """
     what = ", ".join(f"{d.name} ({d.distance_m * 100:.1f} cm apart)" for d in dups)
     return f"warning: {name} is a near-duplicate of {what}: a scan cannot tell them apart"
+
+
+def near_duplicate_report(catalogue, row) -> tuple[list[dict], str | None]:
+    """A stored model's near-duplicates in ``catalogue`` (as the contract's JSON) and the warning line, or
+    ([], None)."""
+    dups = near_duplicates(catalogue, (row.length, row.width, row.height),
+                           catalogue.geometry(row, with_mesh=False).points, exclude=row.id)
+    return [d.as_dict() for d in dups], (warning_text(row.name, dups) if dups else None)

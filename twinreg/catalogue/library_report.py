@@ -186,10 +186,9 @@ def report(catalogue, out, density: float = 150.0, scans: int = 10, seed: int = 
 
 def _model_picture(catalogue, row, path) -> None:
     """Top, side and front views of the model's sampled surface, and its two sections."""
-    import matplotlib
+    from ..report.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     g = catalogue.geometry(row, with_mesh=False)
     p = g.points
@@ -213,10 +212,9 @@ def _model_picture(catalogue, row, path) -> None:
 
 
 def _heatmap(tax: dict, path) -> None:
-    import matplotlib
+    from ..report.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from scipy.cluster.hierarchy import dendrogram
 
     names, m = tax["names"], np.array(tax["dissimilarity_m"])
@@ -235,10 +233,9 @@ def _heatmap(tax: dict, path) -> None:
 
 
 def _confusion_picture(conf: dict, path) -> None:
-    import matplotlib
+    from ..report.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     names, m = conf["names"], np.array(conf["matrix"], dtype=float)
     share = m / np.maximum(m.sum(1, keepdims=True), 1)

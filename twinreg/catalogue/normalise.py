@@ -20,8 +20,10 @@ from scipy.spatial import cKDTree
 
 from ..errors import AxisError, UnitError
 from ..io.meshes import LoadedMesh
+from ..io.points import UNIT_SCALES
 
-UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "ft": 0.3048}
+#: the units a mesh file may be in (the scale of each is io.points.UNIT_SCALES', the one table of units)
+UNITS = {k: UNIT_SCALES[k] for k in ("m", "cm", "mm", "in", "ft")}
 PLAUSIBLE_LENGTH = (2.5, 7.0)  # metres, for inferring a unit
 ACCEPTED_LENGTH = (2.0, 8.0)  # metres, outside this a car is refused
 AXES = {"+x": (0, 1.0), "-x": (0, -1.0), "+y": (1, 1.0), "-y": (1, -1.0), "+z": (2, 1.0), "-z": (2, -1.0)}

@@ -15,6 +15,7 @@ import numpy as np
 from ..export.formats import write_formats
 from ..export.kmz import write_kmz
 from ..export.objects import object_output, pose
+from ..export.twin_json import MatchSummary, ScanSummary, twin_document
 from ..export.twin_ply import write_twin_ply
 from ..io.outdir import staged_folder
 from .resume import WORK
@@ -30,7 +31,6 @@ def _cell_bounds(georef, cell) -> dict:
 
 def export_city(out, protect, store, keys, sources, plan, georef, results, objects, tax, outcomes, stats, models,
                 catalogue, params, ply, timing, t_start, progress, reused: int = 0) -> dict:
-    from ..pipeline import taxonomy_json
     from ..report.city import write_city_report
 
     out = Path(out)
@@ -63,29 +63,14 @@ def export_city(out, protect, store, keys, sources, plan, georef, results, objec
     lo = np.min([s.lo for s in sources], axis=0)
     hi = np.max([s.hi for s in sources], axis=0)
     names = [Path(s.path).name for s in sources]
-    twin = {
-        "scene": names[0] if len(names) == 1 else f"{len(names)} tiles ({names[0]} ...)",
-        "sources": [s.path for s in sources],
-        "n_points": int(sum(r.n_points for r in results)), "n_outliers": int(sum(r.n_outliers for r in results)),
-        "unit": sources[0].unit,
-        "georef": georef.to_json() | {"scan_centre": georef.centre_of(np.vstack([lo, hi]))},
-        "offset": [float(v) for v in plan.offset],
-        "noise_m": round(float(np.median([r.noise for r in results if r.n_points])), 4),
-        "objects": docs,
-        **taxonomy_json(tax),
-        "matching": {"tol_m": params.size_tol, "tol_spacing_k": params.size_spacing_k,
-                     "catalogue_models": catalogue.count(), "n_trials": stats["n_trials"],
-                     "n_pairs_without_prefilter": stats["n_pairs_without_prefilter"],
-                     "n_trials_saved_by_clusters": stats["n_trials_saved_by_clusters"],
-                     "registration_ms_per_trial": round(1000 * stats["registration_s"] / max(stats["n_trials"], 1),
-                                                        3),
-                     "worker_s": {k[:-2]: round(stats[k], 3) for k in ("prefilter_s", "model_prep_s",
-                                                                        "registration_s", "verification_s")}},
-        "grid": {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
-                 "n_cells": plan.n_cells, "n_cells_reused": int(reused), "origin": [0.0, 0.0]},
-        "cells": cells,
-        "timing_s": {},
-    }
+    scan = ScanSummary(names[0] if len(names) == 1 else f"{len(names)} tiles ({names[0]} ...)",
+                       sum(r.n_points for r in results), sum(r.n_outliers for r in results), sources[0].unit,
+                       np.asarray(plan.offset), float(np.median([r.noise for r in results if r.n_points])),
+                       np.vstack([lo, hi]), sources=[s.path for s in sources])
+    grid = {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
+            "n_cells": plan.n_cells, "n_cells_reused": int(reused), "origin": [0.0, 0.0]}
+    twin = twin_document(scan, georef, docs, tax, params, MatchSummary(stats, catalogue.count(), worker_stages=True),
+                         tail={"grid": grid, "cells": cells})
     folders = [{"name": r.name, "bounds": _cell_bounds(georef, plan.cells[r.name]),
                 "ids": [d["id"] for d in by_cell.get(r.name, [])]} for r in results if by_cell.get(r.name)]
     with staged_folder(out, protect=protect) as stage:

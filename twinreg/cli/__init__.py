@@ -1,7 +1,5 @@
 """The twinreg command line: a thin typer layer over the library (see ../shared/docs/CONTRACT.md)."""
 
-from __future__ import annotations
-
 from typing import Annotated, Optional
 
 import typer
@@ -19,18 +17,17 @@ app = typer.Typer(
 
 @app.callback()
 def _global(
+    ctx: typer.Context,
     library: Annotated[Optional[str], typer.Option(
         "--library", help="Catalogue folder for every sub-command (default: $TWINREG_LIBRARY or ./library).",
         show_default=False)] = None,
     json_: Annotated[bool, typer.Option("--json", help="Every sub-command prints one JSON document.")] = False,
 ):
-    """--library and --json also work before the sub-command, as in git-like tools."""
-    import os
-
-    if library:
-        os.environ["TWINREG_LIBRARY"] = library
-    if json_:
-        os.environ["TWINREG_JSON"] = "1"
+    """--library and --json also work before the sub-command, as in git-like tools: they become the defaults of
+    the sub-command's own options (click's default map), which the sub-command may still override."""
+    given = {k: v for k, v in (("library", library), ("json_", True if json_ else None)) if v is not None}
+    if given:
+        ctx.default_map = {name: dict(given) for name in ctx.command.list_commands(ctx)}
 
 
 app.add_typer(models.app)

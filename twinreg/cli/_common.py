@@ -66,25 +66,40 @@ def info(message: str) -> None:
     err_console.print(printable(message), markup=False, highlight=False, soft_wrap=True)
 
 
-class CityProgress:
-    """Progress bars on stderr for a tiled run: one bar per stage (``update(stage, done, total)``)."""
+class RunProgress:
+    """Progress on stderr: ``update(stage, done, total)`` draws one bar per stage (a tiled run);
+    ``update(message, None, None)`` shows a spinner with the message (a scene's stages)."""
 
-    def __init__(self):
+    def __init__(self, title: str = ""):
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+        self.title = title
         self.progress = Progress(TextColumn("{task.description:<12}"), BarColumn(), MofNCompleteColumn(),
                                  TimeElapsedColumn(), console=err_console, transient=False)
+        self.status = None
         self.tasks: dict = {}
 
-    def __enter__(self) -> "CityProgress":
-        self.progress.start()
+    def __enter__(self) -> "RunProgress":
         return self
 
     def __exit__(self, *exc):
-        self.progress.stop()
+        if self.status is not None:
+            self.status.stop()
+        if self.tasks:
+            self.progress.stop()
         return False
 
-    def update(self, stage: str, done: int = 0, total: int = 0) -> None:
+    def update(self, stage: str, done: int | None = 0, total: int | None = 0) -> None:
+        if done is None:  # a stage message
+            text = f"{self.title}: {stage}" if self.title else stage
+            if self.status is None:
+                self.status = err_console.status(text)
+                self.status.start()
+            else:
+                self.status.update(text)
+            return
+        if not self.tasks:
+            self.progress.start()
         if stage not in self.tasks:
             self.tasks[stage] = self.progress.add_task(stage, total=max(total, 1))
         self.progress.update(self.tasks[stage], completed=done, total=max(total, 1))

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ._common import CityProgress, JsonOpt, LibraryOpt, handled, info, print_json
+from ._common import JsonOpt, LibraryOpt, RunProgress, handled, info, print_json
 
 app = typer.Typer()
 
@@ -33,7 +33,7 @@ def simulate_city_cmd(
     models, names, source = city_models(library)
     if source != "catalogue":
         info("the catalogue is empty: the city's cars are the project's parametric ones")
-    with CityProgress() as bars, staged_folder(out) as stage:
+    with RunProgress() as bars, staged_folder(out) as stage:
         truth = simulate_city(stage, models, names, km2=km2, density=density, tile=tile, seed=seed, crs=crs,
                               progress=bars.update, copc=copc)
     doc = {k: truth[k] for k in ("crs", "tile_m", "density", "seed", "side_m", "n_points", "tiles")}

@@ -1,5 +1,5 @@
 """Library commands: export-library, import-library (portable catalogues, twinreg/catalogue/bundle.py) and coverage
-(what the catalogue lacks, twinreg/coverage.py)."""
+(what the catalogue lacks, twinreg/catalogue/coverage.py)."""
 
 from __future__ import annotations
 

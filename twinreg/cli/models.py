@@ -11,10 +11,10 @@ from rich.table import Table
 from rich.text import Text
 
 from ..catalogue.db import library_path
+from ..catalogue.duplicates import near_duplicate_report
+from ..catalogue.folder import import_folder, mesh_files
 from ..catalogue.names import printable
 from ..catalogue.repository import Catalogue
-from ..errors import TwinregError
-from ..io.meshes import MESH_SUFFIXES
 from ._common import JsonOpt, LibraryOpt, err_console, fail, handled, info, out_console, print_json
 
 app = typer.Typer()
@@ -23,15 +23,6 @@ UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|in|ft (auto: 
 UpOpt = Annotated[str, typer.Option("--up", help="auto|+x|-x|+y|-y|+z|-z: the file's up axis.")]
 FrontOpt = Annotated[str, typer.Option(
     "--front", help="auto|+x|-x|+y|-y: the car's front, in the file's axes once up is Z.")]
-
-
-def _near_duplicates(cat, row) -> tuple[list[dict], str | None]:
-    """The stored model's near-duplicates in the catalogue (as JSON) and the warning line, or ([], None)."""
-    from ..catalogue.duplicates import near_duplicates, warning_text
-
-    dups = near_duplicates(cat, (row.length, row.width, row.height), cat.geometry(row, with_mesh=False).points,
-                           exclude=row.id)
-    return [d.as_dict() for d in dups], (warning_text(row.name, dups) if dups else None)
 
 
 def _summary(row) -> str:
@@ -60,7 +51,7 @@ def add_model(
     with err_console.status(f"measuring {mesh.name}"):
         row = cat.add(mesh, name=name, make=make, model=model, body_class=body_class, tags=tag or (), unit=unit,
                       up=up, front=front)
-        dups, warning = _near_duplicates(cat, row)
+        dups, warning = near_duplicate_report(cat, row)
     if warning:  # a warning, not a failure: the model is stored
         info(warning)
     if json_:
@@ -79,34 +70,26 @@ def import_models(
     json_: JsonOpt = False,
 ):
     """Add every mesh in a folder; a bad file is reported and skipped, the rest go in."""
-    if not folder.is_dir():
-        fail(f"{folder}: not a folder")
-    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
-    if not files:
-        fail(f"{folder}: no mesh files ({', '.join(sorted(MESH_SUFFIXES))})")
+    files = mesh_files(folder)
     cat = Catalogue(library_path(library))
-    added, skipped, dups, warnings = [], [], [], []
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                   TimeElapsedColumn(), console=err_console) as bar:
         task = bar.add_task("importing", total=len(files))
-        for path in files:
-            bar.update(task, description=f"importing {path.name}")
-            try:
-                added.append(cat.add(path, unit=unit, up=up))
-                near, warning = _near_duplicates(cat, added[-1])
-                dups.append(near)
-                if warning:
-                    warnings.append(warning)
-                    bar.console.print(warning, markup=False, highlight=False)
-            except TwinregError as exc:
-                skipped.append({"file": str(path), "error": str(exc)})
-                bar.console.print(f"skipped: {exc}", markup=False, highlight=False)
-            bar.advance(task)
+
+        def say(event, path, text):
+            if event == "start":
+                bar.update(task, description=f"importing {path.name}")
+            elif event == "done":
+                bar.advance(task)
+            else:
+                bar.console.print(printable(text), markup=False, highlight=False)
+
+        result = import_folder(cat, files, unit=unit, up=up, progress=say)
     if json_:
-        print_json({"added": [r.to_dict() | {"near_duplicates": d} for r, d in zip(added, dups)],
-                    "skipped": skipped, "warnings": warnings})
+        print_json(result.as_dict())
     else:
-        info(f"{len(added)} added, {len(skipped)} skipped")
+        info(f"{len(result.added)} added, {len(result.skipped)} skipped")
+    added, skipped = result.added, result.skipped
     if not added and skipped:
         raise typer.Exit(1)
 

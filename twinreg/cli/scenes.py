@@ -11,7 +11,7 @@ from cosco.params import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
 from ..io.outdir import check_replaceable
-from ._common import CityProgress, JsonOpt, LibraryOpt, err_console, handled, info, print_json
+from ._common import JsonOpt, LibraryOpt, RunProgress, err_console, handled, info, print_json
 
 app = typer.Typer()
 
@@ -95,25 +95,18 @@ def build_twin_cmd(
     cell by cell on Dask (resumable)."""
     from ..catalogue.db import library_path
     from ..catalogue.repository import Catalogue
-    from ..city.build import build_city_twin, is_tiled
     from ..geo.georef import georef_from_options
-    from ..pipeline import build_twin
+    from ..pipeline import RunSettings, build
 
     georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False)
     cat = Catalogue(library_path(library), create=False)
     first = paths[0]
     out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")
-    tiled = is_tiled(paths, explicit=any(v is not None for v in (cell, buffer, workers, scheduler)) or restart
-                     or bool(ply))
-    if tiled:
-        with CityProgress() as bars:
-            twin = build_city_twin(paths, cat, georef, out, unit=unit, tol=tol, threshold=threshold, cell=cell,
-                                   buffer=10.0 if buffer is None else buffer, workers=workers, scheduler=scheduler,
-                                   restart=restart, ply=bool(ply), progress=bars.update)
-    else:
-        with err_console.status("building the twin") as status:
-            twin = build_twin(first, cat, georef, out, unit=unit, tol=tol, threshold=threshold,
-                              progress=lambda msg: status.update(f"{first.name}: {msg}"), ply=ply is not False)
+    settings = RunSettings(unit=unit, tol=tol, threshold=threshold, cell=cell, buffer=buffer, workers=workers,
+                           scheduler=scheduler, restart=restart, ply=ply)
+    with RunProgress(first.name) as bars:
+        twin = build(paths, cat, georef, out, settings, progress=bars.update)
+    tiled = "grid" in twin
     if json_:
         print_json(twin)
         return

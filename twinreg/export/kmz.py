@@ -10,20 +10,12 @@ from xml.sax.saxutils import escape as _escape
 
 import numpy as np
 
+from ..catalogue.decimate import decimate
 from ..io.outdir import atomic_path
-from .collada import decimate, write_collada
+from .collada import write_collada
 
 # COLLADA files are authored with the car's front along +Y (north), so a KML heading is the front's bearing
 FRONT_TO_NORTH = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-
-
-def box_mesh(length: float, width: float, height: float):
-    """An axis-aligned box (front +X), footprint centred, bottom at z = 0."""
-    x, y = length / 2, width / 2
-    v = np.array([[sx * x, sy * y, z] for z in (0.0, height) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
-    f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5],
-                  [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
-    return v, f
 
 
 def escape(text) -> str:

@@ -11,8 +11,16 @@ import numpy as np
 import cosco
 from cosco.footprint import min_area_rectangle
 
-from .kmz import box_mesh
 from .twin_ply import cluster_color
+
+
+def box_mesh(length: float, width: float, height: float):
+    """An axis-aligned box (front +X), footprint centred, bottom at z = 0."""
+    x, y = length / 2, width / 2
+    v = np.array([[sx * x, sy * y, z] for z in (0.0, height) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    f = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5],
+                  [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    return v, f
 
 
 @dataclass

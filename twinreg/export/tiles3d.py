@@ -25,7 +25,8 @@ import numpy as np
 
 from ..geo.earth import EnuFrame, enu_angles
 from .gltf import Glb
-from .kmz import box_mesh
+from .objects import box_mesh
+from .twin_ply import PALETTE as TAB10
 
 #: points of the scan kept per cell (thinned evenly)
 SCAN_POINTS = 200_000
@@ -65,9 +66,7 @@ def instance_of(out, offset) -> Instance:
 
 #: model colours (matplotlib's tab10 without its red, kept for objects with no model, and its grey, the scan's
 #: ground), chosen by the model's key
-PALETTE = [(0.122, 0.467, 0.706), (1.0, 0.498, 0.055), (0.173, 0.627, 0.173), (0.580, 0.404, 0.741),
-           (0.549, 0.337, 0.294), (0.890, 0.467, 0.761), (0.737, 0.741, 0.133),
-           (0.090, 0.745, 0.812)]
+PALETTE = [tuple(round(c / 255.0, 3) for c in rgb) for k, rgb in enumerate(TAB10.tolist()) if k not in (3, 7)]
 
 
 def model_colour(key: str) -> tuple:

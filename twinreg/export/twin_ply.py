@@ -9,6 +9,7 @@ import numpy as np
 
 from ..io.ply import write_ply
 
+#: the colours of clusters: matplotlib's tab10, the one palette of the exports
 PALETTE = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189],
                     [140, 86, 75], [227, 119, 194], [127, 127, 127], [188, 189, 34], [23, 190, 207]], dtype=np.uint8)
 

@@ -13,6 +13,18 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def enu_axes(lat: float, lon: float) -> np.ndarray:
+    """(3, 3) columns: the east, north and up unit vectors in ECEF at ``lat``, ``lon`` (degrees).
+
+    >>> (np.round(enu_axes(0.0, 0.0), 6) + 0.0).tolist()  # at (0, 0): east is ECEF +Y, north +Z, up +X
+    [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+    """
+    la, lo = np.radians(lat), np.radians(lon)
+    return np.array([[-np.sin(lo), -np.sin(la) * np.cos(lo), np.cos(la) * np.cos(lo)],
+                     [np.cos(lo), -np.sin(la) * np.sin(lo), np.cos(la) * np.sin(lo)],
+                     [0.0, np.cos(la), np.sin(la)]])
+
+
 @dataclass(frozen=True)
 class EnuFrame:
     """East/north/up metres about ``(lon, lat, h)`` (degrees, degrees, metres above the ellipsoid)."""
@@ -28,11 +40,8 @@ class EnuFrame:
 
     @property
     def axes(self) -> np.ndarray:
-        """(3, 3) columns: the east, north and up unit vectors in ECEF."""
-        la, lo = np.radians(self.lat), np.radians(self.lon)
-        return np.array([[-np.sin(lo), -np.sin(la) * np.cos(lo), np.cos(la) * np.cos(lo)],
-                         [np.cos(lo), -np.sin(la) * np.sin(lo), np.cos(la) * np.sin(lo)],
-                         [0.0, np.cos(la), np.sin(la)]])
+        """(3, 3) columns: the east, north and up unit vectors in ECEF (:func:`enu_axes`)."""
+        return enu_axes(self.lat, self.lon)
 
     @property
     def origin(self) -> np.ndarray:

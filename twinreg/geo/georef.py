@@ -111,12 +111,9 @@ class Georef:
         to_ecef = transformer("EPSG:4979", "EPSG:4978")
         to_geo = transformer("EPSG:4978", "EPSG:4979")
         x0, y0, z0 = to_ecef.transform(self.lon, self.lat, self.alt)
-        la, lo = np.radians(self.lat), np.radians(self.lon)
-        # columns: east, north, up unit vectors in ECEF
-        enu = np.array([[-np.sin(lo), -np.sin(la) * np.cos(lo), np.cos(la) * np.cos(lo)],
-                        [np.cos(lo), -np.sin(la) * np.sin(lo), np.cos(la) * np.sin(lo)],
-                        [0.0, np.cos(la), np.sin(la)]])
-        return np.array([x0, y0, z0]), enu, to_geo
+        from .earth import enu_axes
+
+        return np.array([x0, y0, z0]), enu_axes(self.lat, self.lon), to_geo
 
     def to_wgs84(self, points) -> np.ndarray:
         """(n, 3) scene points -> (n, 3) longitude, latitude (degrees), ellipsoidal height (m)."""

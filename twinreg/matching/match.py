@@ -195,7 +195,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         m = placement(shape.frame, cache.frame(mid), reg)
         # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
         in_model = (sample - m[:3, 3]) @ m[:3, :3]
-        # the pose sharpened on the points (a turn about the vertical and a shift: twinreg/refine.py)
+        # the pose sharpened on the points (a turn about the vertical and a shift: twinreg/matching/refine.py)
         c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
         in_model = in_model @ c[:3, :3].T + c[:3, 3]
         m = m @ np.linalg.inv(c)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..city.cells import IMAGE_EMPTY, IMAGE_PIXEL
-from .plots import _plt, plot_dendrogram, save_figure
+from .plots import plot_dendrogram, pyplot, save_figure
 
 #: at most this many cluster representatives (the largest clusters) in the report's dendrogram
 MAX_REPRESENTATIVES = 30
@@ -19,7 +19,7 @@ MAX_REPRESENTATIVES = 30
 
 def plot_city_map(results, objects, outcomes, plan, path):
     """Height above ground of every cell (grey) with the objects: matched (coloured by model), unmatched (red)."""
-    plt = _plt()
+    plt = pyplot()
     lo = np.min([r.lo for r in results], axis=0)
     hi = np.max([r.hi for r in results], axis=0)
     ext = hi - lo
@@ -59,7 +59,7 @@ def plot_city_map(results, objects, outcomes, plan, path):
 def plot_histograms(twin: dict, path):
     """Measured length of the objects, RMSE of the matches, share of points the accepted model leaves
     unexplained."""
-    plt = _plt()
+    plt = pyplot()
     objs = twin["objects"]
     fig, axes = plt.subplots(1, 3, figsize=(11, 3))
     axes[0].hist([o["measured_size"]["length"] for o in objs], bins=40, color="0.4")

@@ -10,7 +10,9 @@ import numpy as np
 from ..io.outdir import atomic_path
 
 
-def _plt():
+def pyplot():
+    """matplotlib's pyplot on the file-only Agg backend (no display needed): every figure of twinreg comes from
+    here."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -26,7 +28,7 @@ def save_figure(fig, path, tight: bool = True, dpi: int = 110) -> Path:
         with atomic_path(path, path.suffix or ".png") as tmp:
             fig.savefig(tmp, dpi=dpi, bbox_inches="tight" if tight else None)
     finally:
-        _plt().close(fig)
+        pyplot().close(fig)
     return path
 
 
@@ -43,7 +45,7 @@ def _section_axes(ax, pts, res, title, xlabel, color="tab:blue", label=None):
 def plot_sections(sections, title: str, path, other=None, other_label: str | None = None, points=None):
     """Longitudinal and transverse sections (and optionally another object's, registered, in orange; and a top
     view of ``points`` (n, 3) in the object frame)."""
-    plt = _plt()
+    plt = pyplot()
     ncols = 3 if points is not None else 2
     fig, axes = plt.subplots(1, ncols, figsize=(5.5 * ncols, 3.6),
                              gridspec_kw={"width_ratios": [2.2, 1.2] + ([2.2] if points is not None else [])})
@@ -76,7 +78,7 @@ def plot_model(geometry, info: dict, path):
 
 
 def plot_heatmap(matrix: np.ndarray, labels: list[str], path, title: str = "dissimilarity (cm)"):
-    plt = _plt()
+    plt = pyplot()
     n = len(labels)
     fig, ax = plt.subplots(figsize=(1.0 + 0.55 * n, 0.8 + 0.5 * n))
     im = ax.imshow(np.asarray(matrix) * 100.0, cmap="coolwarm")
@@ -94,7 +96,7 @@ def plot_heatmap(matrix: np.ndarray, labels: list[str], path, title: str = "diss
 def plot_dendrogram(linkage: np.ndarray, labels: list[str], threshold: float, path):
     from scipy.cluster.hierarchy import dendrogram
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(max(5, 0.5 * len(labels) + 2), 4))
     if len(labels) >= 2:
         z = np.array(linkage, dtype=np.float64)

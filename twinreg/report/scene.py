@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots import _plt, plot_dendrogram, plot_heatmap, save_figure
+from .plots import plot_dendrogram, plot_heatmap, pyplot, save_figure
 
 
 def warm_up() -> bool:
     """Import matplotlib and draw a first tiny figure (font set-up): run in the helper process at the start."""
     import io
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(1, 1))
     ax.text(0.5, 0.5, "warm")
     fig.savefig(io.BytesIO(), format="png")
@@ -39,7 +39,7 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
                   hag: np.ndarray | None = None):
     """Top view: the scan as a height-above-ground image (a raster, fast at any size) with each placed model's
     footprint, front arrow and label."""
-    plt = _plt()
+    plt = pyplot()
     ext = np.ptp(scene_local[:, :2], axis=0)
     scale = 14.0 / max(ext.max(), 1.0)
     fig, ax = plt.subplots(figsize=(max(4, ext[0] * scale + 1), max(3, ext[1] * scale + 1)))
@@ -64,7 +64,7 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
 def plot_object_sections(items: list[dict], path):
     """Each object's sections (blue squares) with its registered best model's (orange dots), stacked in two
     panels: longitudinal (left) and transverse (right), one row of 2.5 m per object."""
-    plt = _plt()
+    plt = pyplot()
     n = max(1, len(items))
     fig, (ax_l, ax_t) = plt.subplots(1, 2, figsize=(10, 1.0 + 0.9 * n), gridspec_kw={"width_ratios": [2.4, 1.0]})
     step = 2.5

@@ -25,7 +25,7 @@ def test_small_cars_are_reported_as_missing_sizes(catalogue16, tmp_path):
     assert doc["n_objects"] == 8 and doc["n_lacking"] == 7
     small, fusion = doc["groups"]
     assert small["n_objects"] == 6 and small["models_within_tol"] == 0
-    assert small["text"].startswith("6 objects 3.3-3.4 m long, 1.6-1.6 m wide: no model within 0.2 m")
+    assert small["text"].startswith("6 objects 3.3-3.4 m long, 1.6-1.6 m wide: no model in the size window")
     assert fusion["models_within_tol"] >= 3  # Fusion, Mondeo, MKZ...: near in size, none accepted
     assert (tmp_path / "cov.png").stat().st_size > 10_000
 

@@ -1,0 +1,76 @@
+"""twin.json, built by one function for a scene and for a city (the city adds its sources, grid and cells), so
+the two can never drift apart. Field by field: docs/OUTPUTS.md; the contract's part: docs/CONTRACT.md."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class ScanSummary:
+    """What twin.json says of the scan: its name, counts, unit, local offset (3,), range noise (m) and the points
+    (or their bounding corners) whose centre is georeferenced as ``scan_centre``."""
+
+    scene: str
+    n_points: int
+    n_outliers: int
+    unit: str
+    offset: np.ndarray
+    noise: float
+    extent: np.ndarray
+    sources: list | None = None
+
+
+@dataclass
+class MatchSummary:
+    """The matching statistics of a run (``match_objects``' stats) and the catalogue's size."""
+
+    stats: dict
+    catalogue_models: int
+    worker_stages: bool = False
+    extra: dict = field(default_factory=dict)
+
+
+def taxonomy_json(tax) -> dict:
+    """twin.json's ``dissimilarity`` (the matrix, or None past ``taxonomy_full_max`` objects, when
+    ``dissimilarity_pairs`` lists the compared pairs as [i, j, metres]) and ``clustering``."""
+    doc = {"clustering": {"threshold_m": tax.threshold, "n_clusters": tax.n_clusters, "method": tax.method,
+                          "n_comparisons": tax.n_comparisons}}
+    if tax.method == "full":
+        doc["dissimilarity"] = [[round(float(v), 5) for v in row] for row in tax.matrix]
+    else:
+        doc["dissimilarity"] = None
+        doc["dissimilarity_pairs"] = [[int(i), int(j), round(float(d), 5)] for (i, j), d in
+                                      zip(tax.pairs, tax.distances)]
+    return doc
+
+
+def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, matching: MatchSummary,
+                  tail: dict | None = None) -> dict:
+    """The twin.json document (``timing_s`` left empty for the caller to fill last); ``tail``: keys that follow
+    ``matching`` (a city's ``grid`` and ``cells``)."""
+    stats = matching.stats
+    doc = {"scene": scan.scene}
+    if scan.sources is not None:
+        doc["sources"] = list(scan.sources)
+    doc |= {
+        "n_points": int(scan.n_points), "n_outliers": int(scan.n_outliers), "unit": scan.unit,
+        "georef": georef.to_json() | {"scan_centre": georef.centre_of(scan.extent)},
+        "offset": [float(v) for v in scan.offset], "noise_m": round(float(scan.noise), 4),
+        "objects": objects,
+        **taxonomy_json(tax),
+    }
+    m = {"tol_m": params.size_tol, "tol_spacing_k": params.size_spacing_k,
+         "catalogue_models": matching.catalogue_models, "n_trials": stats["n_trials"],
+         "n_pairs_without_prefilter": stats["n_pairs_without_prefilter"],
+         "n_trials_saved_by_clusters": stats["n_trials_saved_by_clusters"],
+         "registration_ms_per_trial": round(1000 * stats["registration_s"] / max(stats["n_trials"], 1), 3)}
+    if matching.worker_stages:
+        m["worker_s"] = {k[:-2]: round(stats[k], 3) for k in ("prefilter_s", "model_prep_s", "registration_s",
+                                                              "verification_s")}
+    doc["matching"] = m | matching.extra
+    doc |= tail or {}
+    doc["timing_s"] = {}
+    return doc
