@@ -33,7 +33,7 @@ def _say(progress, msg):
         progress(msg)
 
 
-def _checked_params(params: CoscoParams, tol: float | None, threshold: float | None) -> CoscoParams:
+def checked_params(params: CoscoParams, tol: float | None, threshold: float | None) -> CoscoParams:
     """``params`` with the size tolerance and cluster threshold the user gave (both must be positive)."""
     from .errors import require_positive
 
@@ -100,7 +100,7 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     """
     t_start = time.perf_counter()
     timing = {}
-    params = _checked_params(params, tol, threshold)
+    params = checked_params(params, tol, threshold)
     scene_path = Path(scene_path)
     check_replaceable(Path(out), protect=[scene_path, catalogue.folder])
     if catalogue.count() == 0:

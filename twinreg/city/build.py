@@ -160,11 +160,11 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     import twinreg
 
     from ..io.outdir import check_replaceable, claim
-    from ..pipeline import _checked_params
+    from ..pipeline import checked_params
 
     t_start = time.perf_counter()
     timing: dict = {}
-    params = _checked_params(params, tol, threshold)
+    params = checked_params(params, tol, threshold)
     if workers is not None and workers < 1:
         raise ParameterError(f"--workers must be 1 or more (got {workers})")
     crs = georef.crs if georef is not None and georef.crs_source == "--crs" else None

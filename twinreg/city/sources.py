@@ -89,7 +89,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
     import laspy
 
     from ..io._files import checked_input
-    from ..io.points import _crs_and_units, check_las_header
+    from ..io.points import crs_and_units, check_las_header
 
     path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
     try:
@@ -109,7 +109,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
         # laspy reads a truncated COPC as an empty one: refuse it here rather than lose its points
         raise SceneReadError(f"{path}: a COPC file without its octree hierarchy (truncated?); copy or download it "
                              "again")
-    info, unit_name, scale, z_scale = _crs_and_units(path, unit.lower(), crs, header_crs, header_error)
+    info, unit_name, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error)
     mins, maxs = np.asarray(header.mins, dtype=np.float64), np.asarray(header.maxs, dtype=np.float64)
     s = np.array([scale, scale, z_scale])
     st = path.stat()

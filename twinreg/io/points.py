@@ -191,7 +191,7 @@ def _read_o3d(path: Path) -> np.ndarray:
     return pts
 
 
-def _crs_and_units(path: Path, unit: str, crs, header_crs, header_error):
+def crs_and_units(path: Path, unit: str, crs, header_crs, header_error):
     """(CrsInfo or None, unit name, horizontal scale, vertical scale) for a file, or SceneReadError."""
     from ..geo.georef import crs_info
 
@@ -248,7 +248,7 @@ def read_points(path, unit: str = "auto", crs: str | None = None) -> PointSet:
     pts = pts[finite]
     if len(pts) == 0:
         raise SceneReadError(f"{path}: no valid points")
-    info, unit, scale, z_scale = _crs_and_units(path, unit.lower(), crs, header_crs, header_error)
+    info, unit, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error)
     if scale != 1.0 or z_scale != 1.0:
         pts = pts * np.array([scale, scale, z_scale])
     far = np.abs(pts).max(1) > MAX_COORD

@@ -147,22 +147,8 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
                 own = [m for m in ids[:share] if m not in ranked_by_leader[:share]]
                 preferred = [m for m in ranked_by_leader[:share] if m in ids] + own
                 ids = preferred or ids
-            regs = []
-            for mid in ids:
-                regs.append((_trial(pairs[i], cache, mid, params), mid))
-                stats["n_trials"] += 1
-                if progress:
-                    progress(1)
-            regs.sort(key=lambda r: r[0].rmse)
-            if not leads and regs and regs[0][0].rmse > leader_best + params.share_margin:
-                # this member fits the leader's favourites clearly worse than the leader did: not the same kind
-                # of car after all, so it tries the rest of its own candidates too
-                for mid in [m for m in cands[i] if m not in ids]:
-                    regs.append((_trial(pairs[i], cache, mid, params), mid))
-                    stats["n_trials"] += 1
-                regs.sort(key=lambda r: r[0].rmse)
-            if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
-                regs[0] = (_trial(pairs[i], cache, regs[0][1], params, polish=True), regs[0][1])
+            regs = _registrations(pairs[i], ids, cands[i], cache, params, None if leads else leader_best, stats,
+                                  progress)
             if leads:
                 ranked_by_leader = [m for _, m in regs]
                 leader_best = regs[0][0].rmse if regs else np.inf
@@ -176,6 +162,28 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     stats["registration_s"] = time.perf_counter() - t - stats["verification_s"]
     stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]
     return results, stats
+
+
+def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, leader_best, stats: dict,
+                   progress=None) -> list:
+    """The section registrations of one object to the models ``ids``, best (lowest RMSE) first, the best one
+    polished. A member of a cluster (``leader_best``: the RMSE its leader reached) that fits those clearly worse
+    than its leader did is not the same kind of car after all: it tries the rest of ``all_ids`` too."""
+    regs = []
+    for mid in ids:
+        regs.append((_trial(pair, cache, mid, params), mid))
+        stats["n_trials"] += 1
+        if progress:
+            progress(1)
+    regs.sort(key=lambda r: r[0].rmse)
+    if leader_best is not None and regs and regs[0][0].rmse > leader_best + params.share_margin:
+        for mid in [m for m in all_ids if m not in ids]:
+            regs.append((_trial(pair, cache, mid, params), mid))
+            stats["n_trials"] += 1
+        regs.sort(key=lambda r: r[0].rmse)
+    if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
+        regs[0] = (_trial(pair, cache, regs[0][1], params, polish=True), regs[0][1])
+    return regs
 
 
 def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
