@@ -136,8 +136,10 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
             names = [f"obj{k + 1}" for k in range(len(targets))]
             taxonomy = painter.submit(plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,
                                       clusters.threshold) if painter and clusters.method == "full" else None
-            twin = _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, clusters,
-                                     params, progress, timing, t_start, painter, taxonomy, ply)
+            run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
+                           targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
+                           timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply)
+            twin = _match_and_export(run)
         except BaseException:
             if painter:  # the helper may be drawing into the stage: stopped before the stage is deleted
                 painter.stop()
@@ -167,8 +169,34 @@ def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances
     return Taxonomy(c.labels, "full", c.threshold, matrix=matrix, linkage=c.linkage)
 
 
-def _match_and_export(stage, scene_path, catalogue, georef, det, targets, shapes, clusters, params,
-                      progress, timing, t_start, painter, taxonomy, ply=True) -> dict:
+@dataclass
+class SceneRun:
+    """One scene's run once its objects are described: where it writes (``stage``), what it read (``scene_path``,
+    the detection ``det``, its ``targets`` and their ``shapes``, the taxonomy ``clusters``), with what
+    (``catalogue``, ``georef``, ``params``), and how it runs (``progress``, ``timing``, ``t_start``, the picture
+    helper ``painter`` and its ``taxonomy`` job, ``ply``)."""
+
+    stage: Path
+    scene_path: Path
+    catalogue: Catalogue
+    georef: Georef
+    det: object
+    targets: list
+    shapes: list
+    clusters: object
+    params: CoscoParams
+    progress: object
+    timing: dict
+    t_start: float
+    painter: object
+    taxonomy: object
+    ply: bool = True
+
+
+def _match_and_export(run: SceneRun) -> dict:
+    stage, scene_path, catalogue, georef, det = run.stage, run.scene_path, run.catalogue, run.georef, run.det
+    targets, shapes, clusters, params, progress = run.targets, run.shapes, run.clusters, run.params, run.progress
+    timing, t_start, painter, taxonomy, ply = run.timing, run.t_start, run.painter, run.taxonomy, run.ply
     local = det.scene.local
     offset = det.scene.offset
     _say(progress, "prefilter and registration")

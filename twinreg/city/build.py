@@ -205,12 +205,15 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
         if created and not any(store.folder.glob("*.npz")):
             shutil.rmtree(out, ignore_errors=True)
         raise
-    from .export import export_city
+    from .export import CityRun, export_city
 
     t = time.perf_counter()
     _say(progress, "export", 0, 1)
-    twin = export_city(out, protect, store, keys, sources, p, georef, results, objects, tax, outcomes, stats,
-                       models, catalogue, params, ply, timing, t_start, progress, reused=p.n_cells - len(todo))
+    run = CityRun(out=out, protect=protect, store=store, keys=keys, sources=sources, plan=p, georef=georef,
+                  results=results, objects=objects, tax=tax, outcomes=outcomes, stats=stats, models=models,
+                  catalogue=catalogue, params=params, ply=ply, timing=timing, t_start=t_start, progress=progress,
+                  reused=p.n_cells - len(todo))
+    twin = export_city(run)
     timing["export"] = time.perf_counter() - t
     _say(progress, "export", 1, 1)
     return twin

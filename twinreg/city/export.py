@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +30,43 @@ def _cell_bounds(georef, cell) -> dict:
             "west": float(ll[:, 0].min())}
 
 
-def export_city(out, protect, store, keys, sources, plan, georef, results, objects, tax, outcomes, stats, models,
-                catalogue, params, ply, timing, t_start, progress, reused: int = 0) -> dict:
+@dataclass
+class CityRun:
+    """A tiled run as the export needs it: where it writes (``out``, the paths it may not hold, the cell store and
+    the cells' keys), what it read (``sources``, the ``plan``, ``georef``), what the cells and the matching gave
+    (``results``, ``objects``, the taxonomy ``tax``, ``outcomes``, ``stats``, the model cache ``models``), and how
+    it ran (``catalogue``, ``params``, ``ply``, ``timing``, ``t_start``, ``progress``, cells ``reused``)."""
+
+    out: Path
+    protect: list
+    store: object
+    keys: dict
+    sources: list
+    plan: object
+    georef: object
+    results: list
+    objects: list
+    tax: object
+    outcomes: list
+    stats: dict
+    models: object
+    catalogue: object
+    params: object
+    ply: bool
+    timing: dict
+    t_start: float
+    progress: object = None
+    reused: int = 0
+
+
+def export_city(run: CityRun) -> dict:
+    """Write a tiled run's twin (see the module's text); returns twin.json's document."""
+    out, protect, store, keys, sources, plan, georef = (run.out, run.protect, run.store, run.keys, run.sources,
+                                                        run.plan, run.georef)
+    results, objects, tax, outcomes, stats, models = (run.results, run.objects, run.tax, run.outcomes, run.stats,
+                                                      run.models)
+    catalogue, params, ply, timing, t_start, reused = (run.catalogue, run.params, run.ply, run.timing, run.t_start,
+                                                       run.reused)
     from ..report.city import write_city_report
 
     out = Path(out)

@@ -89,7 +89,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
     import laspy
 
     from ..io._files import checked_input
-    from ..io.points import crs_and_units, check_las_header
+    from ..io.points import check_las_header, crs_and_units
 
     path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
     try:
