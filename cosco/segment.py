@@ -137,17 +137,28 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
     return sizes[comp] <= params.outlier_points
 
 
+def _members(comp: np.ndarray, min_count: int = 1) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The labels of ``comp`` (n,) int, their counts, and each label's point indices (labels of at least
+    ``min_count`` points).
+
+    >>> {int(k): v.tolist() for k, v in _members(np.array([2, 1, 2]))[2].items()}
+    {1: [1], 2: [0, 2]}
+    """
+    labels, counts = np.unique(comp, return_counts=True)
+    order = stable_argsort(comp)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    members = {lab: order[s:s + c] for lab, s, c in zip(labels, starts, counts) if c >= min_count}
+    return labels, counts, members
+
+
 def _absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams) -> np.ndarray:
     """A small component whose centre lies inside a larger, at most target-sized one's footprint rectangle (a piece
     of a car's side that scan-line gaps cut off, a mirror) joins it; neighbours side by side keep apart (their
     centres are outside), and nothing joins a hedge or an island (larger than the target class)."""
     big, share, margin = params.seg_fragment_points, params.seg_fragment_share, params.seg_fragment_margin
-    labels, counts = np.unique(comp, return_counts=True)
+    labels, counts, members = _members(comp)
     if len(labels) < 2:
         return comp
-    order = stable_argsort(comp)
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
-    members = {lab: order[s:s + c] for lab, s, c in zip(labels, starts, counts)}
     centres = {lab: xy[idx].mean(0) for lab, idx in members.items()}
     lows = {lab: hag[idx].min() for lab, idx in members.items()}
     tops = {lab: hag[idx].max() for lab, idx in members.items()}
@@ -192,12 +203,9 @@ def _join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cos
     the car and stays apart; two cars side by side are off each other's axis."""
     gap, min_cover = params.seg_join_gap + spacing, params.seg_join_cover
     widen, offset, max_length = params.seg_join_widen, params.seg_join_offset, params.seg_join_max_length
-    labels, counts = np.unique(comp, return_counts=True)
+    labels, counts, members = _members(comp, min_count=3)
     if len(labels) < 2:
         return comp
-    order = stable_argsort(comp)
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
-    members = {lab: order[s:s + c] for lab, s, c in zip(labels, starts, counts) if c >= 3}
     rects = {lab: min_area_rectangle(xy[idx]) for lab, idx in members.items()}
     pieces = [lab for lab in members if rects[lab].length < params.car_length[0]]
     if not pieces:

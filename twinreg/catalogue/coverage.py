@@ -98,7 +98,7 @@ def _text(g: dict) -> str:
 
 def plot(objects: list[dict], models: np.ndarray, names: list[str], path) -> Path:
     """Object sizes (length x width; got a model or not) over the catalogue's models."""
-    from ..report.plots import pyplot
+    from ..report.plots import pyplot, save_figure
 
     plt = pyplot()
 
@@ -116,11 +116,7 @@ def plot(objects: list[dict], models: np.ndarray, names: list[str], path) -> Pat
             ax.annotate(name, (length, width), fontsize=6, color="#36c", ha="center")
         ax.scatter(models[:, 0], models[:, 1], marker="s", s=18, c="#36c",
                    label=f"catalogue models (size window: {tol:.2f} m, {tol + grow:.2f} m towards smaller objects)")
-    ax.set_xlabel("length (m)")
-    ax.set_ylabel("width (m)")
+    ax.set(xlabel="length (m)", ylabel="width (m)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=100)

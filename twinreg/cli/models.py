@@ -19,6 +19,8 @@ from ._common import JsonOpt, LibraryOpt, err_console, fail, handled, info, out_
 
 app = typer.Typer()
 
+RefArg = Annotated[str, typer.Argument(
+    help="The model: id:N, name:TEXT, or an id (digits) or unique name.", show_default=False)]
 UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|in|ft (auto: the file's unit, else inferred).")]
 UpOpt = Annotated[str, typer.Option("--up", help="auto|+x|-x|+y|-y|+z|-z: the file's up axis.")]
 FrontOpt = Annotated[str, typer.Option(
@@ -164,7 +166,7 @@ def _print_csv(rows) -> None:
 @app.command("show-model")
 @handled
 def show_model(
-    ref: Annotated[str, typer.Argument(help="Model id or unique name.")],
+    ref: RefArg,
     plot: Annotated[Optional[Path], typer.Option("--plot", help="Draw the cross-sections to this PNG.")] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
@@ -194,7 +196,7 @@ def show_model(
 @app.command("update-model")
 @handled
 def update_model(
-    ref: Annotated[str, typer.Argument(help="Model id or unique name.")],
+    ref: RefArg,
     name: Annotated[Optional[str], typer.Option()] = None,
     make: Annotated[Optional[str], typer.Option()] = None,
     model: Annotated[Optional[str], typer.Option()] = None,
@@ -215,7 +217,7 @@ def update_model(
 @app.command("remove-model")
 @handled
 def remove_model(
-    ref: Annotated[str, typer.Argument(help="Model id or unique name.")],
+    ref: RefArg,
     yes: Annotated[bool, typer.Option("--yes", help="Do not ask for confirmation.")] = False,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
