@@ -18,7 +18,7 @@ from .export.formats import write_formats
 from .export.kmz import write_kmz
 from .export.objects import object_output
 from .export.tiles3d import scan_sample
-from .export.twin_json import MatchSummary, ScanSummary, twin_document
+from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from .export.twin_ply import write_twin_ply
 from .geo.georef import Georef, scene_georef
 from .io.outdir import check_replaceable, staged_folder
@@ -49,7 +49,8 @@ def checked_params(params: CoscoParams, tol: float | None, threshold: float | No
 class RunSettings:
     """The options of a build-twin run (the command's, in one object): the unit, the size tolerance and cluster
     threshold (None: the defaults), the tiled run's cell, buffer, workers, scheduler and restart, and whether to
-    write PLY (None: twin.ply for one scene, none for tiles)."""
+    write PLY (None: twin.ply for one scene, none for tiles); the survey's date (``YYYY-MM-DD``; None: the
+    LAS/LAZ headers')."""
 
     unit: str = "auto"
     tol: float | None = None
@@ -60,6 +61,7 @@ class RunSettings:
     scheduler: str | None = None
     restart: bool = False
     ply: bool | None = None
+    date: str | None = None
 
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
@@ -82,17 +84,18 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
 
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
-                               scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress)
+                               scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
+                               date=s.date)
     say = (lambda msg: progress(msg, None, None)) if progress else None
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
-                      progress=say, ply=s.ply is not False)
+                      progress=say, ply=s.ply is not False, date=s.date)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
                tol: float | None = None, params: CoscoParams = DEFAULT, progress=None,
-               threshold: float | None = None, ply: bool = True) -> dict:
+               threshold: float | None = None, ply: bool = True, date: str | None = None) -> dict:
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
-    ``ply=False`` leaves out twin.ply).
+    ``ply=False`` leaves out twin.ply; ``date``: the survey's date, ``YYYY-MM-DD``, else the LAS/LAZ header's).
 
     georef : from :func:`~twinreg.geo.georef.georef_from_options`, or None to use the CRS the file states. tol,
     threshold : the size tolerance and cluster threshold (m), ``params.size_tol`` and ``params.cluster_threshold``
@@ -108,14 +111,15 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
                              "`twinreg add-model MESH` or `twinreg import-models DIR`")
     painter = Painter.start(warm=warm_up)
     try:
-        return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply)
+        return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply,
+                      date)
     finally:
         if painter:
             painter.stop()
 
 
 def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing,
-           ply=True) -> dict:
+           ply=True, date=None) -> dict:
     _say(progress, "reading and detecting")
     det = detect_file(scene_path, unit=unit, params=params,
                       crs=georef.crs if georef is not None and georef.crs_source == "--crs" else None)
@@ -138,7 +142,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
                                       clusters.threshold) if painter and clusters.method == "full" else None
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
-                           timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply)
+                           timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date)
             twin = _match_and_export(run)
         except BaseException:
             if painter:  # the helper may be drawing into the stage: stopped before the stage is deleted
@@ -191,6 +195,7 @@ class SceneRun:
     painter: object
     taxonomy: object
     ply: bool = True
+    date: str | None = None
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -223,8 +228,9 @@ def _match_and_export(run: SceneRun) -> dict:
         section_items.append(out.sections)
         outs.append(out)
 
+    when, source = survey_date(run.date, [det.scene.survey_date])
     scan = ScanSummary(scene_path.name, len(det.scene.points), det.scene.n_outliers, det.scene.unit, offset, noise,
-                       det.scene.points)
+                       det.scene.points, survey_date=when, survey_date_source=source)
     twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,

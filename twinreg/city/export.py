@@ -16,7 +16,7 @@ import numpy as np
 from ..export.formats import write_formats
 from ..export.kmz import write_kmz
 from ..export.objects import object_output, pose
-from ..export.twin_json import MatchSummary, ScanSummary, twin_document
+from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from ..export.twin_ply import write_twin_ply
 from ..io.outdir import staged_folder
 from .resume import WORK
@@ -57,6 +57,7 @@ class CityRun:
     t_start: float
     progress: object = None
     reused: int = 0
+    date: str | None = None
 
 
 def export_city(run: CityRun) -> dict:
@@ -102,7 +103,9 @@ def export_city(run: CityRun) -> dict:
     scan = ScanSummary(names[0] if len(names) == 1 else f"{len(names)} tiles ({names[0]} ...)",
                        sum(r.n_points for r in results), sum(r.n_outliers for r in results), sources[0].unit,
                        np.asarray(plan.offset), float(np.median([r.noise for r in results if r.n_points])),
-                       np.vstack([lo, hi]), sources=[s.path for s in sources])
+                       np.vstack([lo, hi]), sources=[s.path for s in sources],
+                       **dict(zip(("survey_date", "survey_date_source"),
+                                  survey_date(run.date, [s.date for s in sources]))))
     grid = {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
             "n_cells": plan.n_cells, "n_cells_reused": int(reused), "origin": [0.0, 0.0]}
     twin = twin_document(scan, georef, docs, tax, params, MatchSummary(stats, catalogue.count(), worker_stages=True),

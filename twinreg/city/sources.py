@@ -40,6 +40,7 @@ class Source:
     z_scale: float
     size: int
     mtime_ns: int
+    date: str | None = None
 
     @property
     def area(self) -> float:
@@ -89,7 +90,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
     import laspy
 
     from ..io._files import checked_input
-    from ..io.points import check_las_header, crs_and_units
+    from ..io.points import check_las_header, crs_and_units, header_date
 
     path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
     try:
@@ -115,7 +116,8 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
     st = path.stat()
     return Source(path=str(path.resolve()), n_points=int(header.point_count), lo=tuple(mins * s), hi=tuple(maxs * s),
                   copc=copc, crs=info.crs if info else None, crs_name=info.name if info else None,
-                  unit=unit_name, scale=scale, z_scale=z_scale, size=st.st_size, mtime_ns=st.st_mtime_ns)
+                  unit=unit_name, scale=scale, z_scale=z_scale, size=st.st_size, mtime_ns=st.st_mtime_ns,
+                  date=header_date(header))
 
 
 def open_sources(paths, unit: str = "auto", crs: str | None = None) -> list[Source]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -85,6 +86,10 @@ def build_twin_cmd(
              "paths on its workers).", show_default=False)] = None,
     restart: Annotated[bool, typer.Option(
         "--restart", help="Tiled runs: ignore the cells a previous run finished.")] = False,
+    date: Annotated[Optional[datetime], typer.Option(
+        "--date", formats=["%Y-%m-%d"], help="The survey's date, YYYY-MM-DD [default: the LAS/LAZ header's "
+                                             "creation date]; written to twin.json as survey_date.",
+        show_default=False)] = None,
     ply: Annotated[Optional[bool], typer.Option(
         "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
                                "--ply writes ply/<cell>.ply].", show_default=False)] = None,
@@ -103,7 +108,8 @@ def build_twin_cmd(
     first = paths[0]
     out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")
     settings = RunSettings(unit=unit, tol=tol, threshold=threshold, cell=cell, buffer=buffer, workers=workers,
-                           scheduler=scheduler, restart=restart, ply=ply)
+                           scheduler=scheduler, restart=restart, ply=ply,
+                           date=date.date().isoformat() if date else None)
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
     tiled = "grid" in twin

@@ -10,8 +10,9 @@ import numpy as np
 
 @dataclass
 class ScanSummary:
-    """What twin.json says of the scan: its name, counts, unit, local offset (3,), range noise (m) and the points
-    (or their bounding corners) whose centre is georeferenced as ``scan_centre``."""
+    """What twin.json says of the scan: its name, counts, unit, local offset (3,), range noise (m), the points
+    (or their bounding corners) whose centre is georeferenced as ``scan_centre``, and the survey's date
+    (``YYYY-MM-DD``) with where it came from (``--date`` or ``file header``), or None."""
 
     scene: str
     n_points: int
@@ -21,6 +22,8 @@ class ScanSummary:
     noise: float
     extent: np.ndarray
     sources: list | None = None
+    survey_date: str | None = None
+    survey_date_source: str | None = None
 
 
 @dataclass
@@ -59,6 +62,7 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
         "n_points": int(scan.n_points), "n_outliers": int(scan.n_outliers), "unit": scan.unit,
         "georef": georef.to_json() | {"scan_centre": georef.centre_of(scan.extent)},
         "offset": [float(v) for v in scan.offset], "noise_m": round(float(scan.noise), 4),
+        "survey_date": scan.survey_date, "survey_date_source": scan.survey_date_source,
         "objects": objects,
         **taxonomy_json(tax),
     }
@@ -74,3 +78,16 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
     doc |= tail or {}
     doc["timing_s"] = {}
     return doc
+
+
+def survey_date(given: str | None, headers: list) -> tuple[str | None, str | None]:
+    """The survey's date and its source: ``--date`` when given, else the one date the files' headers state (the
+    earliest when tiles differ), else (None, None).
+
+    >>> survey_date(None, ["2026-03-02", None, "2026-03-01"]), survey_date("2026-05-01", ["2026-03-02"])
+    (('2026-03-01', 'file header'), ('2026-05-01', '--date'))
+    """
+    if given:
+        return given, "--date"
+    dates = sorted(d for d in headers if d)
+    return (dates[0], "file header") if dates else (None, None)

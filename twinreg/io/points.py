@@ -32,7 +32,7 @@ class PointSet:
     points : (n, 3) float64 metres in the file's frame (file coordinates times ``scale``, z times ``z_scale``).
     offset : (3,) float64, a round local origin; ``points - offset`` is small. unit : the horizontal unit applied.
     crs_info : the projected CRS of the coordinates (``--crs``, else the LAS/LAZ header's), or None. n_dropped :
-    non-finite points removed.
+    non-finite points removed. survey_date : the LAS/LAZ header's creation date (ISO ``YYYY-MM-DD``), or None.
     """
 
     path: Path
@@ -44,6 +44,7 @@ class PointSet:
     scale: float = 1.0
     z_scale: float = 1.0
     n_outliers: int = 0
+    survey_date: str | None = None
 
     def without(self, drop: np.ndarray) -> "PointSet":
         """The same scene without the points of the (n,) mask ``drop`` (counted as outliers)."""
@@ -102,6 +103,15 @@ def check_las_header(path: Path, header) -> None:
                              "rewrite the file with correct offsets (e.g. pdal translate or las2las)")
 
 
+def header_date(header) -> str | None:
+    """A LAS/LAZ header's creation date as ``YYYY-MM-DD`` (the survey's, by the specification), or None."""
+    try:
+        d = header.creation_date
+    except Exception:  # a day of year the calendar does not have
+        return None
+    return d.isoformat() if d is not None else None
+
+
 def _read_las(path: Path):
     """(points (n, 3) in file units, the header's CRS or None, the error parsing it or None)."""
     import laspy
@@ -114,9 +124,9 @@ def _read_las(path: Path):
     pts = np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
                            np.asarray(las.z, dtype=np.float64)])
     try:
-        return pts, las.header.parse_crs(), None
+        return pts, las.header.parse_crs(), None, header_date(las.header)
     except Exception as exc:  # a CRS record is there but broken: the caller decides (error unless told the unit)
-        return pts, None, exc
+        return pts, None, exc, header_date(las.header)
 
 
 _PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
@@ -229,9 +239,9 @@ def read_points(path, unit: str = "auto", crs: str | None = None) -> PointSet:
     """
     path, suffix = checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin",
                                  SceneReadError)
-    header_crs = header_error = None
+    header_crs = header_error = date = None
     if suffix in (".las", ".laz"):
-        pts, header_crs, header_error = _read_las(path)
+        pts, header_crs, header_error, date = _read_las(path)
     elif suffix == ".bin":
         pts = _read_kitti(path)
     elif suffix == ".ply":
@@ -259,4 +269,4 @@ def read_points(path, unit: str = "auto", crs: str | None = None) -> PointSet:
     offset = np.floor(pts.min(0) / 100.0) * 100.0
     offset[2] = 0.0
     return PointSet(path=path, points=pts, offset=offset, unit=unit, crs_info=info, n_dropped=dropped, scale=scale,
-                    z_scale=z_scale)
+                    z_scale=z_scale, survey_date=date)
