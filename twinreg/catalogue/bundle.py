@@ -35,6 +35,7 @@ import numpy as np
 from ..errors import BundleError, CatalogueError, ExportError
 from ..io.outdir import atomic_path
 from .db import DB_NAME, make_engine, upgrade, writer_lock
+from .models import unpack
 from .names import is_sha256, name_problem, printable
 from .prepare import file_sha256
 from .repository import atomic_copy, undone_on_failure
@@ -264,15 +265,17 @@ class _Bundle:
 
 
 def _blob_shape(blob, cols: int, what: str, rows: int | None = None) -> int:
-    if blob is None or len(blob) < 8:
-        raise ValueError(f"its {what} array is missing")
-    r, c = (int(v) for v in np.frombuffer(blob[:8], dtype="<i4"))
-    if r < 0 or c != cols or r * c * 4 != len(blob) - 8 or (rows is not None and r != rows):
-        raise ValueError(f"its {what} array's header ({r}, {c}) does not fit its {len(blob) - 8} bytes"
-                         + (f" and {rows} points" if rows is not None else ""))
-    if not np.isfinite(np.frombuffer(blob[8:], dtype="<f4")).all():
+    """The rows of a stored array (:func:`~twinreg.catalogue.models.unpack` checks its header against its bytes),
+    or ValueError unless it has ``cols`` columns (and ``rows`` rows) of finite numbers."""
+    try:
+        a = unpack(blob)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"its {what} array is damaged ({exc})") from None
+    if a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
+        raise ValueError(f"its {what} array is {a.shape}, not ({rows if rows is not None else 'n'}, {cols})")
+    if not np.isfinite(a).all():
         raise ValueError(f"its {what} array holds NaN or infinite values")
-    return r
+    return a.shape[0]
 
 
 def check_row(row) -> tuple[str, str]:

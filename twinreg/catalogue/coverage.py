@@ -73,8 +73,8 @@ def window_of(objects: list[dict]) -> tuple[float, float]:
     """(tol, grow) m of the matcher's size window for these objects: the twin's tolerance, and its spacing factor
     times the objects' median point spacing (estimated as sqrt(footprint / points); 0 when a record has no point
     count)."""
-    tol = float(np.median([o.get("window", (DEFAULT.size_tol, 0.0))[0] for o in objects]))
-    k = float(np.median([o.get("window", (0.0, DEFAULT.size_spacing_k))[1] for o in objects]))
+    windows = np.array([o.get("window", (DEFAULT.size_tol, DEFAULT.size_spacing_k)) for o in objects])
+    tol, k = (float(v) for v in np.median(windows, axis=0))
     spacing = np.median([np.sqrt(o["measured_size"]["length"] * o["measured_size"]["width"] / o["n_points"])
                          if o.get("n_points") else 0.0 for o in objects])  # unknown: the plain tolerance
     return tol, k * float(spacing)

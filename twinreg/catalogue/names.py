@@ -16,6 +16,13 @@ from ..errors import CatalogueError
 
 MAX_NAME = 200
 _HEX64 = re.compile(r"[0-9a-f]{64}")
+#: Unicode categories a name may not hold: controls (newline, escape), format characters, line and paragraph
+#: separators
+_CONTROL = frozenset(("Cc", "Cf", "Zl", "Zp"))
+
+
+def _is_control(c: str) -> bool:
+    return unicodedata.category(c) in _CONTROL
 
 
 def name_problem(name) -> str | None:
@@ -30,7 +37,7 @@ def name_problem(name) -> str | None:
         return f"it is longer than {MAX_NAME} characters"
     if name.isdigit():
         return "it is all digits and would read as a model id"
-    if any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in name):
+    if any(map(_is_control, name)):
         return "it holds a control character"
     if name != name.strip():
         return "it starts or ends with a space"
@@ -53,7 +60,7 @@ def safe_auto_name(stem: str) -> str:
     >>> safe_auto_name("2"), safe_auto_name(" golf\\n")
     ('model-2', 'golf')
     """
-    text = "".join(c for c in stem if unicodedata.category(c) not in ("Cc", "Cf", "Zl", "Zp")).strip()[:MAX_NAME - 10]
+    text = "".join(c for c in stem if not _is_control(c)).strip()[:MAX_NAME - 10]
     if not text or text.startswith(("id:", "name:")):
         text = "model" + (f"-{text}" if text else "")
     return f"model-{text}" if text.isdigit() else text
@@ -71,10 +78,9 @@ def printable(text) -> str:
     'a\\\\x1b[31mb\\\\n'
     """
     s = str(text)
-    if not any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in s):
+    if not any(map(_is_control, s)):
         return s
-    return "".join(c.encode("unicode_escape").decode("ascii") if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp")
-                   else c for c in s)
+    return "".join(c.encode("unicode_escape").decode("ascii") if _is_control(c) else c for c in s)
 
 
 def parse_ref(ref) -> tuple[str, str]:

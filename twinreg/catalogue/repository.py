@@ -89,16 +89,16 @@ class Catalogue:
 
     def __init__(self, folder, create: bool = True):
         """``create``: whether a missing catalogue may be created; it is created by its first write, never by
-        opening it (a refused command leaves no empty catalogue behind)."""
+        opening it (a refused command leaves no empty catalogue behind). With ``create`` False a write to a missing
+        catalogue is a :class:`CatalogueError` saying so."""
         self.folder = Path(folder)
+        self._create = create
         self._engine = None
         if self.folder.exists() and not self.folder.is_dir():
             raise CatalogueError(f"{self.folder}: is a file, not a catalogue folder; give --library the folder "
                                  "that holds catalogue.sqlite")
         if (self.folder / DB_NAME).exists():
             self._engine = open_engine(self.folder, create=False)
-        elif not create:
-            self._engine = None
 
     @property
     def exists(self) -> bool:
@@ -108,12 +108,12 @@ class Catalogue:
     def engine(self):
         """The SQLAlchemy engine of the catalogue's database (opened, and created, on first use)."""
         if self._engine is None:
-            self._engine = open_engine(self.folder, create=True)
+            self._engine = open_engine(self.folder, create=self._create)
         return self._engine
 
     def session(self) -> Session:
         if self._engine is None:
-            self._engine = open_engine(self.folder, create=True)
+            self._engine = open_engine(self.folder, create=self._create)
         return Session(self._engine, expire_on_commit=False)
 
     # ---- reading -------------------------------------------------------------------------------------------
@@ -392,7 +392,7 @@ class Catalogue:
             p = self.folder / rel
             if p.is_symlink() or not p.is_file():
                 continue
-            if any(p.resolve().parent == r or r in p.resolve().parents for r in roots):
+            if any(r in p.resolve().parents for r in roots):
                 out.append(p)
         return out
 

@@ -18,6 +18,16 @@ def _floats(a: np.ndarray, fmt: str) -> str:
     return " ".join([fmt] * len(flat)) % tuple(flat.tolist())
 
 
+def escape(text) -> str:
+    """XML text or attribute value: &, <, > and both quotes as entities (a name from a stranger's catalogue stays
+    text).
+
+    >>> escape('a"<b>')
+    'a&quot;&lt;b&gt;'
+    """
+    return _escape(str(text), {'"': "&quot;", "'": "&apos;"})
+
+
 def write_collada(path, vertices: np.ndarray, faces: np.ndarray, color=(0.6, 0.6, 0.65), name: str = "model"):
     """Write one triangle mesh (metres, Z up) as COLLADA 1.4.1 with ``<unit meter="1"/>`` and per-vertex normals.
 
@@ -28,7 +38,7 @@ def write_collada(path, vertices: np.ndarray, faces: np.ndarray, color=(0.6, 0.6
     f = np.asarray(faces, dtype=np.int64)
     n = vertex_normals(v, f)
     r, g, b = (float(c) for c in color[:3])
-    nm = _escape(str(name), {'"': "&quot;", "'": "&apos;"})
+    nm = escape(name)
     xml = f"""<?xml version="1.0" encoding="utf-8"?>
 <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
 <asset><contributor><authoring_tool>twinreg</authoring_tool></contributor><unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>

@@ -6,26 +6,15 @@ from __future__ import annotations
 import tempfile
 import zipfile
 from pathlib import Path
-from xml.sax.saxutils import escape as _escape
 
 import numpy as np
 
 from ..catalogue.decimate import decimate
 from ..io.outdir import atomic_path
-from .collada import write_collada
+from .collada import escape, write_collada
 
 # COLLADA files are authored with the car's front along +Y (north), so a KML heading is the front's bearing
 FRONT_TO_NORTH = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-
-
-def escape(text) -> str:
-    """XML text or attribute value: &, <, > and both quotes as entities (a name from a stranger's catalogue stays
-    text).
-
-    >>> escape('a"<b>')
-    'a&quot;&lt;b&gt;'
-    """
-    return _escape(str(text), {'"': "&quot;", "'": "&apos;"})
 
 
 def _data(name: str, value) -> str:

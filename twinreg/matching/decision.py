@@ -56,27 +56,32 @@ class Evidence:
     sink: float = 0.0
     sink_limit: float = np.inf
     float_limit: float = np.inf
+    unseen_limit: float = DEFAULT.accept_max_unseen
     extra: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {"score_m": round(self.score, 4), "scan_fit_m": round(self.scan_fit, 4),
                 "model_fit_m": round(self.model_fit, 4), "sections_m": round(self.rmse, 4),
                 "size_m": round(self.size, 4), "unseen_share": round(self.unseen_share, 3),
-                "sink_m": round(self.sink, 4), "fit_ratio": round(self.fit_ratio(DEFAULT), 3)}
+                "sink_m": round(self.sink, 4), "fit_ratio": round(self.fit_ratio(), 3)}
 
     def stands(self) -> bool:
         """Whether the placed model stands on the object's ground (neither sunk nor floating beyond the limits)."""
         return -self.float_limit <= self.sink <= self.sink_limit
 
-    def fit_ratio(self, params: CoscoParams = DEFAULT) -> float:
+    def acceptable(self) -> bool:
+        """The acceptance test passed, the top surface seen enough, and the model standing on the ground."""
+        return self.verdict.accepted and self.unseen_share <= self.unseen_limit and self.stands()
+
+    def fit_ratio(self) -> float:
         """The largest share of an acceptance limit this placement uses: unexplained points, unseen top surface,
         sinking into or floating above the ground (1: at a limit)."""
         v = self.verdict
-        ratios = [v.outlier_share / max(v.max_share, 1e-9), self.unseen_share / max(params.accept_max_unseen, 1e-9),
+        ratios = [v.outlier_share / max(v.max_share, 1e-9), self.unseen_share / max(self.unseen_limit, 1e-9),
                   max(self.sink, 0.0) / max(self.sink_limit, 1e-9), max(-self.sink, 0.0) / max(self.float_limit, 1e-9)]
         return float(max(ratios))
 
-    def reason(self, name: str, params: CoscoParams = DEFAULT) -> str:
+    def reason(self, name: str) -> str:
         """Why this placement is refused (one clause)."""
         if not self.verdict.accepted:
             return self.verdict.reason(name)
@@ -87,7 +92,7 @@ class Evidence:
             return (f"the best model ({name}) fits only {-self.sink * 100:.0f} cm above the ground (at most "
                     f"{self.float_limit * 100:.0f} cm allowed): it is lower than the object")
         return (f"the best model ({name}) leaves {self.unseen_share:.0%} of its top surface with no scan point "
-                f"near it (at most {params.accept_max_unseen:.0%} allowed)")
+                f"near it (at most {self.unseen_limit:.0%} allowed)")
 
 
 def fit_factor(ratio: float, params: CoscoParams = DEFAULT) -> float:
@@ -144,7 +149,7 @@ def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.n
     score = scan_fit + model_fit + params.decision_w_sections * rmse + params.decision_w_size * size
     sink_limit = params.accept_sink_sigmas * noise + params.accept_sink_tol
     return Evidence(model_id, float(rmse), scan_fit, model_fit, size, float(score), v, unseen, float(sink),
-                    float(sink_limit), float(params.accept_max_float))
+                    float(sink_limit), float(params.accept_max_float), float(params.accept_max_unseen))
 
 
 @dataclass
@@ -162,8 +167,7 @@ def decide(scored: list[Evidence], noise: float, params: CoscoParams = DEFAULT) 
     """Pick the lowest score among accepted candidates; the margin to the next candidate (accepted or not), in
     noise units, gives the confidence, and candidates within ``decision_ambiguous_sigma`` are ambiguous."""
     ranked = sorted(scored, key=lambda e: e.score)
-    accepted = [e for e in ranked
-                if e.verdict.accepted and e.unseen_share <= params.accept_max_unseen and e.stands()]
+    accepted = [e for e in ranked if e.acceptable()]
     if not accepted:
         return Decision(None, ranked, None, None, [])
     best = accepted[0]
@@ -174,6 +178,6 @@ def decide(scored: list[Evidence], noise: float, params: CoscoParams = DEFAULT) 
         margin = (best.verdict.max_share - best.verdict.outlier_share) * best.verdict.tolerance_m / noise
     margin = max(float(margin), 0.0)
     confidence = float(1.0 - np.exp(-margin / params.decision_confidence_sigma))
-    confidence *= fit_factor(best.fit_ratio(params), params)
+    confidence *= fit_factor(best.fit_ratio(), params)
     ambiguous = [e.model_id for e in others if (e.score - best.score) / noise < params.decision_ambiguous_sigma]
     return Decision(best, ranked, margin, confidence, ambiguous)

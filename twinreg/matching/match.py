@@ -253,7 +253,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
         if decision.best is None:
             best = decision.scored[0]
             name = cache.row(best.model_id).name
-            reason = best.reason(name, params)
+            reason = best.reason(name)
             if found.outside:
                 near = cache.row(found.nearest[0])
                 gap = np.array([near.length, near.width, near.height]) - shape.size.as_array()

@@ -93,10 +93,6 @@ class _Handler(SimpleHTTPRequestHandler):
             self.send_error(400, "bad request")
             return None
 
-    def list_directory(self, path):  # never reached through send_head; kept closed if it ever is
-        self.send_error(404, "not found")
-        return None
-
     def end_headers(self):
         self.send_header("Cache-Control", "no-store")
         self.send_header("Content-Security-Policy", self.policy)

@@ -380,3 +380,14 @@ def test_other_mesh_formats_go_in(tmp_path, fmt):
     assert row.up_axis == ("+y" if fmt == "glb" else "+z") and row.front_axis == "+x"
     assert abs(row.length - spec.length) < 0.03 and abs(row.height - spec.height) < 0.03
     assert abs(row.width - spec.width) < 0.03  # the body, without its mirrors
+
+
+def test_a_catalogue_opened_without_create_is_never_created(tmp_path):
+    """Reads of a missing catalogue see it empty; a write through it is refused and leaves no folder behind."""
+    from twinreg.errors import CatalogueError
+
+    cat = Catalogue(tmp_path / "none", create=False)
+    assert cat.count() == 0 and cat.list() == [] and not cat.exists
+    with pytest.raises(CatalogueError, match="no catalogue here"):
+        cat.session()
+    assert not (tmp_path / "none").exists()
