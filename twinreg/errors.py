@@ -86,3 +86,8 @@ def require_positive(name: str, value, hint: str = "") -> float | None:
     if not (v == v and v > 0 and v != float("inf")):
         raise ParameterError(f"{name} {value}: must be a positive length in metres{hint}")
     return v
+
+
+class CompareError(TwinregError):
+    """Twins that cannot be compared (not a twin, no observation record, another CRS, no overlap, the same twin
+    twice); nothing was written."""

@@ -12,6 +12,7 @@ import cosco
 from cosco.params import DEFAULT, CoscoParams
 
 from .catalogue.repository import Catalogue
+from .change import observed
 from .detect import describe_detected, detect_file, object_points
 from .errors import CatalogueError, HelperError, SceneReadError
 from .export.formats import write_formats
@@ -256,6 +257,9 @@ def _match_and_export(run: SceneRun) -> dict:
         if clusters.method == "full":
             plot_taxonomy(stage, [o["id"] for o in objects], clusters.matrix, clusters.linkage, clusters.threshold)
         write_report(*report_args)
+    twin["observation"] = observed.write(stage / observed.FILE, [observed.raster(
+        det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
+        [s.sections for s in shapes])
     timing["export"] = time.perf_counter() - t
     timing["total"] = time.perf_counter() - t_start
     twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}

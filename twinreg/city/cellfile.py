@@ -18,15 +18,16 @@ import numpy as np
 from cosco.sections import Frame, ObjectShape, Sections, Size
 from cosco.symmetry import Symmetry
 
+from ..change.observed import Raster
 from ..errors import CellFileError
 from ..io.outdir import atomic_path
 from .cells import CellObject, CellResult
 
 #: the classes a cell file may hold, by the name it gives them
-CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry, Frame, Sections, Size)}
+CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry, Frame, Sections, Size, Raster)}
 #: the largest cell file read back (bytes)
 MAX_BYTES = 4 * 1024 ** 3
-FORMAT = "twinreg-cell/1"
+FORMAT = "twinreg-cell/2"
 
 
 

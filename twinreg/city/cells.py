@@ -18,11 +18,6 @@ from cosco.params import DEFAULT, CoscoParams
 from .grid import Cell
 from .sources import read_box, read_splits
 
-#: height-above-ground image of each cell for the report: pixel (m) and the value of a pixel with no points
-IMAGE_PIXEL = 1.0
-IMAGE_EMPTY = 255
-
-
 @dataclass(frozen=True)
 class CellJob:
     """What a worker needs for one cell: the cell, and for each tile that feeds it either the folder of its split
@@ -56,9 +51,9 @@ class CellObject:
 
 @dataclass
 class CellResult:
-    """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings
-    a height-above-ground image of its core (uint8 decimetres, :data:`IMAGE_EMPTY` where no point fell) and a
-    thinned sample of its core's points for the 3D tiles: ``(points (n, 3) float32 scene-local, colours (n, 3)
+    """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings,
+    where its core's scan saw anything (``observed``, a :class:`~twinreg.change.observed.Raster`: the report's map
+    and the twin's observation record) and a thinned sample of its core's points for the 3D tiles: ``(points (n, 3) float32 scene-local, colours (n, 3)
     uint8)``."""
 
     name: str
@@ -73,7 +68,7 @@ class CellResult:
     n_segments: int = 0
     objects: list = field(default_factory=list)
     timing_s: dict = field(default_factory=dict)
-    image: np.ndarray | None = None
+    observed: object = None
     scan: tuple | None = None
 
 
@@ -81,17 +76,6 @@ def read_cell(job: CellJob) -> np.ndarray:
     """The (n, 3) float64 metre points of the cell's buffered square, from every tile that feeds it."""
     boxes = [read_box(src, job.cell.read_lo, job.cell.read_hi) for src in job.boxes]
     return read_splits(job.splits, job.cell.name, boxes)
-
-
-def _image(cell: Cell, points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
-    n = int(np.ceil((cell.hi[0] - cell.lo[0]) / IMAGE_PIXEL))
-    own = cell.owns(points[:, :2])
-    ij = np.clip(np.floor((points[own, :2] - cell.lo) / IMAGE_PIXEL).astype(np.int64), 0, n - 1)
-    h = np.where(is_ground[own], 0.0, np.clip(hag[own], 0.0, 25.0))
-    flat = np.full(n * n, -1.0)
-    np.maximum.at(flat, ij[:, 0] * n + ij[:, 1], h)
-    img = np.where(flat < 0, IMAGE_EMPTY, np.round(flat * 10)).astype(np.uint8)
-    return img.reshape(n, n)
 
 
 def process_cell(job: CellJob, *ready) -> CellResult:
@@ -110,6 +94,7 @@ def _process_cell(job: CellJob) -> CellResult:
     from cosco.footprint import min_area_rectangle
     from cosco.segment import point_spacing
 
+    from ..change.observed import raster
     from ..detect import describe_detected, detect_points, object_ground, object_points
     from ..export.tiles3d import scan_sample
     from ..io.points import PointSet
@@ -134,7 +119,7 @@ def _process_cell(job: CellJob) -> CellResult:
     out.n_ground = int((det.is_ground & own).sum())
     out.n_outliers = int(det.scene.n_outliers)
     out.noise = scene_noise(det.hag, det.is_ground)
-    out.image = _image(cell, pts, det.hag, det.is_ground)
+    out.observed = raster(pts, det.hag, det.is_ground, cell.lo, cell.hi)
     rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
     out.scan = ((pts[rows] - offset).astype(np.float32), colours)
     t = time.perf_counter()

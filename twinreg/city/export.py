@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..change import observed
 from ..export.formats import write_formats
 from ..export.kmz import write_kmz
 from ..export.objects import object_output, pose
@@ -130,6 +131,8 @@ def export_city(run: CityRun) -> dict:
                                       [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
                                       f"twinreg: {twin['scene']}", models)
         timing["formats"] = time.perf_counter() - t3
+        twin["observation"] = observed.write(stage / observed.FILE, [r.observed for r in results if r.observed],
+                                             [o.shape.sections for o in objects])
         timing["total"] = time.perf_counter() - t_start
         twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
         (stage / "twin.json").write_text(json.dumps(twin, indent=2), encoding="utf-8")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..city.cells import IMAGE_EMPTY, IMAGE_PIXEL
+from ..change.observed import heights
 from .plots import plot_dendrogram, pyplot, save_figure
 
 #: at most this many cluster representatives (the largest clusters) in the report's dendrogram
@@ -26,12 +26,11 @@ def plot_city_map(results, objects, outcomes, plan, path):
     scale = 12.0 / max(ext.max(), 1.0)
     fig, ax = plt.subplots(figsize=(max(4.0, ext[0] * scale + 2.5), max(3.0, ext[1] * scale + 1.0)))
     for r in results:
-        if r.image is None:
+        if r.observed is None:
             continue
-        img = np.where(r.image == IMAGE_EMPTY, np.nan, r.image / 10.0)
-        n = img.shape[0]
-        ax.imshow(img.T, origin="lower", cmap="Greys", vmin=-0.5, vmax=4.0, interpolation="nearest",
-                  extent=[r.lo[0], r.lo[0] + n * IMAGE_PIXEL, r.lo[1], r.lo[1] + n * IMAGE_PIXEL])
+        o = r.observed
+        ax.imshow(heights(o.code).T, origin="lower", cmap="Greys", vmin=-0.5, vmax=4.0, interpolation="nearest",
+                  extent=[o.lo[0], o.hi[0], o.lo[1], o.hi[1]])
     for c in plan.cells.values():
         ax.plot([c.lo[0], c.hi[0], c.hi[0], c.lo[0], c.lo[0]], [c.lo[1], c.lo[1], c.hi[1], c.hi[1], c.lo[1]],
                 color="tab:blue", lw=0.4, alpha=0.6)

@@ -55,13 +55,13 @@ def test_planted_files_are_refused_and_never_run(tmp_path):
         elif what == "object npz":
             np.savez(target, __doc__=np.array([Payload()], dtype=object))
         else:
-            doc = {"format": "twinreg-cell/1", "result": {"$class": "Popen", "fields": {"args": "touch x"}}}
+            doc = {"format": FORMAT, "result": {"$class": "Popen", "fields": {"args": "touch x"}}}
             np.savez(target, __doc__=np.frombuffer(json.dumps(doc).encode(), dtype=np.uint8))
         assert not store.has("c0_0", "k123"), what
         assert not target.exists(), what  # forgotten: the cell is computed again
     assert not marker.exists()
     # a well-formed file with another class inside is refused when loaded too
-    doc = {"format": "twinreg-cell/1", "result": {"$class": "CellResult", "fields": {
+    doc = {"format": FORMAT, "result": {"$class": "CellResult", "fields": {
         "name": "c0_0", "key": "k123", "lo": [0, 0], "hi": [1, 1], "objects": [{"$class": "Popen", "fields": {}}]}}}
     np.savez(target, __doc__=np.frombuffer(json.dumps(doc).encode(), dtype=np.uint8))
     try:

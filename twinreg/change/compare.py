@@ -1,0 +1,69 @@
+"""``twinreg compare``: read the twins (:mod:`.epochs`), and for each epoch and the next align them
+(:mod:`.align`), pair their objects (:mod:`.pairs`) and give every object a status (:mod:`.status`); then the
+tracks and occupancy over all epochs (:mod:`.tracks`), written to OUT (changes.json, changes.geojson,
+changes.html and the viewer's data) through a staging folder that replaces OUT as a whole."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cosco.params import DEFAULT, CoscoParams
+
+from ..io.outdir import check_replaceable, staged_folder
+from .align import align
+from .epochs import read_epochs
+from .pairs import pair_objects
+from .status import classify, summary
+from .tracks import occupancy, tracks
+
+
+def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[dict, list]:
+    """The changes.json document of twins ``folders`` and their epochs (survey-date order)."""
+    t0 = time.perf_counter()
+    epochs = read_epochs(folders, say=say)
+    timing = {"read": time.perf_counter() - t0}
+    alignments, changes, summaries, shifts = [], [], [], [np.zeros(3)]
+    t = time.perf_counter()
+    for k, (a, b) in enumerate(zip(epochs, epochs[1:])):
+        al = align(a, b)
+        if al.note and say:
+            say(f"epochs {k} and {k + 1}: {al.note}")
+        pairs = pair_objects(a, b, al.shift, params)
+        step = classify(a, b, k, al, pairs)
+        alignments.append(al.as_json(k))
+        changes += step
+        summaries.append(summary(step, k))
+        shifts.append(shifts[-1] + al.shift)
+    timing["compare"] = time.perf_counter() - t
+    doc = {"epochs": [{"twin": str(e.folder), "date": e.date, "crs": e.georef.crs, "frame": e.frame(),
+                       "n_objects": len(e), "n_points": e.n_scan_points, "spacing_m": round(e.spacing, 3)}
+                      for e in epochs],
+           "alignment": alignments, "changes": changes, "summary": summaries,
+           "tracks": tracks(epochs, changes), "occupancy": occupancy(epochs, shifts)}
+    doc["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
+    return doc, epochs
+
+
+def compare(folders, out, params: CoscoParams = DEFAULT, say=None) -> dict:
+    """Compare twins into ``out`` (see the module's text); returns changes.json's document. Nothing is written
+    when the twins cannot be compared."""
+    from .outputs import write_geojson
+    from .report import write_report
+
+    folders = [Path(f) for f in folders]
+    out = Path(out)
+    check_replaceable(out, protect=folders)
+    t0 = time.perf_counter()
+    doc, epochs = changes_document(folders, params, say)
+    with staged_folder(out, protect=folders) as stage:
+        t = time.perf_counter()
+        write_geojson(stage / "changes.geojson", doc, epochs)
+        write_report(stage, doc, epochs)
+        doc["timing_s"]["outputs"] = round(time.perf_counter() - t, 4)
+        doc["timing_s"]["total"] = round(time.perf_counter() - t0, 4)
+        (stage / "changes.json").write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    return doc

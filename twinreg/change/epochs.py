@@ -1,0 +1,232 @@
+"""The twins compare reads: each build-twin folder as an :class:`Epoch` (its objects as arrays, its survey date, its
+frame and its observation record), checked as data from someone else (sizes first, JSON only, every value
+typed), and put in survey-date order."""
+
+from __future__ import annotations
+
+import datetime
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CompareError
+from ..geo.georef import Georef
+from . import observed
+
+#: the largest twin.json read (bytes)
+MAX_TWIN_BYTES = 1024 ** 3
+_CODE = re.compile(r"^[A-Za-z]{2,12}:[0-9]{1,7}$")
+_WKT = re.compile(r"^\s*(PROJCRS|PROJCS|COMPOUNDCRS|COMPD_CS|GEOGCRS|GEOGCS|BOUNDCRS|GEODCRS)\s*\[")
+
+
+@dataclass
+class Epoch:
+    """One survey's twin: ``folder``, survey ``date`` (``YYYY-MM-DD`` or None), its ``georef``; per object (n):
+    ``ids``, ``centre`` (n, 3) in the twin's coordinates, ``heading`` (rad), ``size`` (n, 3) of what was placed
+    (the model's, else the measured box), ``measured`` (n, 3), ``models`` (name or None), ``confidence``
+    (NaN: none), ``n_points``, ``lonlat`` (n, 2) as twin.json states them; the scan's ``noise`` (m) and ``spacing`` (m, mean point spacing of its ground); and
+    its observation ``record``."""
+
+    folder: Path
+    date: str | None
+    georef: Georef
+    ids: list
+    centre: np.ndarray
+    heading: np.ndarray
+    size: np.ndarray
+    measured: np.ndarray
+    models: list
+    confidence: np.ndarray
+    n_points: np.ndarray
+    lonlat: np.ndarray
+    noise: float
+    spacing: float
+    record: observed.Record
+    n_scan_points: int = 0
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def frame(self) -> str:
+        """The coordinates' frame, in words."""
+        g = self.georef
+        if g.crs:
+            return g.crs_name or g.crs
+        return f"a local frame at {g.lat:.6f}, {g.lon:.6f} (anchor {g.anchor[0]:g}, {g.anchor[1]:g})"
+
+
+def _number(v, what: str, folder: Path) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or abs(v) > 1e9:
+        raise CompareError(f"{folder}: twin.json's {what} is not a finite number; rerun build-twin")
+    return float(v)
+
+
+def _georef(doc, folder: Path) -> Georef:
+    g = doc.get("georef")
+    if not isinstance(g, dict):
+        raise CompareError(f"{folder}: twin.json has no georef; rerun build-twin")
+    crs = g.get("crs")
+    if crs is not None and not (isinstance(crs, str) and len(crs) < 20_000 and (_CODE.match(crs) or _WKT.match(crs))):
+        raise CompareError(f"{folder}: twin.json's CRS is neither an authority code nor WKT; rerun build-twin")
+    anchor = g.get("anchor") or [0.0, 0.0]
+    if not isinstance(anchor, list) or len(anchor) != 2:
+        raise CompareError(f"{folder}: twin.json's georef anchor is not two numbers; rerun build-twin")
+    if crs is None and not (isinstance(g.get("lat"), (int, float)) and isinstance(g.get("lon"), (int, float))):
+        raise CompareError(f"{folder}: twin.json's georef has neither a CRS nor a position; rerun build-twin")
+    num = (lambda k, d=None: None if g.get(k, d) is None else _number(g.get(k, d), f"georef {k}", folder))
+    name = g.get("crs_name")
+    return Georef(num("lat"), num("lon"), num("alt", 0.0) or 0.0, tuple(_number(a, "anchor", folder) for a in anchor),
+                  crs, num("crs_unit_m", 1.0) or 1.0, num("vertical_unit_m", 1.0) or 1.0,
+                  name if isinstance(name, str) else None, None)
+
+
+def _date(doc, folder: Path) -> str | None:
+    d = doc.get("survey_date")
+    if d is None:
+        return None
+    try:
+        return datetime.date.fromisoformat(d).isoformat() if isinstance(d, str) and len(d) == 10 else _bad_date(folder)
+    except ValueError:
+        return _bad_date(folder)
+
+
+def _bad_date(folder: Path):
+    raise CompareError(f"{folder}: twin.json's survey_date is not a date (YYYY-MM-DD); rerun build-twin with --date")
+
+
+def _vec(o: dict, key: str, names, folder: Path) -> list:
+    v = o.get(key)
+    if isinstance(v, dict):
+        v = [v.get(n) for n in names]
+    if not isinstance(v, list) or len(v) != len(names):
+        raise CompareError(f"{folder}: an object's {key} in twin.json is malformed; rerun build-twin")
+    return [_number(x, key, folder) for x in v]
+
+
+def _objects(doc, folder: Path) -> dict:
+    objs = doc.get("objects")
+    if not isinstance(objs, list):
+        raise CompareError(f"{folder}: twin.json lists no objects; rerun build-twin")
+    cols = {"ids": [], "centre": [], "heading": [], "size": [], "measured": [], "models": [], "confidence": [],
+            "n_points": [], "lonlat": []}
+    lwh = ("length", "width", "height")
+    for o in objs:
+        if not isinstance(o, dict) or not isinstance(o.get("id"), str):
+            raise CompareError(f"{folder}: an object in twin.json has no id; rerun build-twin")
+        m = o.get("match")
+        name = m.get("name") if isinstance(m, dict) else None
+        conf = m.get("confidence") if isinstance(m, dict) else None
+        cols["ids"].append(o["id"][:200])
+        cols["centre"].append(_vec(o, "centroid", "xyz", folder))
+        cols["heading"].append(_number(o.get("heading_rad"), "heading_rad", folder))
+        cols["size"].append(_vec(o, "size", lwh, folder))
+        cols["measured"].append(_vec(o, "measured_size", lwh, folder))
+        cols["models"].append(name[:200] if isinstance(name, str) else None)
+        cols["confidence"].append(_number(conf, "confidence", folder) if conf is not None else np.nan)
+        cols["n_points"].append(int(_number(o.get("n_points", 0), "n_points", folder)))
+        cols["lonlat"].append([_number(o.get("lon"), "lon", folder), _number(o.get("lat"), "lat", folder)])
+    return cols
+
+
+def read_epoch(folder) -> Epoch:
+    """A build-twin folder as an :class:`Epoch`; :class:`CompareError` naming the folder and the fix."""
+    folder = Path(folder)
+    path = folder / "twin.json"
+    if not folder.is_dir() or not path.is_file() or path.is_symlink():
+        raise CompareError(f"{folder}: not a twin folder (no twin.json); give folders written by "
+                           "`twinreg build-twin`")
+    if path.stat().st_size > MAX_TWIN_BYTES:
+        raise CompareError(f"{path}: larger than {MAX_TWIN_BYTES >> 20} MB; not a twin.json build-twin writes")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise CompareError(f"{path}: not valid JSON ({type(exc).__name__}); rerun build-twin") from exc
+    if not isinstance(doc, dict) or "objects" not in doc or "georef" not in doc:
+        raise CompareError(f"{folder}: its twin.json is not one build-twin writes; rerun build-twin")
+    if not isinstance(doc.get("observation"), dict):
+        raise CompareError(f"{folder}: written before `compare` existed (no observation record, {observed.FILE}); "
+                           "rerun `twinreg build-twin` on its scan to write one")
+    cols = _objects(doc, folder)
+    try:
+        record = observed.read(folder / observed.FILE, len(cols["ids"]))
+    except observed.RecordError as exc:
+        raise CompareError(f"{folder / observed.FILE}: {exc}; rerun build-twin on its scan") from exc
+    n_scan = int(_number(doc.get("n_points", 0), "n_points", folder))
+    seen = sum(int((r.code != observed.NONE).sum()) for r in record.rasters) * observed.PIXEL ** 2
+    return Epoch(folder, _date(doc, folder), _georef(doc, folder), cols["ids"],
+                 np.array(cols["centre"], dtype=np.float64).reshape(-1, 3),
+                 np.array(cols["heading"], dtype=np.float64), np.array(cols["size"]).reshape(-1, 3),
+                 np.array(cols["measured"]).reshape(-1, 3), cols["models"],
+                 np.array(cols["confidence"], dtype=np.float64), np.array(cols["n_points"], dtype=np.int64),
+                 np.array(cols["lonlat"], dtype=np.float64).reshape(-1, 2), _number(doc.get("noise_m", 0.02), "noise_m", folder), float(np.sqrt(seen / max(n_scan, 1))),
+                 record, n_scan)
+
+
+def same_frame(a: Epoch, b: Epoch) -> bool:
+    """Whether two epochs' coordinates are in one frame (the same CRS, or the same local anchor)."""
+    ga, gb = a.georef, b.georef
+    if bool(ga.crs) != bool(gb.crs):
+        return False
+    if ga.crs:
+        if ga.crs == gb.crs:
+            return True
+        import pyproj
+
+        try:
+            return pyproj.CRS.from_user_input(ga.crs) == pyproj.CRS.from_user_input(gb.crs)
+        except pyproj.exceptions.CRSError:
+            return False
+    return (np.allclose([ga.lat, ga.lon], [gb.lat, gb.lon], atol=1e-9) and abs(ga.alt - gb.alt) < 1e-6
+            and np.allclose(ga.anchor, gb.anchor, atol=1e-6))
+
+
+def read_epochs(folders, say=None) -> list[Epoch]:
+    """The twins in survey-date order (the order given when any has no date, said through ``say``); checks that
+    they are distinct, in one frame, and overlap."""
+    if len(folders) < 2:
+        raise CompareError("compare needs two or more twin folders")
+    seen = {}
+    for f in folders:
+        key = Path(f).resolve()
+        if key in seen:
+            raise CompareError(f"{f}: given twice (the same twin as {seen[key]}); give twins of different surveys")
+        seen[key] = f
+    epochs = [read_epoch(f) for f in folders]
+    _check_distinct(epochs)
+    for e in epochs[1:]:
+        if not same_frame(epochs[0], e):
+            raise CompareError(f"{e.folder}: its coordinates are in {e.frame()}, those of {epochs[0].folder} in "
+                               f"{epochs[0].frame()}; rebuild one twin in the other's CRS (--crs) to compare them")
+    undated = [e for e in epochs if e.date is None]
+    if undated:
+        if say:
+            say(f"{', '.join(str(e.folder) for e in undated)}: no survey date (rerun build-twin with --date "
+                "YYYY-MM-DD); the epochs are taken in the order given")
+    else:
+        epochs = sorted(epochs, key=lambda e: e.date)
+    for a, b in zip(epochs, epochs[1:]):
+        _check_overlap(a, b)
+    return epochs
+
+
+def _check_distinct(epochs: list[Epoch]) -> None:
+    prints = {}
+    for e in epochs:
+        key = (len(e), e.n_scan_points, e.centre.round(4).tobytes())
+        if key in prints:
+            raise CompareError(f"{e.folder}: the same twin as {prints[key]} (the same scan's objects); give twins "
+                               "of different surveys")
+        prints[key] = e.folder
+
+
+def _check_overlap(a: Epoch, b: Epoch) -> None:
+    (alo, ahi), (blo, bhi) = a.record.bounds(), b.record.bounds()
+    lo, hi = np.maximum(alo, blo), np.minimum(ahi, bhi)
+    if np.any(hi - lo < 2.0):
+        raise CompareError(f"{b.folder}: does not overlap {a.folder} (x {blo[0]:.1f}-{bhi[0]:.1f}, y {blo[1]:.1f}-"
+                           f"{bhi[1]:.1f} against x {alo[0]:.1f}-{ahi[0]:.1f}, y {alo[1]:.1f}-{ahi[1]:.1f}); "
+                           "compare twins of the same place")

@@ -1,0 +1,95 @@
+"""Which object of the later survey is which of the earlier one: candidate pairs are the objects whose footprints
+overlap once the surveys are aligned (a spatial index, never all pairs), and each pair is weighed as "the same
+vehicle?" on geometry: the measured sizes, COSCO's section dissimilarity between the two scans, and the matched
+models when both have one (the same model, or two models of one size, is not a different vehicle). Each object
+goes to at most one pair, the most alike and most overlapping first."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+import cosco
+from cosco.params import DEFAULT, CoscoParams
+
+from .epochs import Epoch
+from .footprints import overlap, turn
+
+
+@dataclass
+class Pairs:
+    """k pairs (i in the earlier epoch, j in the later) with their footprint ``iou``, ``displacement`` (m, xy,
+    after the alignment), ``turn`` (rad), ``section_m`` (COSCO dissimilarity), ``size_z`` (the largest size
+    difference in units of :func:`size_sigma`) and ``p_same`` (0-1, how likely the same vehicle)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    iou: np.ndarray
+    displacement: np.ndarray
+    turn: np.ndarray
+    section_m: np.ndarray
+    size_z: np.ndarray
+    p_same: np.ndarray
+
+
+def size_sigma(a: Epoch, b: Epoch) -> np.ndarray:
+    """How much two scans' measured length, width and height of one vehicle may differ by chance (m, one sigma):
+    a measured box is short by up to a point spacing at each end, less across and least in height."""
+    s = max(a.spacing, b.spacing)
+    noise = np.hypot(a.noise, b.noise)
+    return np.array([0.08 + 0.3 * s, 0.05 + 0.2 * s, 0.04 + 0.15 * s]) + noise
+
+
+def _footprint(e: Epoch, idx: np.ndarray, shift: np.ndarray = np.zeros(2)) -> tuple:
+    return (e.centre[idx, :2] + shift, e.heading[idx], e.size[idx, 0], e.size[idx, 1])
+
+
+def _same_vehicle(a: Epoch, b: Epoch, i, j, section_m, params) -> tuple[np.ndarray, np.ndarray]:
+    """(size_z, p_same) of pairs. Sizes in units of :func:`size_sigma`, compared as measured, or as placed when
+    both have a model if that is closer (a model's size is exact, and two models of one size are no evidence of
+    another vehicle); differences within one sigma are free, beyond it the likelihood falls as a Gaussian. The
+    sections' dissimilarity is weighed the same way against COSCO's cluster threshold widened by the scans'
+    spacing and noise."""
+    sigma = size_sigma(a, b)
+    both = np.array([a.models[p] is not None and b.models[q] is not None for p, q in zip(i, j)], dtype=bool)
+    measured = np.abs(a.measured[i] - b.measured[j]) / sigma
+    placed = np.abs(a.size[i] - b.size[j]) / sigma
+    z = np.where(both[:, None], np.minimum(measured, placed), measured)
+    p_size = np.exp(-0.5 * np.sum(np.maximum(z - 1.0, 0.0) ** 2, axis=1))
+    theta = params.cluster_threshold + 0.5 * max(a.spacing, b.spacing) + 2 * np.hypot(a.noise, b.noise)
+    p_sec = np.exp(-0.5 * (np.maximum(section_m / theta - 1.0, 0.0) * 4) ** 2)
+    return z.max(axis=1) if len(z) else np.zeros(0), np.clip(p_size * p_sec, 0.0, 1.0)
+
+
+def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: CoscoParams = DEFAULT) -> Pairs:
+    """Pair the objects of ``a`` (earlier) and ``b`` (later, offset by ``shift`` (3,) from ``a``)."""
+    empty = np.zeros(0)
+    if not len(a) or not len(b):
+        e = np.zeros(0, np.int64)
+        return Pairs(e, e, empty, empty, empty, empty, empty, empty)
+    reach = (a.size[:, :2].max() + b.size[:, :2].max()) / 2 * 1.2
+    tree = cKDTree(b.centre[:, :2] - shift[:2])
+    near = tree.query_ball_point(a.centre[:, :2], reach)
+    i = np.repeat(np.arange(len(a)), [len(n) for n in near])
+    j = np.concatenate([np.asarray(n, dtype=np.int64) for n in near]) if len(i) else np.zeros(0, np.int64)
+    iou = overlap(_footprint(a, i), _footprint(b, j, -shift[:2]))
+    keep = iou > 0.0
+    i, j, iou = i[keep], j[keep].astype(np.int64), iou[keep]
+    section_m = np.array([cosco.dissimilarity(a.record.sections[p], b.record.sections[q], params)
+                          for p, q in zip(i, j)], dtype=np.float64)
+    size_z, p_same = _same_vehicle(a, b, i, j, section_m, params)
+    disp = np.linalg.norm(b.centre[j, :2] - shift[:2] - a.centre[i, :2], axis=1)
+    both = np.array([a.models[p] is not None and b.models[q] is not None for p, q in zip(i, j)], dtype=bool)
+    # a model fixes the front; a measured box only its axis
+    t = np.where(both, turn(a.heading[i], b.heading[j]), turn(a.heading[i], b.heading[j], np.pi))
+    order = np.lexsort((-iou, -np.round(p_same, 2)))
+    used_a, used_b, chosen = set(), set(), []
+    for k in order:
+        if i[k] not in used_a and j[k] not in used_b:
+            used_a.add(int(i[k]))
+            used_b.add(int(j[k]))
+            chosen.append(k)
+    c = np.asarray(chosen, dtype=np.int64)
+    return Pairs(i[c], j[c], iou[c], disp[c], t[c], section_m[c], size_z[c], p_same[c])

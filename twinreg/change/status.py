@@ -1,0 +1,137 @@
+"""The status of every object between two consecutive epochs, with a confidence and a short reason:
+
+- a pair of the same vehicle (:mod:`.pairs`) is ``same`` when its displacement and turn (after the alignment) are
+  within what the two scans' noise and spacing allow, else ``moved``;
+- a pair of different vehicles is ``replaced``, unless either survey saw only part of the footprints (then
+  ``unobserved``: a cut-off object's size says nothing);
+- an earlier object without a pair is ``left`` where the later survey saw the ground over its footprint, and
+  ``unobserved`` where it has no returns there (or only returns above the ground that made no object); a later
+  object without a pair is ``arrived`` or ``unobserved`` the same way, from the earlier survey's record.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import observed
+from .align import Alignment
+from .epochs import Epoch
+from .footprints import samples
+from .pairs import Pairs
+
+#: a footprint counts as seen when this share of its inner grid has returns, and as showing the ground (the car
+#: gone) when this share has ground returns and nothing above :data:`LOW_DM` decimetres
+SEEN = 0.6
+GROUND = 0.5
+LOW_DM = 5
+#: below this share seen, a pair's sizes are not compared (one of the two objects may be cut off)
+WHOLE = 0.8
+
+
+@dataclass
+class Coverage:
+    """Shares (0-1) of footprints' inner grids that a survey ``seen`` at all, saw as open ``ground``, and saw
+    ``high`` (returns 0.8 m or more above the ground)."""
+
+    seen: np.ndarray
+    ground: np.ndarray
+    high: np.ndarray
+
+
+def coverage(record: observed.Record, e: Epoch, idx: np.ndarray, shift: np.ndarray) -> Coverage:
+    """What ``record``'s survey saw over the footprints of ``e``'s objects ``idx``, moved by ``shift`` (2,) into
+    that survey's coordinates."""
+    if not len(idx):
+        z = np.zeros(0)
+        return Coverage(z, z, z)
+    pts = samples(e.centre[idx, :2] + shift, e.heading[idx], e.size[idx, 0], e.size[idx, 1], nu=10, nv=4,
+                  inset=0.3)
+    code, _ = record.lookup(pts.reshape(-1, 2))
+    code = code.reshape(pts.shape[:2])
+    seen = code != observed.NONE
+    top = code & 127
+    ground = seen & (code & observed.GROUND > 0) & (top < LOW_DM)
+    return Coverage(seen.mean(1), ground.mean(1), (seen & (top >= 8)).mean(1))
+
+
+def tolerances(a: Epoch, b: Epoch) -> tuple[float, float]:
+    """(displacement m, turn rad) within which a vehicle has not moved, from the two scans' spacing and noise."""
+    s = max(a.spacing, b.spacing)
+    noise = np.hypot(a.noise, b.noise)
+    return 0.1 + 0.5 * s + 2 * noise, np.radians(1.5 + 10.0 * s)
+
+
+def _logistic(x):
+    return 1.0 / (1.0 + np.exp(-x))
+
+
+def _object(e: Epoch, k: int) -> dict:
+    return {"id": e.ids[k], "centroid": [float(v) for v in e.centre[k]], "lat": float(e.lonlat[k, 1]),
+            "lon": float(e.lonlat[k, 0]), "heading_rad": float(e.heading[k]), "model": e.models[k],
+            "size": {n: round(float(v), 3) for n, v in zip(("length", "width", "height"), e.size[k])}}
+
+
+def _unpaired(cov: Coverage, arriving: bool) -> tuple[str, float, str]:
+    other = "earlier" if arriving else "later"
+    if cov.seen < SEEN:
+        return "unobserved", float(1.0 - cov.seen), f"the {other} survey has returns over {cov.seen:.0%} of it"
+    if cov.ground >= GROUND:
+        conf = float(np.clip((cov.ground - 0.3) / 0.5, 0.0, 1.0))
+        return ("arrived" if arriving else "left"), conf, f"the {other} survey saw open ground over {cov.ground:.0%}"
+    return "unobserved", float(cov.high), (f"the {other} survey saw returns above the ground ({cov.high:.0%}) but no "
+                                           "object there: not separated, or not a car")
+
+
+def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[dict]:
+    """The change records from epoch ``k`` (``a``) to ``k + 1`` (``b``), the contract's shape."""
+    shift = al.shift[:2]
+    d_tol, t_tol = tolerances(a, b)
+    out = []
+    cov_ab = coverage(b.record, a, pairs.i, shift)
+    cov_ba = coverage(a.record, b, pairs.j, -shift)
+    for n, (i, j) in enumerate(zip(pairs.i, pairs.j)):
+        p, d, t = float(pairs.p_same[n]), float(pairs.displacement[n]), float(pairs.turn[n])
+        rec = {"from": k, "to": k + 1, "before": _object(a, i), "after": _object(b, j), "displacement_m": round(d, 3),
+               "turn_rad": round(t, 4), "same_vehicle": round(p, 3), "section_m": round(float(pairs.section_m[n]), 4),
+               "overlap": round(float(pairs.iou[n]), 3)}
+        margin = max(d / d_tol, t / t_tol)
+        if p >= 0.5:
+            status = "same" if margin <= 1.0 else "moved"
+            conf = p * float(_logistic(6.0 * abs(1.0 - margin)))
+            reason = (f"the same vehicle {'within' if status == 'same' else 'beyond'} {d_tol * 100:.0f} cm and "
+                      f"{np.degrees(t_tol):.1f} degrees ({d * 100:.0f} cm, {np.degrees(t):.1f} degrees)")
+        elif min(cov_ab.seen[n], cov_ba.seen[n]) < WHOLE:
+            status, conf = "unobserved", float(1.0 - min(cov_ab.seen[n], cov_ba.seen[n]))
+            reason = "only part of it was seen in one survey: its size cannot tell whether it is the same vehicle"
+        else:
+            status, conf = "replaced", 1.0 - p
+            reason = (f"another vehicle in the footprint (sizes differ by up to {pairs.size_z[n]:.1f} sigma, sections "
+                      f"by {pairs.section_m[n] * 100:.0f} cm)")
+        out.append({**rec, "status": status, "confidence": round(float(conf), 3), "reason": reason})
+    gone = np.setdiff1d(np.arange(len(a)), pairs.i)
+    cov = coverage(b.record, a, gone, shift)
+    for n, i in enumerate(gone):
+        status, conf, reason = _unpaired(Coverage(cov.seen[n], cov.ground[n], cov.high[n]), arriving=False)
+        out.append({"from": k, "to": k + 1, "status": status, "confidence": round(conf, 3), "before": _object(a, i),
+                    "after": None, "displacement_m": None, "turn_rad": None, "reason": reason})
+    new = np.setdiff1d(np.arange(len(b)), pairs.j)
+    cov = coverage(a.record, b, new, -shift)
+    for n, j in enumerate(new):
+        status, conf, reason = _unpaired(Coverage(cov.seen[n], cov.ground[n], cov.high[n]), arriving=True)
+        out.append({"from": k, "to": k + 1, "status": status, "confidence": round(conf, 3), "before": None,
+                    "after": _object(b, j), "displacement_m": None, "turn_rad": None, "reason": reason})
+    return out
+
+
+STATUSES = ("same", "moved", "replaced", "left", "arrived", "unobserved")
+
+
+def summary(changes: list[dict], k: int) -> dict:
+    """The counts of each status from epoch ``k`` to ``k + 1``."""
+    counts = {s: 0 for s in STATUSES}
+    for c in changes:
+        if c["from"] == k:
+            counts[c["status"]] += 1
+    return {"from": k, "to": k + 1, **counts}
