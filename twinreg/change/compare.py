@@ -16,6 +16,7 @@ from cosco.params import DEFAULT, CoscoParams
 from ..io.outdir import check_replaceable, staged_folder
 from .align import align
 from .epochs import read_epochs
+from .fragments import merge_pieces
 from .pairs import pair_objects
 from .status import classify, summary
 from .tracks import occupancy, tracks
@@ -32,7 +33,9 @@ def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[
         al = align(a, b)
         if al.note and say:
             say(f"epochs {k} and {k + 1}: {al.note}")
-        pairs = pair_objects(a, b, al.shift, params)
+        b, b_pieces = merge_pieces(a, b, -al.shift[:2])
+        a, a_pieces = merge_pieces(b, a, al.shift[:2])
+        pairs = pair_objects(a, b, al.shift, params, pieces=(a_pieces, b_pieces))
         step = classify(a, b, k, al, pairs)
         alignments.append(al.as_json(k))
         changes += step
@@ -48,21 +51,27 @@ def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[
     return doc, epochs
 
 
-def compare(folders, out, params: CoscoParams = DEFAULT, say=None) -> dict:
+def compare(folders, out, params: CoscoParams = DEFAULT, say=None, progress=None) -> dict:
     """Compare twins into ``out`` (see the module's text); returns changes.json's document. Nothing is written
     when the twins cannot be compared."""
     from .outputs import write_geojson
     from .report import write_report
+    from .viewdata import write_view
 
     folders = [Path(f) for f in folders]
     out = Path(out)
     check_replaceable(out, protect=folders)
     t0 = time.perf_counter()
+    if progress:
+        progress(f"reading {len(folders)} twins and comparing them")
     doc, epochs = changes_document(folders, params, say)
+    if progress:
+        progress("writing changes.json, changes.geojson and changes.html")
     with staged_folder(out, protect=folders) as stage:
         t = time.perf_counter()
         write_geojson(stage / "changes.geojson", doc, epochs)
         write_report(stage, doc, epochs)
+        write_view(stage, doc, epochs)
         doc["timing_s"]["outputs"] = round(time.perf_counter() - t, 4)
         doc["timing_s"]["total"] = round(time.perf_counter() - t0, 4)
         (stage / "changes.json").write_text(json.dumps(doc, indent=1), encoding="utf-8")

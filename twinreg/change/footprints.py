@@ -52,3 +52,19 @@ def turn(a: np.ndarray, b: np.ndarray, period: float = 2 * np.pi) -> np.ndarray:
     """The smallest turn (rad, >= 0) from heading a to heading b, with headings equal modulo ``period``."""
     d = np.mod(np.asarray(b) - np.asarray(a), period)
     return np.minimum(d, period - d)
+
+
+def ring(centre, heading, length, width, grow: float = 0.6, n: int = 24) -> np.ndarray:
+    """(k, n, 2) points evenly along each rectangle's outline grown by ``grow`` metres (where a survey should have
+    seen the ground or the neighbours around an object it saw whole)."""
+    t = (np.arange(n) + 0.5) / n
+    big_l, big_w = length + 2 * grow, width + 2 * grow
+    perimeter = 2 * (big_l + big_w)
+    s = t[None, :] * perimeter[:, None]
+    lu, lw = big_l[:, None], big_w[:, None]
+    u = np.where(s < lu, s - lu / 2, np.where(s < lu + lw, lu / 2, np.where(s < 2 * lu + lw,
+                 lu / 2 - (s - lu - lw), -lu / 2)))
+    v = np.where(s < lu, -lw / 2, np.where(s < lu + lw, s - lu - lw / 2, np.where(s < 2 * lu + lw, lw / 2,
+                 lw / 2 - (s - 2 * lu - lw))))
+    c, sn = np.cos(heading)[:, None], np.sin(heading)[:, None]
+    return np.stack([centre[:, 0, None] + u * c - v * sn, centre[:, 1, None] + u * sn + v * c], axis=-1)

@@ -17,6 +17,7 @@ first: a twin from someone else is data.
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -175,5 +176,5 @@ def read(path: Path, n_objects: int) -> Record:
             return Record(rasters, _unpack_sections(z, n_objects))
     except RecordError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, EOFError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
         raise RecordError(f"it cannot be read ({type(exc).__name__})") from exc

@@ -2,8 +2,8 @@
 
 - a pair of the same vehicle (:mod:`.pairs`) is ``same`` when its displacement and turn (after the alignment) are
   within what the two scans' noise and spacing allow, else ``moved``;
-- a pair of different vehicles is ``replaced``, unless either survey saw only part of the footprints (then
-  ``unobserved``: a cut-off object's size says nothing);
+- a pair of different vehicles is ``replaced``, unless either object borders a gap in either survey's returns
+  (then ``unobserved``: a cut-off object's size says nothing);
 - an earlier object without a pair is ``left`` where the later survey saw the ground over its footprint, and
   ``unobserved`` where it has no returns there (or only returns above the ground that made no object); a later
   object without a pair is ``arrived`` or ``unobserved`` the same way, from the earlier survey's record.
@@ -18,7 +18,7 @@ import numpy as np
 from . import observed
 from .align import Alignment
 from .epochs import Epoch
-from .footprints import samples
+from .footprints import ring, samples
 from .pairs import Pairs
 
 #: a footprint counts as seen when this share of its inner grid has returns, and as showing the ground (the car
@@ -26,7 +26,7 @@ from .pairs import Pairs
 SEEN = 0.6
 GROUND = 0.5
 LOW_DM = 5
-#: below this share seen, a pair's sizes are not compared (one of the two objects may be cut off)
+#: below this share of a ring around them seen, a pair's sizes are not compared (one may be cut off)
 WHOLE = 0.8
 
 
@@ -54,6 +54,17 @@ def coverage(record: observed.Record, e: Epoch, idx: np.ndarray, shift: np.ndarr
     top = code & 127
     ground = seen & (code & observed.GROUND > 0) & (top < LOW_DM)
     return Coverage(seen.mean(1), ground.mean(1), (seen & (top >= 8)).mean(1))
+
+
+def around(record: observed.Record, e: Epoch, idx: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """The share (0-1) of a ring 0.6 m around each footprint where ``record``'s survey has returns: below
+    :data:`WHOLE` the object borders a gap in that survey (it may be cut off), whereas a footprint's own pixels
+    may lack returns where a car's glass gave none."""
+    if not len(idx):
+        return np.zeros(0)
+    pts = ring(e.centre[idx, :2] + shift, e.heading[idx], e.size[idx, 0], e.size[idx, 1])
+    code, _ = record.lookup(pts.reshape(-1, 2))
+    return (code.reshape(pts.shape[:2]) != observed.NONE).mean(1)
 
 
 def tolerances(a: Epoch, b: Epoch) -> tuple[float, float]:
@@ -89,8 +100,10 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[di
     shift = al.shift[:2]
     d_tol, t_tol = tolerances(a, b)
     out = []
-    cov_ab = coverage(b.record, a, pairs.i, shift)
-    cov_ba = coverage(a.record, b, pairs.j, -shift)
+    z = np.zeros(2)
+    whole = np.min([around(b.record, a, pairs.i, shift), around(a.record, a, pairs.i, z),
+                    around(a.record, b, pairs.j, -shift), around(b.record, b, pairs.j, z)], axis=0) \
+        if len(pairs.i) else np.zeros(0)
     for n, (i, j) in enumerate(zip(pairs.i, pairs.j)):
         p, d, t = float(pairs.p_same[n]), float(pairs.displacement[n]), float(pairs.turn[n])
         rec = {"from": k, "to": k + 1, "before": _object(a, i), "after": _object(b, j), "displacement_m": round(d, 3),
@@ -102,9 +115,10 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[di
             conf = p * float(_logistic(6.0 * abs(1.0 - margin)))
             reason = (f"the same vehicle {'within' if status == 'same' else 'beyond'} {d_tol * 100:.0f} cm and "
                       f"{np.degrees(t_tol):.1f} degrees ({d * 100:.0f} cm, {np.degrees(t):.1f} degrees)")
-        elif min(cov_ab.seen[n], cov_ba.seen[n]) < WHOLE:
-            status, conf = "unobserved", float(1.0 - min(cov_ab.seen[n], cov_ba.seen[n]))
-            reason = "only part of it was seen in one survey: its size cannot tell whether it is the same vehicle"
+        elif whole[n] < WHOLE:
+            status, conf = "unobserved", float(1.0 - whole[n])
+            reason = ("it borders a gap in one survey's returns: a cut-off object's size cannot tell whether it is "
+                      "the same vehicle")
         else:
             status, conf = "replaced", 1.0 - p
             reason = (f"another vehicle in the footprint (sizes differ by up to {pairs.size_z[n]:.1f} sigma, sections "

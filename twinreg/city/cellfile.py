@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -112,7 +113,8 @@ def identity(path: Path) -> tuple[str, str]:
         return str(fields.get("name")), str(fields.get("key"))
     except CellFileError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
+            zipfile.BadZipFile) as exc:
         raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
 
 
@@ -126,7 +128,8 @@ def load(path: Path):
         result = _decode(doc["result"], arrays)
     except CellFileError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
+            zipfile.BadZipFile) as exc:
         raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
     if not isinstance(result, CellResult):
         raise CellFileError("it does not hold a cell result")

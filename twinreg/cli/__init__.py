@@ -4,7 +4,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from . import city, library, models, objects, scenes
+from . import change, city, library, models, objects, scenes
 
 app = typer.Typer(
     name="twinreg",
@@ -35,6 +35,7 @@ app.add_typer(library.app)
 app.add_typer(objects.app)
 app.add_typer(scenes.app)
 app.add_typer(city.app)
+app.add_typer(change.app)
 
 
 def main() -> None:

@@ -174,11 +174,12 @@ def demo(
 @app.command("view")
 @handled
 def view(
-    folder: Annotated[Path, typer.Argument(help="A twin folder (the OUT of build-twin).")],
+    folder: Annotated[Path, typer.Argument(help="A twin folder (the OUT of build-twin) or a comparison (of compare).")],
     port: Annotated[int, typer.Option("--port", min=0, max=65535, help="Port on 127.0.0.1 (0: a free one).")] = 8765,
     no_open: Annotated[bool, typer.Option("--no-open", help="Print the URL only; do not open a browser.")] = False,
 ):
-    """Serve a twin folder on 127.0.0.1 and open the offline 3D viewer (Ctrl-C stops it)."""
+    """Serve a twin folder (or the epochs of a comparison) on 127.0.0.1 and open the offline 3D viewer (Ctrl-C
+    stops it)."""
     import time
     import webbrowser
 

@@ -61,11 +61,10 @@ def passes_for(density: float, azimuths_deg, elevation_deg: float = 70.0) -> tup
     return tuple(Pass(np.radians(a), np.radians(elevation_deg), spacing) for a in azimuths_deg)
 
 
-def _other_size(models, m, rng):
-    """A model whose length or height differs clearly from model ``m``'s."""
-    size = [np.ptp(v, axis=0) for v, *_ in models]
-    far = [k for k in range(len(models)) if abs(size[k][0] - size[m][0]) > 0.45 or abs(size[k][2] - size[m][2]) > 0.2]
-    return int(rng.choice(far)) if far else (m + 1) % len(models)
+def _other_size(size, m, rng):
+    """A model whose length or height differs clearly from model ``m``'s (``size``: (n, 3) of the models)."""
+    far = [k for k in range(len(size)) if abs(size[k][0] - size[m][0]) > 0.45 or abs(size[k][2] - size[m][2]) > 0.2]
+    return int(rng.choice(far)) if far else (m + 1) % len(size)
 
 
 def _events(n_bays: int, rng) -> list[str]:
@@ -75,7 +74,7 @@ def _events(n_bays: int, rng) -> list[str]:
     return events
 
 
-def _bays(models, n_bays: int, rng) -> list[Bay]:
+def _bays(models, sizes, n_bays: int, rng) -> list[Bay]:
     bays = []
     per_row = (n_bays + 1) // 2
     for k, event in enumerate(_events(n_bays, rng)):
@@ -96,7 +95,7 @@ def _bays(models, n_bays: int, rng) -> list[Bay]:
         elif event == "left":
             after = None
         elif event == "replaced":
-            after = Car(_other_size(models, m, rng), car.x + rng.uniform(-0.2, 0.2), car.y, car.heading)
+            after = Car(_other_size(sizes, m, rng), car.x + rng.uniform(-0.2, 0.2), car.y, car.heading)
         elif event == "arrived":
             before = None
         bays.append(Bay(k, event, before, after, event))
@@ -120,12 +119,14 @@ def _scene(models, cars: list[Car], extent: tuple) -> list:
 
 
 def survey_pair(models, seed: int = 0, n_bays: int = 28, densities=(150.0, 150.0), shift=(0.1, -0.08, 0.1),
-                strip_bays: int = 2, noise: float = 0.02) -> SurveyPair:
+                strip_bays: int = 2, noise: float = 0.02, sizes=None) -> SurveyPair:
     """Simulate two surveys of one car park (see the module's text). ``models``: normalised cars as
     ``(vertices, faces[, glass])``; ``strip_bays``: how many bays of each row the later survey's missing strip
-    covers (its edges on bay edges), 0 for none."""
+    covers (its edges on bay edges), 0 for none; ``sizes``: (n, 3) the models' length, width and height (the
+    catalogue's; None: the meshes' extents, which stray parts can inflate)."""
     rng = np.random.default_rng(seed)
-    bays = _bays(models, n_bays, rng)
+    sizes = np.array([np.ptp(m[0], axis=0) for m in models]) if sizes is None else np.asarray(sizes, dtype=float)
+    bays = _bays(models, sizes, n_bays, rng)
     per_row = (n_bays + 1) // 2
     half = per_row * BAY_WIDTH / 2
     extent = (-half - 4.0, half + 4.0)
@@ -149,3 +150,41 @@ def survey_pair(models, seed: int = 0, n_bays: int = 28, densities=(150.0, 150.0
         y = after[:, 1]
         after = after[~((y >= strip[0] + shift[1]) & (y < strip[1] + shift[1]))]
     return SurveyPair(scans[0], after, bays, np.asarray(shift, dtype=np.float64), strip, tuple(densities))
+
+
+def score(doc: dict, pair: SurveyPair, k: int = 0) -> dict:
+    """How right ``compare``'s document is about a simulated pair (its step ``k``): each bay's record is the one
+    whose object lies within 1 m of the bay's car (the later car moved back by the true shift for an arrival).
+    Returns the counts right and wrong, the wrong ones (bay, expected, got), records that match no bay, the cars
+    of the missing strip called ``left``, the shift's error (m) and, of the cars that stayed, how many kept their
+    model."""
+    changes = [c for c in doc["changes"] if c["from"] == k]
+    used, wrong, right = set(), [], 0
+    strip_left = 0
+    kept = stayed = 0
+    for b in pair.bays:
+        if b.expected is None:
+            continue
+        side, car = ("before", b.before) if b.before is not None else ("after", b.after)
+        back = pair.shift[:2] if side == "after" else np.zeros(2)
+        best, dist = None, 1.0
+        for n, c in enumerate(changes):
+            if c[side] is not None:
+                d = float(np.hypot(*(np.asarray(c[side]["centroid"][:2]) - back - [car.x, car.y])))
+                if d < dist:
+                    best, dist = n, d
+        got = changes[best]["status"] if best is not None else None
+        if best is not None:
+            used.add(best)
+        if got == b.expected:
+            right += 1
+        else:
+            wrong.append((b.index, b.expected, got))
+        if b.expected == "unobserved" and got == "left":
+            strip_left += 1
+        if b.event == "same" and b.expected == "same" and best is not None and changes[best]["after"] is not None:
+            stayed += 1
+            kept += changes[best]["before"]["model"] == changes[best]["after"]["model"]
+    shift = np.asarray(doc["alignment"][k]["shift"])
+    return {"right": right, "wrong": wrong, "spurious": len(changes) - len(used), "strip_left": strip_left,
+            "shift_error_m": float(np.abs(shift - pair.shift).max()), "stayed": stayed, "kept_model": kept}

@@ -1,4 +1,5 @@
-"""A small HTTP server on 127.0.0.1 for one twin folder: ``/`` is the viewer page (this package's ``static/``),
+"""A small HTTP server on 127.0.0.1 for one twin folder or one comparison: ``/`` is the viewer page (this package's
+``static/``: index.html for a twin, epochs.html for the epochs of ``compare``),
 ``/twin/...`` the folder's files, ``/vendor/three/...`` three.js from the npm packages installed at set-up
 (``make`` runs ``npm ci``; nothing comes from the internet at run time).
 
@@ -30,10 +31,10 @@ LOCAL_HOSTS = ("127.0.0.1", "localhost")
 
 
 
-def content_policy() -> str:
+def content_policy(page: str = "index.html") -> str:
     """The Content-Security-Policy of every answer: scripts from this server only, plus the page's inline import
     map by its sha256 (the one inline script a module page needs)."""
-    html = (STATIC / "index.html").read_text(encoding="utf-8")
+    html = (STATIC / page).read_text(encoding="utf-8")
     hashes = [base64.b64encode(hashlib.sha256(m.encode("utf-8")).digest()).decode("ascii")
               for m in re.findall(r'<script type="importmap">(.*?)</script>', html, re.S)]
     scripts = " ".join(["'self'"] + [f"'sha256-{h}'" for h in hashes])
@@ -55,6 +56,7 @@ def vendor_folder() -> Path:
 
 class _Handler(SimpleHTTPRequestHandler):
     roots: dict = {}
+    page: str = "index.html"
     policy: str = "default-src 'none'"
     timeout = IDLE_TIMEOUT_S
 
@@ -64,7 +66,7 @@ class _Handler(SimpleHTTPRequestHandler):
             return str(STATIC / "__forbidden__")
         for prefix, root in self.roots.items():
             if p == prefix.rstrip("/") or p.startswith(prefix):
-                rel = p[len(prefix):].lstrip("/") or ("index.html" if root == STATIC else "")
+                rel = p[len(prefix):].lstrip("/") or (self.page if root == STATIC else "")
                 try:
                     target = (root / rel).resolve()
                 except (OSError, ValueError, RuntimeError):
@@ -117,14 +119,18 @@ _Handler.extensions_map = {**SimpleHTTPRequestHandler.extensions_map, ".js": "te
 
 
 def serve(folder, port: int = 0) -> tuple[ThreadingHTTPServer, str]:
-    """Start serving ``folder`` (a twin: twin.json and tiles/) in a background thread; returns the server and the
-    viewer's URL. ``port`` 0 takes a free one."""
+    """Start serving ``folder`` (a twin: twin.json and tiles/; or a comparison: changes.json and view/) in a
+    background thread; returns the server and the viewer's URL. ``port`` 0 takes a free one."""
     folder = Path(folder)
-    if not (folder / "twin.json").is_file() or not (folder / "tiles" / "tileset.json").is_file():
-        raise ViewerError(f"{folder}: not a twin folder (no twin.json and tiles/tileset.json); pass the OUT folder "
-                          "of `twinreg build-twin`")
+    if (folder / "changes.json").is_file() and (folder / "view" / "epochs.json").is_file():
+        page = "epochs.html"
+    elif (folder / "twin.json").is_file() and (folder / "tiles" / "tileset.json").is_file():
+        page = "index.html"
+    else:
+        raise ViewerError(f"{folder}: neither a twin folder (twin.json and tiles/tileset.json) nor a comparison "
+                          "(changes.json and view/); pass the OUT folder of `twinreg build-twin` or `twinreg compare`")
     roots = {"/twin/": folder, "/vendor/three/": vendor_folder() / "three", "/": STATIC}
-    handler = type("Handler", (_Handler,), {"roots": roots, "policy": content_policy()})
+    handler = type("Handler", (_Handler,), {"roots": roots, "policy": content_policy(page), "page": page})
     if not 0 <= int(port) <= 65535:
         raise ViewerError(f"--port {port}: a port is 0 (any free one) to 65535")
     try:

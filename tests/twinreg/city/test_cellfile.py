@@ -11,7 +11,8 @@ import numpy as np
 
 from cosco import describe_object
 from tests.conftest import toy_car
-from twinreg.city.cellfile import load, save
+from twinreg.change.observed import raster
+from twinreg.city.cellfile import FORMAT, load, save
 from twinreg.city.cells import CellObject, CellResult
 from twinreg.city.resume import CellStore
 from twinreg.errors import CellFileError
@@ -23,7 +24,8 @@ def _result() -> CellResult:
     obj = CellObject(id="c0_0-1", cell="c0_0", offset=np.array([100.0, 200.0, 0.0]), n_points=len(pts),
                      shape=shape, cloud=pts[:50], spacing=0.05, ground_z=0.0)
     return CellResult("c0_0", "k123", (0.0, 0.0), (50.0, 50.0), n_read=10, n_points=9, objects=[obj],
-                      timing_s={"read": 0.1}, image=np.zeros((4, 4), np.uint8),
+                      timing_s={"read": 0.1},
+                      observed=raster(pts + [10.0, 10.0, 0.0], pts[:, 2], pts[:, 2] < 0.1, (0.0, 0.0), (50.0, 50.0)),
                       scan=(np.zeros((3, 3), np.float32), np.zeros((3, 3), np.uint8)))
 
 
@@ -37,6 +39,8 @@ def test_a_cell_result_comes_back_equal(tmp_path):
     assert np.array_equal(a.shape.sections.longitudinal, b.shape.sections.longitudinal)
     assert a.shape.frame.heading == b.shape.frame.heading
     assert np.array_equal(back.scan[0], r.scan[0]) and back.scan[1].dtype == np.uint8
+    assert np.array_equal(back.observed.code, r.observed.code) and back.observed.z0 == r.observed.z0
+    assert (back.observed.code != 255).sum() > 10
 
 
 def test_planted_files_are_refused_and_never_run(tmp_path):
@@ -49,8 +53,10 @@ def test_planted_files_are_refused_and_never_run(tmp_path):
             return (open, (str(marker), "w"))
 
     target = store.path("c0_0", "k123")
-    for what in ("pickle", "object npz", "foreign class"):
-        if what == "pickle":
+    for what in ("pickle", "object npz", "foreign class", "broken zip"):
+        if what == "broken zip":
+            target.write_bytes(b"PK\x03\x04 a zip's magic and nothing else")
+        elif what == "pickle":
             target.write_bytes(pickle.dumps(Payload()))
         elif what == "object npz":
             np.savez(target, __doc__=np.array([Payload()], dtype=object))

@@ -1,0 +1,119 @@
+"""Twins compare refuses, one line each, exit 1, nothing written: twins that do not overlap, twins in different
+CRSs (naming both), a folder that is not a twin, a twin written before the observation record, the same twin twice
+(by path or as a copy), an observation record that is not data this program wrote; and markup in a stranger's
+twin shown as text in the report."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from twinreg.cli import app
+
+runner = CliRunner()
+
+
+def _copy(src, dst, edit=None):
+    shutil.copytree(src, dst)
+    if edit:
+        doc = json.loads((dst / "twin.json").read_text())
+        edit(doc)
+        (dst / "twin.json").write_text(json.dumps(doc))
+    return dst
+
+
+def _refused(args, out, *words):
+    r = runner.invoke(app, ["compare", *map(str, args), "--out", str(out)])
+    assert r.exit_code == 1, r.output
+    line = r.output.strip()
+    assert line.startswith("error:") and "\n" not in line, line
+    for w in words:
+        assert w in line, line
+    assert not out.exists()
+    return line
+
+
+def test_not_a_twin(surveys, tmp_path):
+    (tmp_path / "empty").mkdir()
+    _refused([surveys.twins["before"], tmp_path / "empty"], tmp_path / "out", "not a twin folder", "build-twin")
+
+
+def test_written_before_the_record(surveys, tmp_path):
+    old = _copy(surveys.twins["after150"], tmp_path / "old", lambda d: d.pop("observation"))
+    (old / "observed.npz").unlink()
+    _refused([surveys.twins["before"], old], tmp_path / "out", "no observation record", "rerun `twinreg build-twin`")
+
+
+def test_the_same_twin_twice(surveys, tmp_path):
+    t = surveys.twins["before"]
+    _refused([t, t], tmp_path / "out", "given twice")
+    copy = _copy(t, tmp_path / "copy")
+    _refused([t, copy], tmp_path / "out", "the same twin")
+
+
+def test_other_crs(surveys, tmp_path):
+    def to_itm(doc):
+        doc["georef"].update(crs="EPSG:2157", crs_name="IRENET95 / Irish Transverse Mercator", lat=None, lon=None)
+
+    other = _copy(surveys.twins["after150"], tmp_path / "itm", to_itm)
+    line = _refused([surveys.twins["before"], other], tmp_path / "out", "Irish Transverse Mercator", "53.35")
+    assert "--crs" in line
+    moved = _copy(surveys.twins["after150"], tmp_path / "moved", lambda d: d["georef"].update(lat=48.85))
+    _refused([surveys.twins["before"], moved], tmp_path / "out", "local frame")
+
+
+def test_no_overlap(surveys, tmp_path):
+    far = _copy(surveys.twins["after150"], tmp_path / "far")
+    with np.load(far / "observed.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["lo"] = arrays["lo"] + 5000.0
+    np.savez_compressed(far / "observed.npz", **arrays)
+    _refused([surveys.twins["before"], far], tmp_path / "out", "does not overlap", "same place")
+
+
+def test_record_that_is_not_data(surveys, tmp_path):
+    bad = _copy(surveys.twins["after150"], tmp_path / "bad")
+    with np.load(bad / "observed.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["code0"] = np.array([{"run": "code"}], dtype=object)
+    np.savez(bad / "observed.npz", **arrays)
+    _refused([surveys.twins["before"], bad], tmp_path / "out", "observed.npz", "rerun build-twin")
+    (bad / "observed.npz").write_bytes(b"PK\x03\x04 not a zip")
+    _refused([surveys.twins["before"], bad], tmp_path / "out", "observed.npz")
+
+
+def test_undated_twins_keep_the_order_given(surveys, tmp_path):
+    undated = _copy(surveys.twins["before"], tmp_path / "undated", lambda d: d.update(survey_date=None))
+    r = runner.invoke(app, ["--json", "compare", str(surveys.twins["after150"]), str(undated), "--out",
+                            str(tmp_path / "out")])
+    assert r.exit_code == 0, r.output
+    assert "no survey date" in r.output
+    doc = json.loads(r.stdout[r.stdout.index("{"):])
+    assert [e["date"] for e in doc["epochs"]] == ["2026-06-02", None]
+
+
+def test_markup_in_a_strangers_twin_is_text(surveys, tmp_path):
+    evil = "<img src=x onerror=alert(1)>"
+
+    def inject(doc):
+        doc["objects"][0]["id"] = evil
+        for o in doc["objects"]:
+            if o["match"]:
+                o["match"]["name"] = evil
+        doc["survey_date"] = "2026-06-03"
+
+    t = _copy(surveys.twins["after150"], tmp_path / "evil", inject)
+    r = runner.invoke(app, ["compare", str(surveys.twins["before"]), str(t), "--out", str(tmp_path / "out")])
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "out" / "changes.html").read_text()
+    assert evil not in page and "&lt;img src=x onerror=alert(1)&gt;" in page
+
+
+@pytest.mark.parametrize("date", ["2026-13-01", "yesterday", 20260301])
+def test_bad_date_in_twin(surveys, tmp_path, date):
+    t = _copy(surveys.twins["after150"], tmp_path / "d", lambda d: d.update(survey_date=date))
+    _refused([surveys.twins["before"], t], tmp_path / "out", "survey_date")
