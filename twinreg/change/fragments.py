@@ -1,6 +1,6 @@
 """One vehicle seen in pieces: a sparse survey, or a car whose glass gave no returns, can split one car into two
 objects without a model, each smaller than any car. Before pairing, such pieces of one epoch that lie inside an
-object of the other epoch are put together into one object (their union box in that object's axes), so that the
+object of the other epoch are put together into one object (the smallest box around them), so that the
 vehicle is compared whole instead of being called ``replaced``; its id names the pieces (``obj19+obj10``), and its
 sections are not compared (a piece's sections are not the vehicle's)."""
 
@@ -10,6 +10,8 @@ from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
+
+from cosco.footprint import min_area_rectangle
 
 from .epochs import Epoch
 from .footprints import corners, inside, samples
@@ -54,12 +56,11 @@ def merge_pieces(whole: Epoch, parts: Epoch, shift: np.ndarray) -> tuple[Epoch, 
     new = {"ids": [], "centre": [], "heading": [], "size": [], "lonlat": [], "n_points": [], "sections": []}
     for i, js in groups:
         keep[js] = False
-        h = whole.heading[i]
         quad = corners(parts.centre[js, :2], parts.heading[js], parts.size[js, 0], parts.size[js, 1]).reshape(-1, 2)
-        axis = np.array([[np.cos(h), np.sin(h)], [-np.sin(h), np.cos(h)]])
-        uv = quad @ axis.T
-        lo, hi = uv.min(0), uv.max(0)
-        centre_xy = ((lo + hi) / 2) @ axis
+        rect = min_area_rectangle(quad)
+        # the union's axis, facing as the whole object does
+        h = rect.angle + (np.pi if np.cos(rect.angle - whole.heading[i]) < 0 else 0.0)
+        centre_xy = rect.centre
         weights = parts.n_points[js] / max(parts.n_points[js].sum(), 1)
         z = float(weights @ parts.centre[js, 2])
         height = float(parts.measured[js, 2].max())
@@ -67,7 +68,7 @@ def merge_pieces(whole: Epoch, parts: Epoch, shift: np.ndarray) -> tuple[Epoch, 
         new["ids"].append("+".join(parts.ids[j] for j in js))
         new["centre"].append([centre_xy[0], centre_xy[1], z])
         new["heading"].append(h)
-        new["size"].append([hi[0] - lo[0], hi[1] - lo[1], height])
+        new["size"].append([rect.length, rect.width, height])
         new["lonlat"].append(weights @ parts.lonlat[js])
         new["n_points"].append(int(parts.n_points[js].sum()))
         new["sections"].append(parts.record.sections[biggest])

@@ -74,6 +74,10 @@ def tolerances(a: Epoch, b: Epoch) -> tuple[float, float]:
     return 0.1 + 0.5 * s + 2 * noise, np.radians(1.5 + 10.0 * s)
 
 
+def _maybe(v) -> float | None:
+    return None if np.isnan(v) else round(float(v), 4)
+
+
 def _logistic(x):
     return 1.0 / (1.0 + np.exp(-x))
 
@@ -107,7 +111,7 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[di
     for n, (i, j) in enumerate(zip(pairs.i, pairs.j)):
         p, d, t = float(pairs.p_same[n]), float(pairs.displacement[n]), float(pairs.turn[n])
         rec = {"from": k, "to": k + 1, "before": _object(a, i), "after": _object(b, j), "displacement_m": round(d, 3),
-               "turn_rad": round(t, 4), "same_vehicle": round(p, 3), "section_m": round(float(pairs.section_m[n]), 4),
+               "turn_rad": round(t, 4), "same_vehicle": round(p, 3), "section_m": _maybe(pairs.section_m[n]),
                "overlap": round(float(pairs.iou[n]), 3)}
         margin = max(d / d_tol, t / t_tol)
         if p >= 0.5:
@@ -121,8 +125,8 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[di
                       "the same vehicle")
         else:
             status, conf = "replaced", 1.0 - p
-            reason = (f"another vehicle in the footprint (sizes differ by up to {pairs.size_z[n]:.1f} sigma, sections "
-                      f"by {pairs.section_m[n] * 100:.0f} cm)")
+            sec = "" if np.isnan(pairs.section_m[n]) else f", sections by {pairs.section_m[n] * 100:.0f} cm"
+            reason = f"another vehicle in the footprint (sizes differ by up to {pairs.size_z[n]:.1f} sigma{sec})"
         out.append({**rec, "status": status, "confidence": round(float(conf), 3), "reason": reason})
     gone = np.setdiff1d(np.arange(len(a)), pairs.i)
     cov = coverage(b.record, a, gone, shift)

@@ -64,7 +64,8 @@ def _tree(x, y, rng):
 def layout(models: list, side_x: float, side_y: float, seed: int,
            street_spacing: float = STREET_SPACING) -> list[Placed]:
     """Cars along streets (one every ``street_spacing`` metres), walls, trees and poles over
-    ``[0, side_x) x [0, side_y)`` (metres, local)."""
+    ``[0, side_x) x [0, side_y)`` (metres, local); the spaces left empty are kept as ``slot`` (not scanned: where
+    a later epoch's cars arrive)."""
     rng = np.random.default_rng(seed)
     placed: list[Placed] = []
     lengths = [float(np.ptp(v[:, 0])) for v, _ in models]
@@ -79,11 +80,11 @@ def layout(models: list, side_x: float, side_y: float, seed: int,
                 cx = x + lengths[m] / 2
                 heading = float(rng.choice([0.0, np.pi]) + rng.normal(0.0, 0.03))
                 y = y_row + rng.normal(0.0, 0.08)
-                if rng.random() < 0.85:  # some spaces stay empty
-                    v, f = models[m]
-                    mesh = (transform(v, pose_matrix(cx, y, heading, float(ground_height(cx, y)))), f)
-                    placed.append(Placed("car", m, float(cx), float(y), float(np.mod(heading, 2 * np.pi)), mesh,
-                                         lengths[m] / 2 + 0.5))
+                v, f = models[m]
+                kind = "car" if rng.random() < 0.85 else "slot"  # some spaces stay empty (a later epoch's)
+                mesh = (transform(v, pose_matrix(cx, y, heading, float(ground_height(cx, y)))), f)
+                placed.append(Placed(kind, m, float(cx), float(y), float(np.mod(heading, 2 * np.pi)), mesh,
+                                     lengths[m] / 2 + 0.5))
                 x += lengths[m] + rng.uniform(0.7, 2.5)
         # the block between this street and the next: a wall along it, trees, poles at the kerb
         yb = yc + street_spacing / 2
@@ -117,7 +118,8 @@ def _ground(x0, x1, y0, y1, step=1.0):
     return v, np.vstack([np.column_stack([a, a + ny, a + 1]), np.column_stack([a + 1, a + ny, a + ny + 1])])
 
 
-def scan_block(bx: int, by: int, placed: list[Placed], centres: np.ndarray, density: float, seed: int):
+def scan_block(bx: int, by: int, placed: list[Placed], centres: np.ndarray, density: float, seed: int,
+               passes=PASSES):
     """The hits (n, 3) local metres and labels (index into ``placed``, -1 ground) of the rays whose ground
     intercepts fall in block (bx, by): the same rays every time (seeded by the block)."""
     rng = np.random.default_rng([seed, bx + 100_000, by + 100_000])
@@ -134,7 +136,7 @@ def scan_block(bx: int, by: int, placed: list[Placed], centres: np.ndarray, dens
     v_all, f_all, owner = np.vstack(verts), np.vstack(faces), np.concatenate(owner)
     centre = np.array([x0 + BLOCK / 2, y0 + BLOCK / 2, float(ground_height(x0 + BLOCK / 2, y0 + BLOCK / 2))])
     pts, labels = [], []
-    for az, el, share in PASSES:
+    for az, el, share in passes:
         d = direction(np.radians(az), np.radians(el))
         spacing = 1.0 / np.sqrt(density * share)
         n = int(round(BLOCK / spacing))
@@ -151,12 +153,17 @@ def scan_block(bx: int, by: int, placed: list[Placed], centres: np.ndarray, dens
     return np.vstack(pts), np.concatenate(labels)
 
 
-def write_laz(path, points: np.ndarray, crs: str):
-    """A LAS 1.4 / LAZ file (by its suffix) of (n, 3) metre points, millimetre scale, with ``crs`` in its header."""
+def write_laz(path, points: np.ndarray, crs: str, date: str | None = None):
+    """A LAS 1.4 / LAZ file (by its suffix) of (n, 3) metre points, millimetre scale, with ``crs`` in its header
+    (and ``date``, ``YYYY-MM-DD``, as its creation date; None: today's)."""
+    import datetime
+
     import laspy
     import pyproj
 
     header = laspy.LasHeader(point_format=6, version="1.4")
+    if date:
+        header.creation_date = datetime.date.fromisoformat(date)
     header.scales = [0.001, 0.001, 0.001]
     header.offsets = np.floor(points.min(0) / 1000.0) * 1000.0
     header.add_crs(pyproj.CRS(crs))
@@ -166,9 +173,9 @@ def write_laz(path, points: np.ndarray, crs: str):
     las.write(str(path))
 
 
-def city_models(library=None) -> tuple[list, list[str], str]:
+def city_models(library=None) -> tuple[list, list[str], str, np.ndarray]:
     """The cars of a simulated city: the catalogue's models (their twin meshes) when it has any, else the
-    project's parametric cars. Returns (meshes, names, "catalogue" or "parametric")."""
+    project's parametric cars. Returns (meshes, names, "catalogue" or "parametric", their (n, 3) sizes)."""
     from ..catalogue.db import library_path
     from ..catalogue.repository import Catalogue
 
@@ -177,30 +184,75 @@ def city_models(library=None) -> tuple[list, list[str], str]:
         cat = Catalogue(folder, create=False)
         rows = sorted(cat.list(), key=lambda r: r.name)
         if rows:
-            return [cat.ge_mesh(r) for r in rows], [r.name for r in rows], "catalogue"
+            return ([cat.ge_mesh(r) for r in rows], [r.name for r in rows], "catalogue",
+                    np.array([(r.length, r.width, r.height) for r in rows]))
     from .parametric import LIBRARY, car_mesh
 
-    return [car_mesh(spec) for spec in LIBRARY], [spec.name for spec in LIBRARY], "parametric"
+    return ([car_mesh(spec) for spec in LIBRARY], [spec.name for spec in LIBRARY], "parametric",
+            np.array([(s.length, s.width, s.height) for s in LIBRARY]))
 
 
 def simulate_city(out, models: list, names: list[str], km2: float = 0.01, density: float = 150.0,
                   tile: float = 100.0, seed: int = 0, crs: str = DEFAULT_CRS, origin=DEFAULT_ORIGIN,
-                  progress=None, copc: bool = False, street_spacing: float = STREET_SPACING) -> dict:
-    """Write ``out/tile_<x>_<y>.laz`` (``tile`` metres square, ``crs`` in each header; ``.copc.laz`` files with
-    ``copc``) and ``out/truth.json``.
+                  progress=None, copc: bool = False, street_spacing: float = STREET_SPACING,
+                  date: str | None = None) -> dict:
+    """Write ``out/tile_<x>_<y>.laz`` (``tile`` metres square, ``crs`` and ``date`` (``YYYY-MM-DD``, None: today's)
+    in each header; ``.copc.laz`` files with ``copc``) and ``out/truth.json``.
 
     models : (vertices, faces) of each car model (metres, Z up, front +X, footprint centred, bottom at z 0);
     names : their names, written in the truth. Returns the truth document.
     """
-    from ..io.outdir import atomic_path
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n_tiles = max(1, int(round(np.sqrt(km2 * 1e6) / tile)))
     side = n_tiles * tile
     placed = layout(models, side, side, seed, street_spacing)
-    centres = np.array([[p.x, p.y, p.radius] for p in placed]).reshape(-1, 3)
     origin = np.asarray(origin, dtype=np.float64)
+    survey = Survey(density, seed, PASSES, date=date)
+    files, n_points = write_tiles(out, [p for p in placed if p.kind != "slot"], side, tile, survey, crs, origin,
+                                  copc, progress)
+    truth = {"crs": crs, "origin": origin.tolist(), "tile_m": tile, "density": density, "seed": seed,
+             "street_spacing_m": street_spacing, "km2": km2, "date": date,
+             "side_m": side, "n_points": n_points, "tiles": files, "cars": car_truth(placed, names, origin),
+             "others": [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]} for p in placed
+                        if p.kind not in ("car", "slot")]}
+    write_truth(out, truth)
+    return truth
+
+
+def car_truth(placed: list[Placed], names: list[str], origin: np.ndarray) -> list[dict]:
+    return [{"model": names[p.model], "x": p.x + origin[0], "y": p.y + origin[1],
+             "z": float(ground_height(p.x, p.y)), "heading": p.heading} for p in placed if p.kind == "car"]
+
+
+def write_truth(out: Path, truth: dict) -> None:
+    from ..io.outdir import atomic_path
+
+    with atomic_path(out / "truth.json", ".json") as tmp:
+        Path(tmp).write_text(json.dumps(truth, indent=1), encoding="utf-8")
+
+
+@dataclass(frozen=True)
+class Survey:
+    """How a city is flown: its density (points per m2 of open ground), the rays' seed, the passes (azimuth,
+    elevation, share of the density), a systematic offset of its georeferencing (m), the x ranges of strips with
+    no returns (local metres) and its date (``YYYY-MM-DD``, the tiles' creation date; None: today's)."""
+
+    density: float
+    seed: int
+    passes: tuple = PASSES
+    shift: tuple = (0.0, 0.0, 0.0)
+    gaps: tuple = ()
+    date: str | None = None
+
+
+def write_tiles(out: Path, placed: list[Placed], side: float, tile: float, survey: Survey, crs: str,
+                origin: np.ndarray, copc: bool = False, progress=None) -> tuple[list[str], int]:
+    """Scan ``placed`` block by block and write the tiles; returns (file names, points)."""
+    from ..io.outdir import atomic_path
+
+    n_tiles = max(1, int(round(side / tile)))
+    centres = np.array([[p.x, p.y, p.radius] for p in placed]).reshape(-1, 3)
     files, n_points = [], 0
     for ty in range(n_tiles):
         for tx in range(n_tiles):
@@ -211,13 +263,15 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
             parts = []
             for by in range(max(b0[1], 0), min(b1[1], int(np.ceil(side / BLOCK)) - 1) + 1):
                 for bx in range(max(b0[0], 0), min(b1[0], int(np.ceil(side / BLOCK)) - 1) + 1):
-                    pts, _ = scan_block(bx, by, placed, centres, density, seed)
+                    pts, _ = scan_block(bx, by, placed, centres, survey.density, survey.seed, survey.passes)
                     # each hit goes to the tile that holds it (the city's outer tiles keep what falls just
                     # outside the city)
                     t_ij = np.clip(np.floor(pts[:, :2] / tile).astype(int), 0, n_tiles - 1)
                     keep = (t_ij[:, 0] == tx) & (t_ij[:, 1] == ty)
+                    for g0, g1 in survey.gaps:
+                        keep &= ~((pts[:, 0] >= g0) & (pts[:, 0] < g1))
                     parts.append(pts[keep])
-            pts = np.vstack(parts) + [origin[0], origin[1], 0.0]
+            pts = np.vstack(parts) + [origin[0], origin[1], 0.0] + np.asarray(survey.shift)
             name = f"tile_{int(origin[0] + lo[0])}_{int(origin[1] + lo[1])}" + (".copc.laz" if copc else ".laz")
             with atomic_path(out / name, ".laz") as tmp:
                 if copc:
@@ -225,18 +279,9 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
 
                     write_copc(tmp, pts, crs)
                 else:
-                    write_laz(tmp, pts, crs)
+                    write_laz(tmp, pts, crs, survey.date)
             files.append(name)
             n_points += len(pts)
             if progress:
                 progress("tiles", len(files), n_tiles * n_tiles)
-    cars = [{"model": names[p.model], "x": p.x + origin[0], "y": p.y + origin[1],
-             "z": float(ground_height(p.x, p.y)), "heading": p.heading} for p in placed if p.kind == "car"]
-    truth = {"crs": crs, "origin": origin.tolist(), "tile_m": tile, "density": density, "seed": seed,
-             "street_spacing_m": street_spacing,
-             "side_m": side, "n_points": n_points, "tiles": files, "cars": cars,
-             "others": [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]} for p in placed
-                        if p.kind != "car"]}
-    with atomic_path(out / "truth.json", ".json") as tmp:
-        Path(tmp).write_text(json.dumps(truth, indent=1), encoding="utf-8")
-    return truth
+    return files, n_points

@@ -15,32 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-CELL = 35.0  # cells that do not line up with the 40 m tiles: both kinds of seams cross cars
+from tests.conftest import CELL
 
 BIN = Path(sys.executable).parent
-
-
-@pytest.fixture(scope="session")
-def small_city(tmp_path_factory, parametric_catalogue):
-    """2 x 2 tiles of 40 m (about 1M points, 67 parked cars of the 8 parametric models), LAZ and COPC."""
-    from twinreg.sim.city import simulate_city
-
-    cat = parametric_catalogue
-    rows = sorted(cat.list(), key=lambda r: r.name)
-    models = [cat.ge_mesh(r) for r in rows]
-    root = tmp_path_factory.mktemp("city")
-    laz = simulate_city(root / "laz", models, [r.name for r in rows], km2=0.0064, density=100.0, tile=40.0, seed=3)
-    simulate_city(root / "copc", models, [r.name for r in rows], km2=0.0064, density=100.0, tile=40.0, seed=3,
-                  copc=True)
-    return root, laz
-
-
-@pytest.fixture(scope="session")
-def city_twin(small_city, parametric_catalogue):
-    from twinreg.city.build import build_city_twin
-
-    root, _ = small_city
-    return build_city_twin([root / "laz"], parametric_catalogue, None, root / "out", cell=CELL, workers=2)
 
 
 def _merged(folder: Path, dst: Path) -> Path:
