@@ -28,7 +28,8 @@ class Epoch:
     """One survey's twin: ``folder``, survey ``date`` (``YYYY-MM-DD`` or None), its ``georef``; per object (n):
     ``ids``, ``centre`` (n, 3) in the twin's coordinates, ``heading`` (rad), ``size`` (n, 3) of what was placed
     (the model's, else the measured box), ``measured`` (n, 3), ``models`` (name or None), ``confidence``
-    (NaN: none), ``n_points``, ``lonlat`` (n, 2) as twin.json states them; the scan's ``noise`` (m) and ``spacing`` (m, mean point spacing of its ground); and
+    (NaN: none), ``n_points``, ``lonlat`` (n, 2) as twin.json states them; the scan's ``noise`` (m) and
+    ``spacing`` (m, mean point spacing of the area it saw); and
     its observation ``record``."""
 
     folder: Path
@@ -162,7 +163,8 @@ def read_epoch(folder) -> Epoch:
                  np.array(cols["heading"], dtype=np.float64), np.array(cols["size"]).reshape(-1, 3),
                  np.array(cols["measured"]).reshape(-1, 3), cols["models"],
                  np.array(cols["confidence"], dtype=np.float64), np.array(cols["n_points"], dtype=np.int64),
-                 np.array(cols["lonlat"], dtype=np.float64).reshape(-1, 2), _number(doc.get("noise_m", 0.02), "noise_m", folder), float(np.sqrt(seen / max(n_scan, 1))),
+                 np.array(cols["lonlat"], dtype=np.float64).reshape(-1, 2),
+                 _number(doc.get("noise_m", 0.02), "noise_m", folder), float(np.sqrt(seen / max(n_scan, 1))),
                  record, n_scan)
 
 

@@ -17,7 +17,6 @@ from cosco.params import DEFAULT, CoscoParams
 from .epochs import Epoch
 from .footprints import overlap, turn
 
-
 #: a match this confident counts as evidence of which vehicle it is
 SURE = 0.9
 
@@ -25,8 +24,9 @@ SURE = 0.9
 @dataclass
 class Pairs:
     """k pairs (i in the earlier epoch, j in the later) with their footprint ``iou``, ``displacement`` (m, xy,
-    after the alignment), ``turn`` (rad), ``section_m`` (COSCO dissimilarity, NaN where not needed), ``size_z`` (the largest size
-    difference in units of :func:`size_sigma`) and ``p_same`` (0-1, how likely the same vehicle)."""
+    after the alignment), ``turn`` (rad), ``section_m`` (COSCO dissimilarity, NaN where not needed), ``size_z``
+    (the largest size difference in units of :func:`size_sigma`) and ``p_same`` (0-1, how likely the same
+    vehicle)."""
 
     i: np.ndarray
     j: np.ndarray

@@ -18,6 +18,7 @@ from cosco.params import DEFAULT, CoscoParams
 from .grid import Cell
 from .sources import read_box, read_splits
 
+
 @dataclass(frozen=True)
 class CellJob:
     """What a worker needs for one cell: the cell, and for each tile that feeds it either the folder of its split
@@ -53,8 +54,8 @@ class CellObject:
 class CellResult:
     """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings,
     where its core's scan saw anything (``observed``, a :class:`~twinreg.change.observed.Raster`: the report's map
-    and the twin's observation record) and a thinned sample of its core's points for the 3D tiles: ``(points (n, 3) float32 scene-local, colours (n, 3)
-    uint8)``."""
+    and the twin's observation record) and a thinned sample of its core's points for the 3D tiles:
+    ``(points (n, 3) float32 scene-local, colours (n, 3) uint8)``."""
 
     name: str
     key: str

@@ -5,6 +5,7 @@ car shows its history; the report opens with every image loaded."""
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -71,17 +72,20 @@ def test_epoch_switch_draws_changed_cars_in_their_colour(comparison):
         assert status in got["epochs"][1]["legend"]
     hist = got["history"]
     assert hist and hist["status"] in hist["text"] and "epoch 0 -> 1" in hist["text"], hist
+    shutil.copy(comparison / "shot_1.png", ROOT / "docs" / "compare_epochs.png")  # the README's picture
 
 
 def test_report_opens_with_every_image(comparison):
     if not CHROMIUM.exists():
         pytest.fail("chromium is missing: run `make install`")
     shot = comparison / "report.png"
-    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "shoot_page.mjs"), (comparison / "changes.html").as_uri(),
-                           str(shot)], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    page = (comparison / "changes.html").as_uri()
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "shoot_page.mjs"), page, str(shot)],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     got = json.loads(proc.stdout.strip().splitlines()[-1])
     assert got["errors"] == [] and got["blocked"] == [], got
     assert len(got["images"]) >= 2 and all(i["loaded"] for i in got["images"]), got
     assert "What changed" in got["text"] and "Occupancy" in got["text"]
+    shutil.copy(comparison / "changes_0.png", ROOT / "docs" / "compare_map.png")
     assert set(COLOURS) == {"same", "moved", "replaced", "left", "arrived", "unobserved"}
