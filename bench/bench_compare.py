@@ -5,6 +5,9 @@ leave, are replaced by a car of another size and arrive; the later survey flown 
 truth: events right, cars of the strip called left, the offset's error, the unchanged cars that kept their model.
 
     python bench/bench_compare.py [--seeds 5] [--densities 150,50,20] [--catalogue shared|parametric] [--out DIR]
+
+When Debian's CloudCompare is installed (`apt-get install cloudcompare`), bench_cloudcompare.py then runs on the
+same pairs (what a CloudCompare user gets).
 """
 
 from __future__ import annotations
@@ -99,6 +102,11 @@ def main() -> None:
               f" | {np.median(t['secs']):.2f} |")
         if t["wrong"]:
             print(f"  wrong (seed, bay, expected, got): {t['wrong']}", file=sys.stderr)
+    import shutil
+    import subprocess
+
+    if shutil.which("CloudCompare"):
+        subprocess.run([sys.executable, str(Path(__file__).with_name("bench_cloudcompare.py")), str(root)], check=True)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,8 @@ LONG = {
     "library": "library report, export and import of 1,000 models (about 2 minutes)",
     "real_scans": "Autzen and AHN twins and the DALES objects (about 2 minutes)",
     "recognition": "recognition against density, 800 simulated cars and the Open3D peer (about 20 minutes)",
+    "compare": "compare on 15 simulated pairs of surveys, and CloudCompare on them when installed (about 10 minutes)",
+    "compare_city": "compare of two city twins of about 5,000 cars each, and their builds (about 15 minutes)",
 }
 
 

@@ -3,23 +3,12 @@
 // there; for the first epoch, what became of it), the cars that left or went unobserved as ghosts, and a click on
 // a car shows its history. A twin may come from someone else: its text is shown with textContent only.
 import * as THREE from "three";
-import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { makeStage } from "./stage.js";
 
 const COLOURS = { same: 0x9aa5ad, moved: 0xf39c12, replaced: 0xa55eea, left: 0xe74c3c, arrived: 0x2ecc71,
   unobserved: 0x6c7a89 };
-const view = document.getElementById("view");
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio);
-renderer.setSize(view.clientWidth, view.clientHeight);
-view.appendChild(renderer.domElement);
-const scene = new THREE.Scene();
-scene.background = new THREE.Color(0x20242b);
-scene.add(new THREE.HemisphereLight(0xffffff, 0x666666, 2.4));
-const camera = new THREE.PerspectiveCamera(45, view.clientWidth / view.clientHeight, 0.5, 50000);
-const controls = new OrbitControls(camera, renderer.domElement);
-const world = new THREE.Group();
-world.rotation.x = -Math.PI / 2;   // data are Z-up (east, north, up); three.js is Y-up
-scene.add(world);
+const stage = makeStage([new THREE.HemisphereLight(0xffffff, 0x666666, 2.4)]);
+const { world, redraw } = stage;
 
 let data = null, changes = null, current = 0;
 const layers = [];   // per epoch: {group, cars (InstancedMesh), items, ghosts}
@@ -115,27 +104,20 @@ function history(item) {
   d.appendChild(table);
 }
 
-const ray = new THREE.Raycaster();
-renderer.domElement.addEventListener("click", (ev) => {
-  const r = renderer.domElement.getBoundingClientRect();
-  ray.setFromCamera(new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1), camera);
-  const l = layers[current];
-  const hit = ray.intersectObjects([l.cars, l.ghosts], false)[0];
-  if (hit && hit.instanceId !== undefined) history(hit.object.userData.items[hit.instanceId]);
-});
+stage.onClick(() => [layers[current].cars, layers[current].ghosts],
+  (hit) => history(hit.object.userData.items[hit.instanceId]));
 
 // screen positions and colours of the current epoch's cars (for tests and scripts)
 window.epochViewerProbe = () => {
-  const out = [], r = renderer.domElement.getBoundingClientRect(), l = layers[current];
+  const out = [], l = layers[current];
   l.cars.updateMatrixWorld(true);
-  l.cars.userData.items.forEach((o, k) => {
-    const v = new THREE.Vector3(o.c[0], o.c[1], o.c[2] + o.ht / 2).applyMatrix4(l.cars.matrixWorld).project(camera);
-    out.push({ id: o.id, status: o.status, x: (v.x + 1) / 2 * r.width, y: (1 - v.y) / 2 * r.height,
-      colour: new THREE.Color(COLOURS[o.status]).getHexString() });
+  l.cars.userData.items.forEach((o) => {
+    const top = new THREE.Vector3(o.c[0], o.c[1], o.c[2] + o.ht / 2).applyMatrix4(l.cars.matrixWorld);
+    out.push({ id: o.id, status: o.status, ...stage.toScreen(top), colour: new THREE.Color(COLOURS[o.status]).getHexString() });
   });
   return out;
 };
-window.setEpoch = (k) => { setEpoch(k); renderer.render(scene, camera); };
+window.setEpoch = (k) => { setEpoch(k); stage.render(); };
 
 async function main() {
   data = await (await fetch("/twin/view/epochs.json")).json();
@@ -144,13 +126,7 @@ async function main() {
   const bounds = new THREE.Box3();
   world.updateMatrixWorld(true);
   layers.forEach((l) => { l.group.visible = true; bounds.expandByObject(l.group); });
-  const centre = bounds.getCenter(new THREE.Vector3()), size = bounds.getSize(new THREE.Vector3());
-  const span = Math.max(size.x, size.z, 20);
-  const dist = 0.62 * span / Math.tan(THREE.MathUtils.degToRad(camera.fov / 2));
-  controls.target.copy(centre);
-  camera.position.copy(centre).add(new THREE.Vector3(0.05, 0.92, 0.38).normalize().multiplyScalar(dist));
-  camera.far = dist * 20; camera.updateProjectionMatrix();
-  controls.update();
+  stage.frame(bounds, new THREE.Vector3(0.05, 0.92, 0.38));
   const slider = document.getElementById("epoch");
   slider.max = String(layers.length - 1);
   slider.oninput = (e) => setEpoch(e.target.value);
@@ -164,20 +140,8 @@ async function main() {
   document.getElementById("summary").textContent =
     `${layers.length} surveys; ${changes.changes.length} changes; ${(changes.tracks || []).length} vehicles`;
   setEpoch(layers.length - 1);
-  renderer.render(scene, camera);
+  stage.render();
   window.epochViewerReady = true;
 }
 
-let pending = false;
-function redraw() {
-  if (pending) return;
-  pending = true;
-  requestAnimationFrame(() => { pending = false; renderer.render(scene, camera); });
-}
-controls.addEventListener("change", redraw);
-window.addEventListener("resize", () => {
-  camera.aspect = view.clientWidth / view.clientHeight; camera.updateProjectionMatrix();
-  renderer.setSize(view.clientWidth, view.clientHeight);
-  redraw();
-});
-main().then(redraw).catch((e) => { console.error("viewer failed: " + e); document.getElementById("summary").textContent = "error: " + e; });
+main().then(redraw).catch(stage.fail);

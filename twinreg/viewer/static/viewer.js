@@ -4,26 +4,12 @@
 // A twin may come from someone else: what it says is shown as text (textContent), never parsed as HTML.
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
-import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { makeStage } from "./stage.js";
 
-const view = document.getElementById("view");
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio);
-renderer.setSize(view.clientWidth, view.clientHeight);
-view.appendChild(renderer.domElement);
-const scene = new THREE.Scene();
-scene.background = new THREE.Color(0x20242b);
-scene.add(new THREE.HemisphereLight(0xffffff, 0x555555, 2.2));
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
 sun.position.set(0.4, 1.0, 0.3);
-scene.add(sun);
-const camera = new THREE.PerspectiveCamera(45, view.clientWidth / view.clientHeight, 0.5, 50000);
-const controls = new OrbitControls(camera, renderer.domElement);
-
-// tiles are Z-up (east, north, up); three.js is Y-up
-const world = new THREE.Group();
-world.rotation.x = -Math.PI / 2;
-scene.add(world);
+const stage = makeStage([new THREE.HemisphereLight(0xffffff, 0x555555, 2.2), sun]);
+const { camera, controls, world, redraw } = stage;
 const loader = new GLTFLoader();
 const cars = [];        // instanced meshes of the models, each with userData.ids
 const stats = { tiles: 0, instances: 0, points: 0 };
@@ -154,25 +140,18 @@ function focusOn(id) {
   redraw();
 }
 
-const ray = new THREE.Raycaster();
-renderer.domElement.addEventListener("click", (ev) => {
-  const r = renderer.domElement.getBoundingClientRect();
-  ray.setFromCamera(new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1), camera);
-  const hit = ray.intersectObjects(cars, false)[0];
-  if (hit && hit.instanceId !== undefined) showObject(hit.object.userData.ids[hit.instanceId]);
-});
+stage.onClick(() => cars, (hit) => showObject(hit.object.userData.ids[hit.instanceId]));
 
 // screen positions of the cars (for tests and scripts): [{id, x, y, model}]
 window.twinViewerProbe = () => {
-  const out = [], r = renderer.domElement.getBoundingClientRect();
+  const out = [];
   for (const mesh of cars) {
     const m = new THREE.Matrix4(), colour = mesh.material.color ? mesh.material.color.getHexString() : "";
     for (let k = 0; k < mesh.count; k++) {
       mesh.getMatrixAt(k, m);
       const box = mesh.geometry.boundingBox || (mesh.geometry.computeBoundingBox(), mesh.geometry.boundingBox);
       const centre = box.getCenter(new THREE.Vector3()).applyMatrix4(m).applyMatrix4(mesh.matrixWorld);
-      const v = centre.clone().project(camera);
-      out.push({ id: mesh.userData.ids[k], x: (v.x + 1) / 2 * r.width, y: (1 - v.y) / 2 * r.height, colour });
+      out.push({ id: mesh.userData.ids[k], ...stage.toScreen(centre), colour });
     }
   }
   return out;
@@ -188,38 +167,18 @@ async function main() {
   const root = Object.assign({}, tileset.root, { transform: undefined });  // the local frame: no ECEF
   await loadTile(root, tilesetUrl, world);
   world.updateMatrixWorld(true);
-  const box = new THREE.Box3().setFromObject(world);
-  const centre = box.getCenter(new THREE.Vector3()), size = box.getSize(new THREE.Vector3());
   // the whole twin in view, seen from the south and above
-  const span = Math.max(size.x, size.z, 20);
-  const dist = 0.62 * span / Math.tan(THREE.MathUtils.degToRad(camera.fov / 2));
-  controls.target.copy(centre);
-  camera.position.copy(centre).add(new THREE.Vector3(0.1, 0.85, 0.52).normalize().multiplyScalar(dist));
-  camera.far = dist * 20; camera.updateProjectionMatrix();
-  controls.update();
+  stage.frame(new THREE.Box3().setFromObject(world), new THREE.Vector3(0.1, 0.85, 0.52));
   const matched = twin.objects.filter((o) => o.match).length;
   document.getElementById("title").textContent = `twinreg: ${twin.scene}`;
   document.getElementById("summary").textContent =
     `${twin.objects.length} objects, ${matched} with a model; ${stats.instances} instances in ${stats.tiles} tiles, ` +
     `${stats.points.toLocaleString()} scan points`;
   document.getElementById("search").oninput = (e) => search(e.target.value);
-  renderer.render(scene, camera);
+  stage.render();
   stats.ms = performance.now() - t0;
   window.twinViewerStats = stats;
   window.twinViewerReady = true;
 }
 
-// drawn on demand (a city of thousands of cars is heavy for a laptop's GPU, and for a software one)
-let pending = false;
-function redraw() {
-  if (pending) return;
-  pending = true;
-  requestAnimationFrame(() => { pending = false; renderer.render(scene, camera); });
-}
-controls.addEventListener("change", redraw);
-window.addEventListener("resize", () => {
-  camera.aspect = view.clientWidth / view.clientHeight; camera.updateProjectionMatrix();
-  renderer.setSize(view.clientWidth, view.clientHeight);
-  redraw();
-});
-main().then(redraw).catch((e) => { console.error("viewer failed: " + e); document.getElementById("summary").textContent = "error: " + e; });
+main().then(redraw).catch(stage.fail);
