@@ -3,7 +3,7 @@
 // there; for the first epoch, what became of it), the cars that left or went unobserved as ghosts, and a click on
 // a car shows its history. A twin may come from someone else: its text is shown with textContent only.
 import * as THREE from "three";
-import { makeStage } from "./stage.js";
+import { makeStage, textTable } from "./stage.js";
 
 const COLOURS = { same: 0x9aa5ad, moved: 0xf39c12, replaced: 0xa55eea, left: 0xe74c3c, arrived: 0x2ecc71,
   unobserved: 0x6c7a89 };
@@ -95,13 +95,7 @@ function history(item) {
     const what = `${c.status} (${c.confidence.toFixed(2)})` + (c.displacement_m != null ? `, ${c.displacement_m.toFixed(2)} m` : "");
     rows.push([`epoch ${c.from} -> ${c.to}`, what], ["why", c.reason || ""]);
   }
-  const table = document.createElement("table");
-  for (const [k, v] of rows) {
-    const tr = table.insertRow();
-    tr.insertCell().textContent = k;
-    tr.insertCell().textContent = String(v);
-  }
-  d.appendChild(table);
+  d.appendChild(textTable(rows));
 }
 
 stage.onClick(() => [layers[current].cars, layers[current].ghosts],

@@ -58,3 +58,14 @@ export function makeStage(lights) {
   return { renderer, scene, camera, controls, world, redraw, frame, onClick, toScreen, fail,
     render: () => renderer.render(scene, camera) };
 }
+
+// a two-column table of [key, value] rows, every cell set as text (a twin's strings are never markup)
+export function textTable(rows) {
+  const table = document.createElement("table");
+  for (const [k, v] of rows) {
+    const tr = table.insertRow();
+    tr.insertCell().textContent = k;
+    tr.insertCell().textContent = String(v);
+  }
+  return table;
+}

@@ -4,7 +4,7 @@
 // A twin may come from someone else: what it says is shown as text (textContent), never parsed as HTML.
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
-import { makeStage } from "./stage.js";
+import { makeStage, textTable } from "./stage.js";
 
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
 sun.position.set(0.4, 1.0, 0.3);
@@ -67,13 +67,7 @@ function showObject(id) {
     ["measured", o.measured_size ? `${o.measured_size.length.toFixed(2)} x ${o.measured_size.width.toFixed(2)} x ${o.measured_size.height.toFixed(2)} m` : "-"],
     ["lat, lon", `${o.lat.toFixed(7)}, ${o.lon.toFixed(7)}`], ["bearing", `${o.bearing_deg.toFixed(1)} deg`],
     ["points", o.n_points], ["cluster", o.cluster]];
-  const table = document.createElement("table");
-  for (const [k, v] of rows) {
-    const tr = table.insertRow();
-    tr.insertCell().textContent = k;
-    tr.insertCell().textContent = String(v);
-  }
-  d.appendChild(table);
+  d.appendChild(textTable(rows));
   const s = sections[id];
   if (s) {
     const c = document.createElement("canvas");
