@@ -56,9 +56,8 @@ def _candidates(a: Epoch, b: Epoch) -> tuple[np.ndarray, np.ndarray]:
 
 def _robust_centre(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The centre of the densest group of (k, 2) displacements and the mask of those near it."""
-    best = np.median(d, axis=0)
-    counts = [(np.linalg.norm(d - p, axis=1) < 0.15).sum() for p in d]  # k is the number of vehicles: small
-    best = d[int(np.argmax(counts))] if len(d) else best
+    counts = cKDTree(d).query_ball_point(d, 0.15, return_length=True)
+    best = d[int(np.argmax(counts))]
     keep = np.linalg.norm(d - best, axis=1) < 0.15
     for radius in (0.1, 0.08):
         best = np.median(d[keep], axis=0)

@@ -129,7 +129,17 @@ class Record:
         return code, ground
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return (np.min([r.lo for r in self.rasters], axis=0), np.max([r.hi for r in self.rasters], axis=0))
+        """(lo (2,), hi (2,)) of the pixels with returns (the rasters' own extent when none has any)."""
+        los, his = [], []
+        for r in self.rasters:
+            seen = r.code != NONE
+            if seen.any():
+                i, j = np.flatnonzero(seen.any(1)), np.flatnonzero(seen.any(0))
+                los.append(r.lo + np.array([i[0], j[0]]) * PIXEL)
+                his.append(r.lo + np.array([i[-1] + 1, j[-1] + 1]) * PIXEL)
+        if not los:
+            los, his = [r.lo for r in self.rasters], [r.hi for r in self.rasters]
+        return np.min(los, axis=0), np.max(his, axis=0)
 
 
 def _unpack_sections(z, n_objects: int) -> list[Sections]:
