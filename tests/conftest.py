@@ -175,12 +175,13 @@ def parametric_catalogue(tmp_path_factory, parametric_objs):
     return cat
 
 
-def write_las(path, points, crs=None, version="1.4", vlr=None):
-    """A LAS/LAZ file of (n, 3) points (file units) with ``crs`` (pyproj input) in its header, or a raw ``vlr``."""
+def write_las(path, points, crs=None, version="1.4", vlr=None, point_format=3):
+    """A LAS/LAZ file of (n, 3) points (file units) with ``crs`` (pyproj input) in its header (GeoTIFF keys; WKT
+    with ``point_format`` 6 or above), or a raw ``vlr``."""
     import laspy
     import pyproj
 
-    header = laspy.LasHeader(point_format=3, version=version)
+    header = laspy.LasHeader(point_format=point_format, version=version)
     header.scales = [0.001, 0.001, 0.001]
     header.offsets = np.floor(points.min(0))
     if crs is not None:

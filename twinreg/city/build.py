@@ -127,7 +127,7 @@ def city_georef(georef, sources: list[Source]):
     from ..geo.georef import CrsInfo, Georef, GeorefError
 
     s = sources[0]
-    if georef is not None:
+    if georef is not None and (georef.crs is not None or georef.lat is not None):
         if georef.crs and georef.crs_source == "--crs":
             from ..geo.georef import crs_info
 
@@ -139,8 +139,8 @@ def city_georef(georef, sources: list[Source]):
     from ..geo.georef import crs_info
 
     info = crs_info(s.crs, "file header", where=s.path)
-    return Georef(None, None, 0.0, (0.0, 0.0), None).with_crs(CrsInfo(info.crs, info.name, s.scale, s.z_scale,
-                                                                      "file header"))
+    base = georef or Georef(None, None, 0.0, (0.0, 0.0), None)  # nothing given, or only --vertical-crs
+    return base.with_crs(CrsInfo(info.crs, info.name, s.scale, s.z_scale, "file header", info.vertical))
 
 
 def _clean_work(store: CellStore) -> None:

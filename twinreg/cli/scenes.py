@@ -65,6 +65,10 @@ def build_twin_cmd(
         help="Scene X Y at --lat/--lon (default 0 0).")] = None,
     crs: Annotated[Optional[str], typer.Option(
         help="The scene's projected CRS, e.g. EPSG:2157 (default: the CRS a LAS/LAZ header states).")] = None,
+    vertical_crs: Annotated[Optional[str], typer.Option(
+        "--vertical-crs", help="The datum of the scan's heights (and of --alt), e.g. EPSG:5709 (NAP), EPSG:5703 "
+                               "(NAVD88) [default: a compound CRS's in the header; else unknown, taken as "
+                               "ellipsoidal].", show_default=False)] = None,
     unit: UnitOpt = "auto",
     tol: Annotated[Optional[float], typer.Option(
         help=f"Size tolerance (m) of the catalogue prefilter: the window is then exactly +-TOL (default: "
@@ -103,7 +107,8 @@ def build_twin_cmd(
     from ..geo.georef import georef_from_options
     from ..pipeline import RunSettings, build
 
-    georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False)
+    georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False,
+                                 vertical_crs=vertical_crs)
     cat = Catalogue(library_path(library), create=False)
     first = paths[0]
     out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")
@@ -113,6 +118,9 @@ def build_twin_cmd(
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
     tiled = "grid" in twin
+    if twin["georef"].get("vertical_source") is None:
+        info("warning: the vertical datum of the scan's heights is unknown, so the 3D exports take them as "
+             "ellipsoidal (off by the geoid, up to 100 m); give it with --vertical-crs EPSG:NNNN (e.g. 5709 NAP)")
     if json_:
         print_json(twin)
         return

@@ -28,13 +28,15 @@ from ..errors import GeorefError
 class CrsInfo:
     """A projected CRS as the scene uses it: ``crs`` (an authority code when PROJ knows one, else WKT),
     metres per horizontal and per vertical unit (the vertical one from a compound CRS's vertical part, else equal
-    to the horizontal one), and where it came from."""
+    to the horizontal one), where it came from, and a compound CRS's vertical part (``vertical``, as PROJ
+    writes it; None for a projected CRS alone)."""
 
     crs: str
     name: str
     unit_m: float
     vertical_unit_m: float
     source: str
+    vertical: str | None = None
 
 
 def crs_info(user_input, source: str, where: str = "--crs", error=GeorefError) -> CrsInfo:
@@ -66,7 +68,7 @@ def crs_info(user_input, source: str, where: str = "--crs", error=GeorefError) -
         else unit
     auth = c.to_authority(min_confidence=90)
     code = f"{auth[0]}:{auth[1]}" if auth else c.to_wkt()
-    return CrsInfo(code, c.name, unit, v_unit, source)
+    return CrsInfo(code, c.name, unit, v_unit, source, vertical.to_wkt() if vertical is not None else None)
 
 
 @functools.lru_cache(maxsize=16)
@@ -94,6 +96,14 @@ class Georef:
     vertical_unit_m: float = 1.0
     crs_name: str | None = None
     crs_source: str | None = None
+    vertical: object = None
+
+    @property
+    def heights(self):
+        """The scan's vertical datum (:class:`~twinreg.geo.vertical.Vertical`; unknown when none was stated)."""
+        from .vertical import UNKNOWN
+
+        return self.vertical if self.vertical is not None else UNKNOWN
 
     def to_json(self) -> dict:
         doc = {"lat": self.lat, "lon": self.lon, "alt": self.alt, "anchor": [float(a) for a in self.anchor],
@@ -101,27 +111,39 @@ class Georef:
         if self.crs:
             doc.update(crs_name=self.crs_name, crs_source=self.crs_source, crs_unit_m=self.crs_unit_m,
                        vertical_unit_m=self.vertical_unit_m)
-        return doc
+        return doc | self.heights.to_json()
 
     def with_crs(self, info: CrsInfo) -> "Georef":
-        return Georef(None, None, self.alt, (0.0, 0.0), info.crs, info.unit_m, info.vertical_unit_m, info.name,
-                      info.source)
+        from dataclasses import replace
+
+        vertical = self.vertical
+        if info.vertical is not None and (vertical is None or vertical.source != "--vertical-crs"):
+            from .vertical import vertical_of
+
+            vertical = vertical_of(info.vertical, "file header" if info.source != "--crs" else "--crs",
+                                   f"the CRS {info.name}")
+        return replace(self, lat=None, lon=None, anchor=(0.0, 0.0), crs=info.crs, crs_unit_m=info.unit_m,
+                       vertical_unit_m=info.vertical_unit_m, crs_name=info.name, crs_source=info.source,
+                       vertical=vertical)
 
     def _ltp(self):
         to_ecef = transformer("EPSG:4979", "EPSG:4978")
         to_geo = transformer("EPSG:4978", "EPSG:4979")
-        x0, y0, z0 = to_ecef.transform(self.lon, self.lat, self.alt)
+        # --alt is the anchor's height in the scan's vertical datum
+        alt = self.alt + float(self.heights.undulation(self.lon, self.lat)[0])
+        x0, y0, z0 = to_ecef.transform(self.lon, self.lat, alt)
         from .earth import enu_axes
 
         return np.array([x0, y0, z0]), enu_axes(self.lat, self.lon), to_geo
 
     def to_wgs84(self, points) -> np.ndarray:
-        """(n, 3) scene points -> (n, 3) longitude, latitude (degrees), ellipsoidal height (m)."""
+        """(n, 3) scene points -> (n, 3) longitude, latitude (degrees), ellipsoidal height (m): the scan's heights
+        plus the geoid undulation of its vertical datum (:mod:`twinreg.geo.vertical`)."""
         pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
         if self.crs:
             t = transformer(self.crs, "EPSG:4326")
             lon, lat = t.transform(pts[:, 0] / self.crs_unit_m, pts[:, 1] / self.crs_unit_m)
-            return np.column_stack([lon, lat, pts[:, 2]])
+            return np.column_stack([lon, lat, pts[:, 2] + self.heights.undulation(lon, lat)])
         origin, enu, to_geo = self._ltp()
         local = np.column_stack([pts[:, 0] - self.anchor[0], pts[:, 1] - self.anchor[1], pts[:, 2]])
         ecef = origin + local @ enu.T
@@ -153,9 +175,24 @@ class Georef:
 
 
 def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: str | None = None,
-                        required: bool = True) -> Georef | None:
+                        required: bool = True, vertical_crs: str | None = None) -> Georef | None:
     """Validate the georeferencing options. Raises :class:`GeorefError` with the fix. With ``required`` False,
-    no option at all gives None (the scene's own CRS is used once it is read: :func:`scene_georef`)."""
+    no option at all gives None (the scene's own CRS is used once it is read: :func:`scene_georef`).
+    ``vertical_crs``: the datum of the scan's heights (and of ``alt``), overriding a header's."""
+    from dataclasses import replace
+
+    g = _georef_from_options(lat, lon, alt, anchor, crs, required and vertical_crs is None)
+    if vertical_crs is None:
+        return g
+    from .vertical import vertical_of
+
+    v = vertical_of(vertical_crs, "--vertical-crs", f"--vertical-crs {vertical_crs}")
+    if g is None:  # the file's CRS, with these heights
+        return Georef(None, None, float(alt or 0.0), (0.0, 0.0), None, vertical=v)
+    return replace(g, vertical=v)
+
+
+def _georef_from_options(lat, lon, alt, anchor, crs, required) -> Georef | None:
     import math
 
     for flag, value in (("--lat", lat), ("--lon", lon), ("--alt", alt)) + tuple(
@@ -187,11 +224,11 @@ def scene_georef(georef: Georef | None, scene) -> Georef:
     ``--crs`` takes the units the reader resolved for it), else the CRS the file states, else an error naming the
     file and the fix."""
     info = getattr(scene, "crs_info", None)
-    if georef is None:
+    if georef is None or (georef.crs is None and georef.lat is None):  # nothing, or only --vertical-crs
         if info is None:
             raise GeorefError(f"{scene.path}: the file states no CRS; georeference it with --crs EPSG:NNNN (its "
                               "projected CRS) or --lat/--lon (the WGS84 position of its origin)")
-        return Georef(None, None, 0.0, (0.0, 0.0), None).with_crs(info)
+        return (georef or Georef(None, None, 0.0, (0.0, 0.0), None)).with_crs(info)
     if georef.crs and info is not None:
         return georef.with_crs(info) if info.source == "--crs" else georef
     return georef
