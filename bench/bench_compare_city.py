@@ -1,9 +1,9 @@
 """`twinreg compare` at city scale (docs/PERFORMANCE.md, "The twin over time"): a simulated city of the 16 shared
-cars (about 5,000 parked cars at the default 0.7 km2) and its later survey (simulate-city --epoch-of: other lines,
+cars (about 5,300 parked cars at the default 0.7 km2 in 280 m tiles) and its later survey (simulate-city --epoch-of: other lines,
 --later-density, an offset, a strip without returns), both built with build-twin, then compared; each command
 timed from outside with the peak memory of its whole process tree, and compare scored against the truth.
 
-    python bench/bench_compare_city.py [--km2 0.7] [--later-density 50] [--keep DIR]
+    python bench/bench_compare_city.py [--km2 0.7] [--tile 280] [--later-density 50] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from common import machine  # noqa: E402
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--km2", type=float, default=0.7)
+    ap.add_argument("--tile", type=float, default=280.0, help="tile side (m): 0.7 km2 in 280 m tiles is 840 m square")
     ap.add_argument("--later-density", type=float, default=50.0)
     ap.add_argument("--keep", default=None)
     args = ap.parse_args()
@@ -34,7 +35,7 @@ def main() -> None:
 
         rows = sorted(cat.list(), key=lambda r: r.name)
         simulate_city(root / "c0", [cat.ge_mesh(r) for r in rows], [r.name for r in rows], km2=args.km2,
-                      density=150.0, tile=250.0, seed=0, street_spacing=STREETS, date="2026-03-02")
+                      density=150.0, tile=args.tile, seed=0, street_spacing=STREETS, date="2026-03-02")
     if not (root / "c1" / "truth.json").exists():
         run_tree(exe + ["simulate-city", str(root / "c1"), "--epoch-of", str(root / "c0"), "--density",
                         str(args.later_density), "--seed", "1"])
@@ -54,7 +55,8 @@ def main() -> None:
     print(f"machine: {machine()}")
     for r in rows:
         print(r)
-    print(f"epochs: {[(e['n_objects'], e['n_points']) for e in doc['epochs']]} (objects, points)")
+    print(f"epochs: {[(e['n_objects'], e['n_points']) for e in doc['epochs']]} (objects, points); cars in the "
+          f"truth: {len(json.loads((root / 'c0' / 'truth.json').read_text())['cars'])} and {len(truth['cars'])}")
     print(f"compare: {secs:.2f} s (process start to every file), peak {peak / 2**20:.0f} MB; inside: "
           f"{doc['timing_s']}")
     print(f"summary: {doc['summary'][0]}")

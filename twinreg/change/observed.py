@@ -115,18 +115,61 @@ class Record:
     sections: list[Sections]
 
     def lookup(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(code (n,) uint8, ground z (n,) float64) at (n, 2) points: :data:`NONE` and NaN outside every raster."""
+        """(code (n,) uint8, ground z (n,) float64) at (n, 2) points: :data:`NONE` and NaN outside every raster.
+        Each point is sent to its raster through the rasters' grid (a city's cells), then read there."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         code = np.full(len(xy), NONE, dtype=np.uint8)
         ground = np.full(len(xy), np.nan)
-        for r in self.rasters:
-            ij = np.floor((xy - r.lo) / PIXEL).astype(np.int64)
-            inside = np.flatnonzero(np.all((ij >= 0) & (ij < r.code.shape), axis=1))
-            if len(inside):
-                i, j = ij[inside, 0], ij[inside, 1]
-                code[inside] = r.code[i, j]
-                ground[inside] = r.ground[i, j] + r.z0
+        which = self._raster_of(xy)
+        order = np.argsort(which, kind="stable")
+        bounds = np.searchsorted(which[order], np.arange(len(self.rasters) + 1))
+        for k, r in enumerate(self.rasters):
+            rows = order[bounds[k]:bounds[k + 1]]
+            if not len(rows):
+                continue
+            ij = np.floor((xy[rows] - r.lo) / PIXEL).astype(np.int64)
+            ok = np.all((ij >= 0) & (ij < r.code.shape), axis=1)
+            rows, ij = rows[ok], ij[ok]
+            code[rows] = r.code[ij[:, 0], ij[:, 1]]
+            ground[rows] = r.ground[ij[:, 0], ij[:, 1]] + r.z0
         return code, ground
+
+    def _raster_of(self, xy: np.ndarray) -> np.ndarray:
+        """(n,) the index of the raster each point may lie in (len(rasters) for none)."""
+        n = len(self.rasters)
+        if n == 1:
+            return np.zeros(len(xy), dtype=np.int64)
+        grid = self._grid()
+        if grid is None:  # rasters of different sizes: each point tried against each
+            which = np.full(len(xy), n, dtype=np.int64)
+            for k, r in enumerate(self.rasters):
+                inside = np.all((xy >= r.lo) & (xy < r.hi), axis=1) & (which == n)
+                which[inside] = k
+            return which
+        lo, size, table = grid
+        ij = np.floor((xy - lo) / size).astype(np.int64)
+        ok = np.all((ij >= 0) & (ij < table.shape), axis=1)
+        which = np.full(len(xy), n, dtype=np.int64)
+        which[ok] = table[ij[ok, 0], ij[ok, 1]]
+        return which
+
+    def _grid(self):
+        """(origin, cell size, table of raster indices) when the rasters are equal squares on one grid."""
+        if getattr(self, "_grid_cache", None) is not None:
+            return self._grid_cache or None
+        shapes = {r.code.shape for r in self.rasters}
+        los = np.array([r.lo for r in self.rasters])
+        result = False
+        if len(shapes) == 1:
+            size = np.array(next(iter(shapes)), dtype=np.float64) * PIXEL
+            lo = los.min(0)
+            idx = np.round((los - lo) / size).astype(np.int64)
+            if np.allclose(idx * size + lo, los, atol=1e-6) and idx.max() < 100_000:
+                table = np.full(idx.max(0) + 1, len(self.rasters), dtype=np.int64)
+                table[idx[:, 0], idx[:, 1]] = np.arange(len(self.rasters))
+                result = (lo, size, table)
+        self._grid_cache = result
+        return result or None
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo (2,), hi (2,)) of the pixels with returns (the rasters' own extent when none has any)."""

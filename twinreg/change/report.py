@@ -17,7 +17,7 @@ from .footprints import corners
 COLOURS = {"same": "#7f8c8d", "moved": "#e67e22", "replaced": "#8e44ad", "left": "#c0392b", "arrived": "#27ae60",
            "unobserved": "#b0b7bf"}
 #: the map's background is drawn at most this many pixels across
-MAP_PIXELS = 1600
+MAP_PIXELS = 1000
 
 
 def _background(record: observed.Record, lo, hi):
@@ -67,10 +67,11 @@ def plot_step(doc: dict, epochs, k: int, path: Path) -> Path:
             ax.add_collection(PolyCollection(_polygons(after), facecolors=colour, edgecolors=colour, alpha=0.55,
                                              linewidths=0.6))
         ax.plot([], [], color=colour, lw=6, alpha=0.7, label=f"{status} ({len(sel)})")
-        if status == "moved":
-            for c in sel:
-                p, q = np.asarray(c["before"]["centroid"][:2]), np.asarray(c["after"]["centroid"][:2]) - shift[:2]
-                ax.annotate("", q, p, arrowprops={"arrowstyle": "->", "color": "black", "lw": 0.8})
+        if status == "moved" and sel:  # one arrow per moved car, drawn as one artist
+            p = np.array([c["before"]["centroid"][:2] for c in sel])
+            q = np.array([c["after"]["centroid"][:2] for c in sel]) - shift[:2]
+            ax.quiver(p[:, 0], p[:, 1], q[:, 0] - p[:, 0], q[:, 1] - p[:, 1], angles="xy", scale_units="xy",
+                      scale=1.0, width=0.002, color="black")
     ax.plot([], [], color="#f4b6b0", lw=6, label="no returns later")
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])

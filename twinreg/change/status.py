@@ -26,6 +26,8 @@ from .pairs import Pairs
 SEEN = 0.6
 GROUND = 0.5
 LOW_DM = 5
+#: a pair turned by half a circle in place (this footprint overlap or more) is one model placed front to back
+FLIP_OVERLAP = 0.75
 #: below this share of a ring around them seen, a pair's sizes are not compared (one may be cut off)
 WHOLE = 0.8
 
@@ -71,7 +73,7 @@ def tolerances(a: Epoch, b: Epoch) -> tuple[float, float]:
     """(displacement m, turn rad) within which a vehicle has not moved, from the two scans' spacing and noise."""
     s = max(a.spacing, b.spacing)
     noise = np.hypot(a.noise, b.noise)
-    return 0.1 + 0.5 * s + 2 * noise, np.radians(1.5 + 10.0 * s)
+    return 0.1 + 0.5 * s + 2 * noise, np.radians(2.0 + 15.0 * s)
 
 
 def _maybe(v) -> float | None:
@@ -114,11 +116,18 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[di
                "turn_rad": round(t, 4), "same_vehicle": round(p, 3), "section_m": _maybe(pairs.section_m[n]),
                "overlap": round(float(pairs.iou[n]), 3)}
         margin = max(d / d_tol, t / t_tol)
-        if p >= 0.5:
+        # one model placed front to back in one survey (a van whose ends look alike to a sparse scan): the same
+        # footprint turned by half a circle is the same vehicle, with less confidence
+        flipped = abs(np.pi - t) < t_tol and pairs.iou[n] > FLIP_OVERLAP and d < 2 * d_tol + 0.2
+        if flipped:
+            margin, p = d / (2 * d_tol + 0.2), p * 0.6
+        if p >= 0.5 or flipped and p >= 0.3:
             status = "same" if margin <= 1.0 else "moved"
             conf = p * float(_logistic(6.0 * abs(1.0 - margin)))
             reason = (f"the same vehicle {'within' if status == 'same' else 'beyond'} {d_tol * 100:.0f} cm and "
                       f"{np.degrees(t_tol):.1f} degrees ({d * 100:.0f} cm, {np.degrees(t):.1f} degrees)")
+            if flipped:
+                reason += "; its front and back were not told apart in one survey"
         elif whole[n] < WHOLE:
             status, conf = "unobserved", float(1.0 - whole[n])
             reason = ("it borders a gap in one survey's returns: a cut-off object's size cannot tell whether it is "

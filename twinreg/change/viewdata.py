@@ -20,20 +20,26 @@ from . import observed
 MAX_POINTS = 400_000
 
 
-def _scan(record: observed.Record, shift: np.ndarray, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _filled_ground(r: observed.Raster) -> np.ndarray:
+    """The raster's ground heights with the pixels under objects filled from the ground around them (the mean of
+    the known ground in a 9 x 9 window, else the raster's median)."""
     from scipy import ndimage
 
+    ground = r.ground.astype(np.float64)
+    known = np.isfinite(ground)
+    total = ndimage.uniform_filter(np.where(known, ground, 0.0), size=9, mode="nearest")
+    count = ndimage.uniform_filter(known.astype(np.float64), size=9, mode="nearest")
+    fill = np.where(count > 0, total / np.maximum(count, 1e-12), np.nanmedian(ground))
+    return np.where(known, ground, fill) + r.z0
+
+
+def _scan(record: observed.Record, shift: np.ndarray, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     xyz, rgb = [], []
     for r in record.rasters:
         seen = r.code != observed.NONE
-        if not seen.any():
+        if not seen.any() or not np.isfinite(r.ground).any():
             continue
-        ground = r.ground.astype(np.float64)
-        known = np.isfinite(ground)
-        if not known.any():
-            continue
-        idx = ndimage.distance_transform_edt(~known, return_distances=False, return_indices=True)
-        filled = ground[tuple(idx)] + r.z0
+        filled = _filled_ground(r)
         i, j = np.nonzero(seen)
         top = (r.code[i, j] & 127) / 10.0
         xy = r.lo + (np.column_stack([i, j]) + 0.5) * observed.PIXEL
