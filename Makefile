@@ -17,6 +17,9 @@ endef
 $(STAMP): pyproject.toml
 	@if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then \
 		echo "installing libusb-1.0-0 (needed by open3d)"; $(call apt_install,libusb-1.0-0); fi
+	@if [ ! -f /usr/share/proj/egm96_15.gtx ]; then \
+		echo "installing proj-data (the EGM96 geoid grid, for heights in a levelling datum)"; \
+		$(call apt_install,proj-data); fi
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e ".[test]"

@@ -2,8 +2,8 @@
 
 Scene points (a projected CRS, or the ``--lat/--lon`` tangent plane) go to longitude, latitude and height by
 :meth:`~twinreg.geo.georef.Georef.to_wgs84` (pyproj), then to ECEF and to east/north/up metres about the frame's
-origin, exactly. Heights are the scan's own (no geoid model is applied: in a CRS whose heights are orthometric
-the twin floats by the geoid undulation above the ellipsoid, the same for every object).
+origin, exactly. Heights are ellipsoidal: the scan's heights plus the geoid undulation of its vertical datum
+(:mod:`twinreg.geo.vertical`; none when the datum is unknown or ellipsoidal).
 """
 
 from __future__ import annotations
