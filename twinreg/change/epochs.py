@@ -30,7 +30,7 @@ class Epoch:
     (the model's, else the measured box), ``measured`` (n, 3), ``models`` (name or None), ``confidence``
     (NaN: none), ``n_points``, ``lonlat`` (n, 2) as twin.json states them; the scan's ``noise`` (m) and
     ``spacing`` (m, mean point spacing of the area it saw); and
-    its observation ``record``."""
+    its observation ``record``; ``vertical``: its heights' datum (None: unknown)."""
 
     folder: Path
     date: str | None
@@ -48,6 +48,7 @@ class Epoch:
     spacing: float
     record: observed.Record
     n_scan_points: int = 0
+    vertical: str | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -83,6 +84,13 @@ def _georef(doc, folder: Path) -> Georef:
     return Georef(num("lat"), num("lon"), num("alt", 0.0) or 0.0, tuple(_number(a, "anchor", folder) for a in anchor),
                   crs, num("crs_unit_m", 1.0) or 1.0, num("vertical_unit_m", 1.0) or 1.0,
                   name if isinstance(name, str) else None, None)
+
+
+def _vertical(doc, folder: Path) -> str | None:
+    v = doc["georef"].get("vertical_crs") if doc["georef"].get("vertical_source") else None
+    if v is not None and not (isinstance(v, str) and (_CODE.match(v) or _WKT.match(v) or v.startswith("VERTCRS"))):
+        raise CompareError(f"{folder}: twin.json's vertical_crs is not a CRS; rerun build-twin")
+    return v
 
 
 def _date(doc, folder: Path) -> str | None:
@@ -165,7 +173,7 @@ def read_epoch(folder) -> Epoch:
                  np.array(cols["confidence"], dtype=np.float64), np.array(cols["n_points"], dtype=np.int64),
                  np.array(cols["lonlat"], dtype=np.float64).reshape(-1, 2),
                  _number(doc.get("noise_m", 0.02), "noise_m", folder), float(np.sqrt(seen / max(n_scan, 1))),
-                 record, n_scan)
+                 record, n_scan, _vertical(doc, folder))
 
 
 def same_frame(a: Epoch, b: Epoch) -> bool:
@@ -203,6 +211,7 @@ def read_epochs(folders, say=None) -> list[Epoch]:
         if not same_frame(epochs[0], e):
             raise CompareError(f"{e.folder}: its coordinates are in {e.frame()}, those of {epochs[0].folder} in "
                                f"{epochs[0].frame()}; rebuild one twin in the other's CRS (--crs) to compare them")
+    _check_heights(epochs, say)
     undated = [e for e in epochs if e.date is None]
     if undated:
         if say:
@@ -213,6 +222,20 @@ def read_epochs(folders, say=None) -> list[Epoch]:
     for a, b in zip(epochs, epochs[1:]):
         _check_overlap(a, b)
     return epochs
+
+
+def _check_heights(epochs: list[Epoch], say) -> None:
+    """Heights in two stated datums are not compared; a twin whose datum is unknown is said (its heights are
+    compared as they are: the alignment's height offset then holds any difference of datum)."""
+    known = {e.vertical for e in epochs if e.vertical}
+    if len(known) > 1:
+        a, b = [next(e for e in epochs if e.vertical == v) for v in sorted(known)[:2]]
+        raise CompareError(f"{b.folder}: its heights are in {b.vertical}, those of {a.folder} in {a.vertical}; "
+                           "rebuild one twin with the other's --vertical-crs to compare them")
+    unknown = [e for e in epochs if not e.vertical]
+    if known and unknown and say:
+        say(f"{', '.join(str(e.folder) for e in unknown)}: the heights' datum is unknown (the others' is "
+            f"{next(iter(known))}); compared as they are, a difference of datum goes into the height offset")
 
 
 def _check_distinct(epochs: list[Epoch]) -> None:

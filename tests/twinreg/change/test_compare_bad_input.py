@@ -66,6 +66,15 @@ def test_other_crs(surveys, tmp_path):
     _refused([surveys.twins["before"], moved], tmp_path / "out", "local frame")
 
 
+def test_other_vertical_datum(surveys, tmp_path):
+    def heights(vertical):
+        return lambda doc: doc["georef"].update(vertical_crs=vertical, vertical_source="--vertical-crs")
+
+    nap = _copy(surveys.twins["before"], tmp_path / "nap", heights("EPSG:5709"))
+    navd = _copy(surveys.twins["after150"], tmp_path / "navd", heights("EPSG:5703"))
+    _refused([nap, navd], tmp_path / "out", "EPSG:5709", "EPSG:5703", "--vertical-crs")
+
+
 def test_no_overlap(surveys, tmp_path):
     far = _copy(surveys.twins["after150"], tmp_path / "far")
     with np.load(far / "observed.npz") as z:
