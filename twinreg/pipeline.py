@@ -51,7 +51,7 @@ class RunSettings:
     """The options of a build-twin run (the command's, in one object): the unit, the size tolerance and cluster
     threshold (None: the defaults), the tiled run's cell, buffer, workers, scheduler and restart, and whether to
     write PLY (None: twin.ply for one scene, none for tiles); the survey's date (``YYYY-MM-DD``; None: the
-    LAS/LAZ headers')."""
+    LAS/LAZ headers'); CityJSON with geometry templates instead of explicit geometry."""
 
     unit: str = "auto"
     tol: float | None = None
@@ -63,6 +63,7 @@ class RunSettings:
     restart: bool = False
     ply: bool | None = None
     date: str | None = None
+    cityjson_templates: bool = False
 
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
@@ -86,17 +87,19 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
-                               date=s.date)
+                               date=s.date, templates=s.cityjson_templates)
     say = (lambda msg: progress(msg, None, None)) if progress else None
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
-                      progress=say, ply=s.ply is not False, date=s.date)
+                      progress=say, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
                tol: float | None = None, params: CoscoParams = DEFAULT, progress=None,
-               threshold: float | None = None, ply: bool = True, date: str | None = None) -> dict:
+               threshold: float | None = None, ply: bool = True, date: str | None = None,
+               templates: bool = False) -> dict:
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
-    ``ply=False`` leaves out twin.ply; ``date``: the survey's date, ``YYYY-MM-DD``, else the LAS/LAZ header's).
+    ``ply=False`` leaves out twin.ply; ``date``: the survey's date, ``YYYY-MM-DD``, else the LAS/LAZ header's;
+    ``templates``: CityJSON with geometry templates).
 
     georef : from :func:`~twinreg.geo.georef.georef_from_options`, or None to use the CRS the file states. tol,
     threshold : the size tolerance and cluster threshold (m), ``params.size_tol`` and ``params.cluster_threshold``
@@ -113,14 +116,14 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     painter = Painter.start(warm=warm_up)
     try:
         return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply,
-                      date)
+                      date, templates)
     finally:
         if painter:
             painter.stop()
 
 
 def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing,
-           ply=True, date=None) -> dict:
+           ply=True, date=None, templates=False) -> dict:
     _say(progress, "reading and detecting")
     det = detect_file(scene_path, unit=unit, params=params,
                       crs=georef.crs if georef is not None and georef.crs_source == "--crs" else None)
@@ -143,7 +146,8 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
                                       clusters.threshold) if painter and clusters.method == "full" else None
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
-                           timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date)
+                           timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
+                           templates=templates)
             twin = _match_and_export(run)
         except BaseException:
             if painter:  # the helper may be drawing into the stage: stopped before the stage is deleted
@@ -197,6 +201,7 @@ class SceneRun:
     taxonomy: object
     ply: bool = True
     date: str | None = None
+    templates: bool = False
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -243,7 +248,8 @@ def _match_and_export(run: SceneRun) -> dict:
     write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
     rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
     twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
-                                  [("scene", det.scene.points[rows], colours)], f"twinreg: {scene_path.name}", models)
+                                  [("scene", det.scene.points[rows], colours)], f"twinreg: {scene_path.name}", models,
+                                  templates=run.templates)
     try:
         if painter is None:
             raise HelperError("no helper process")

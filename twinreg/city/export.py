@@ -36,7 +36,8 @@ class CityRun:
     """A tiled run as the export needs it: where it writes (``out``, the paths it may not hold, the cell store and
     the cells' keys), what it read (``sources``, the ``plan``, ``georef``), what the cells and the matching gave
     (``results``, ``objects``, the taxonomy ``tax``, ``outcomes``, ``stats``, the model cache ``models``), and how
-    it ran (``catalogue``, ``params``, ``ply``, ``timing``, ``t_start``, ``progress``, cells ``reused``)."""
+    it ran (``catalogue``, ``params``, ``ply``, ``timing``, ``t_start``, ``progress``, cells ``reused``; the
+    survey's ``date``; CityJSON with geometry ``templates``)."""
 
     out: Path
     protect: list
@@ -59,6 +60,7 @@ class CityRun:
     progress: object = None
     reused: int = 0
     date: str | None = None
+    templates: bool = False
 
 
 def export_city(run: CityRun) -> dict:
@@ -129,7 +131,7 @@ def export_city(run: CityRun) -> dict:
                  if getattr(r, "scan", None) is not None and len(r.scan[0])]
         twin["tiles"] = write_formats(stage, outs, [o.offset for o in objects], georef,
                                       [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
-                                      f"twinreg: {twin['scene']}", models)
+                                      f"twinreg: {twin['scene']}", models, templates=run.templates, seq=True)
         timing["formats"] = time.perf_counter() - t3
         twin["observation"] = observed.write(stage / observed.FILE, [r.observed for r in results if r.observed],
                                              [o.shape.sections for o in objects])

@@ -94,6 +94,9 @@ def build_twin_cmd(
         "--date", formats=["%Y-%m-%d"], help="The survey's date, YYYY-MM-DD [default: the LAS/LAZ header's "
                                              "creation date]; written to twin.json as survey_date.",
         show_default=False)] = None,
+    cityjson_templates: Annotated[bool, typer.Option(
+        "--cityjson-templates", help="twin.city.json with one geometry template per model (smaller; for tools "
+                                     "that read templates) instead of explicit geometry (opens everywhere).")] = False,
     ply: Annotated[Optional[bool], typer.Option(
         "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
                                "--ply writes ply/<cell>.ply].", show_default=False)] = None,
@@ -114,7 +117,7 @@ def build_twin_cmd(
     out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")
     settings = RunSettings(unit=unit, tol=tol, threshold=threshold, cell=cell, buffer=buffer, workers=workers,
                            scheduler=scheduler, restart=restart, ply=ply,
-                           date=date.date().isoformat() if date else None)
+                           date=date.date().isoformat() if date else None, cityjson_templates=cityjson_templates)
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
     tiled = "grid" in twin

@@ -1,24 +1,35 @@
-"""twin.city.json (CityJSON 2.0): one ``CityFurniture`` (function: vehicle) per object, drawn by a
-``GeometryInstance`` of a geometry template (one template per catalogue model, the tiles' mesh of at most
-2,000 triangles, plus a unit box for objects with no model), with the object's twin.json record as attributes.
+"""twin.city.json (CityJSON 2.0): one ``CityFurniture`` (function: vehicle) per object, with the object's twin.json
+record as attributes, drawn by its catalogue model's mesh (the tiles' mesh of at most 2,000 triangles) or a box of
+its measured size when it has no model. For city runs also ``twin.city.jsonl``, the same objects as CityJSONSeq
+(CityJSON Text Sequences: a first line with the transform and metadata, then one ``CityJSONFeature`` a line, each
+with its own vertices), which cjio and the streaming tools read a feature at a time.
 
-Coordinates are in the scene's CRS and its units (``metadata.referenceSystem``); a template is the model's mesh
-in metres (Z up, front +X, footprint centred, lowest point at 0) and each instance's ``transformationMatrix``
-(4 x 4, row-major as CityJSON says) turns, scales (boxes) and converts it to CRS units; the instance's one
-boundary vertex is the reference point it is then moved to.
+Geometry is explicit by default (one ``MultiSurface`` per object, its vertices placed in the file's vertex list):
+the web viewer ninja, the three.js CityJSON loader and older cjio cannot draw geometry templates, and explicit
+geometry opens everywhere. With ``templates`` (``build-twin --cityjson-templates``) each model is one geometry
+template (a unit box for objects with no model) and each object a ``GeometryInstance`` of it: a much smaller file
+for a city of many cars of few models, for the tools that read templates.
+
+Coordinates are in the scene's CRS and its units (``metadata.referenceSystem``); a template is the model's mesh in
+metres (Z up, front +X, footprint centred, lowest point at 0) and each instance's ``transformationMatrix`` (4 x 4,
+row-major as CityJSON says) turns, scales (boxes) and converts it to CRS units; the instance's one boundary vertex
+is the reference point it is then moved to. Explicit geometry is that placement applied, rounded to the file's
+integers (0.1 mm).
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .geojson import _flat
 
-#: CityJSON integer coordinates: millimetres
-SCALE = 0.001
+#: CityJSON integer coordinates: tenths of a millimetre (explicit geometry and a template placed by its matrix
+#: then agree within 0.2 mm)
+SCALE = 0.0001
 
 
 def _reference_system(crs: str | None) -> str | None:
@@ -27,50 +38,108 @@ def _reference_system(crs: str | None) -> str | None:
     return None
 
 
-def write_cityjson(path, instances: list, meshes: dict, docs: list[dict], headings: list[float], georef,
-                   title: str) -> Path:
-    """``instances``: :class:`~twinreg.export.tiles3d.Instance` (scene-frame origins); ``headings``: each one's
-    turn (rad, counter-clockwise from the scene's +X) of the mesh's +X; ``docs``: the twin.json records."""
+@dataclass
+class _Placed:
+    """What every variant needs: the templates (vertices, faces) by mesh key, each object's template key,
+    reference point (CRS units), matrix (4 x 4, row-major) and attributes; the file's translate."""
+
+    meshes: dict
+    keys: list
+    ref: np.ndarray
+    matrices: list
+    attributes: list
+    ids: list
+    translate: np.ndarray
+
+
+def _placed(instances, meshes, docs, headings, georef) -> _Placed:
     from .tiles3d import UNIT_BOX
 
     unit = georef.crs_unit_m if georef.crs else 1.0
     vunit = georef.vertical_unit_m if georef.crs else 1.0
     to_crs = np.diag([1.0 / unit, 1.0 / unit, 1.0 / vunit])
-    keys = sorted({i.mesh for i in instances})
-    templates, tverts = [], []
-    index = {}
-    for key in keys:
-        v, f = (UNIT_BOX if key == "box" else meshes[key][:2])
-        base = sum(len(t) for t in tverts)
-        tverts.append(np.round(np.asarray(v, dtype=np.float64), 4))
-        faces = (np.asarray(f, dtype=np.int64) + base).reshape(-1, 1, 3)
-        templates.append({"type": "MultiSurface", "lod": "2", "boundaries": faces.tolist()})
-        index[key] = len(templates) - 1
+    used = {}
+    for i in instances:
+        v, f = (UNIT_BOX if i.mesh == "box" else meshes[i.mesh][:2])
+        used.setdefault(i.mesh, (np.round(np.asarray(v, dtype=np.float64), 4), np.asarray(f, dtype=np.int64)))
     ref = np.array([i.origin for i in instances], dtype=np.float64).reshape(-1, 3) @ to_crs
-    translate = np.floor(ref.min(0)) if len(ref) else np.zeros(3)
-    ints = np.rint((ref - translate) / SCALE).astype(np.int64)
-    objects = {}
-    for k, (inst, doc, a) in enumerate(zip(instances, docs, headings)):
+    matrices, attributes = [], []
+    for inst, doc, a in zip(instances, docs, headings):
         c, s = np.cos(a), np.sin(a)
         m = np.eye(4)
         m[:3, :3] = to_crs @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.diag(inst.scale or (1, 1, 1))
-        attrs = {"function": "vehicle", **{k2: v for k2, v in _flat(doc).items() if v is not None and k2 != "id"}}
-        objects[doc["id"]] = {"type": "CityFurniture", "attributes": attrs,
-                              "geometry": [{"type": "GeometryInstance", "template": index[inst.mesh],
-                                            "boundaries": [k],
-                                            "transformationMatrix": [float(x) for x in m.ravel()]}]}
+        matrices.append(m)
+        attributes.append({"function": "vehicle", **{k: v for k, v in _flat(doc).items() if v is not None and k != "id"}})
+    translate = np.floor(ref.min(0)) if len(ref) else np.zeros(3)
+    return _Placed(used, [i.mesh for i in instances], ref, matrices, attributes, [d["id"] for d in docs], translate)
+
+
+def _explicit(p: _Placed, k: int, base: int) -> tuple[np.ndarray, dict]:
+    """Object ``k``'s vertices (millimetre integers) and its MultiSurface, its indices from ``base``."""
+    v, f = p.meshes[p.keys[k]]
+    world = v @ p.matrices[k][:3, :3].T + p.ref[k]
+    ints = np.rint((world - p.translate) / SCALE).astype(np.int64)
+    geometry = {"type": "MultiSurface", "lod": "2", "boundaries": (f + base).reshape(-1, 1, 3).tolist()}
+    return ints, geometry
+
+
+def _header(p: _Placed, title: str, georef) -> dict:
     doc = {"type": "CityJSON", "version": "2.0",
-           "transform": {"scale": [SCALE, SCALE, SCALE], "translate": [float(t) for t in translate]},
-           "metadata": {"title": title},
-           "CityObjects": objects,
-           "vertices": ints.tolist(),
-           "geometry-templates": {"templates": templates,
-                                  "vertices-templates": np.vstack(tverts).tolist() if tverts else []}}
+           "transform": {"scale": [SCALE, SCALE, SCALE], "translate": [float(t) for t in p.translate]},
+           "metadata": {"title": title}, "CityObjects": {}, "vertices": []}
     rs = _reference_system(georef.crs)
     if rs:
         doc["metadata"]["referenceSystem"] = rs
-    if len(ref):
-        hi = ref.max(0)
-        doc["metadata"]["geographicalExtent"] = [float(v) for v in (*translate, *hi)]
+    if len(p.ref):
+        doc["metadata"]["geographicalExtent"] = [float(v) for v in (*p.translate, *p.ref.max(0))]
+    return doc
+
+
+def write_cityjson(path, instances: list, meshes: dict, docs: list[dict], headings: list[float], georef,
+                   title: str, templates: bool = False, seq_path=None) -> Path:
+    """``instances``: :class:`~twinreg.export.tiles3d.Instance` (scene-frame origins); ``headings``: each one's
+    turn (rad, counter-clockwise from the scene's +X) of the mesh's +X; ``docs``: the twin.json records;
+    ``templates``: geometry templates instead of explicit geometry; ``seq_path``: also write CityJSONSeq there."""
+    p = _placed(instances, meshes, docs, headings, georef)
+    doc = _header(p, title, georef)
+    if templates:
+        keys = sorted(p.meshes)
+        index = {key: n for n, key in enumerate(keys)}
+        bases = np.cumsum([0] + [len(p.meshes[key][0]) for key in keys])
+        doc["geometry-templates"] = {
+            "templates": [{"type": "MultiSurface", "lod": "2",
+                           "boundaries": (p.meshes[key][1] + bases[n]).reshape(-1, 1, 3).tolist()}
+                          for n, key in enumerate(keys)],
+            "vertices-templates": np.vstack([p.meshes[key][0] for key in keys]).tolist() if keys else []}
+        doc["vertices"] = np.rint((p.ref - p.translate) / SCALE).astype(np.int64).tolist()
+        for k, oid in enumerate(p.ids):
+            doc["CityObjects"][oid] = {"type": "CityFurniture", "attributes": p.attributes[k], "geometry": [
+                {"type": "GeometryInstance", "template": index[p.keys[k]], "boundaries": [k],
+                 "transformationMatrix": [float(x) for x in p.matrices[k].ravel()]}]}
+    else:
+        verts, base = [], 0
+        for k, oid in enumerate(p.ids):
+            ints, geometry = _explicit(p, k, base)
+            verts.append(ints)
+            base += len(ints)
+            doc["CityObjects"][oid] = {"type": "CityFurniture", "attributes": p.attributes[k],
+                                       "geometry": [geometry]}
+        doc["vertices"] = np.vstack(verts).tolist() if verts else []
     Path(path).write_text(json.dumps(doc, separators=(",", ":")), encoding="utf-8")
+    if seq_path is not None:
+        write_cityjson_seq(seq_path, p, title, georef)
+    return Path(path)
+
+
+def write_cityjson_seq(path, p: _Placed, title: str, georef) -> Path:
+    """CityJSONSeq: the header line, then one CityJSONFeature a line with explicit geometry."""
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(json.dumps(_header(p, title, georef), separators=(",", ":")) + "\n")
+        for k, oid in enumerate(p.ids):
+            ints, geometry = _explicit(p, k, 0)
+            feature = {"type": "CityJSONFeature", "id": oid,
+                       "CityObjects": {oid: {"type": "CityFurniture", "attributes": p.attributes[k],
+                                             "geometry": [geometry]}},
+                       "vertices": ints.tolist()}
+            fh.write(json.dumps(feature, separators=(",", ":")) + "\n")
     return Path(path)

@@ -14,11 +14,12 @@ from .tiles3d import TILE_MAX_TRIANGLES, instance_of, write_tiles
 
 
 def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: list, scans: list | None,
-                  title: str, models) -> dict:
+                  title: str, models, templates: bool = False, seq: bool = False) -> dict:
     """``outputs``: the objects' :class:`~twinreg.export.objects.ObjectOutput`; ``offsets``: (3,) each, from
     its local frame to the scene frame; ``groups``: (tile name, indices into outputs); ``scans``: (tile name,
     (n, 3) scene points, (n, 3) uint8 colours), or None; ``models``: the matcher's
-    :class:`~twinreg.matching.match.ModelCache` (the tiles' lighter meshes). Returns the tiles' summary."""
+    :class:`~twinreg.matching.match.ModelCache` (the tiles' lighter meshes); ``templates``: CityJSON with geometry
+    templates; ``seq``: also twin.city.jsonl (CityJSONSeq). Returns the tiles' summary."""
     stage = Path(stage)
     instances = [instance_of(o, np.asarray(off)) for o, off in zip(outputs, offsets)]
     meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
@@ -30,7 +31,8 @@ def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: lis
                             for o, off in zip(outputs, offsets)], georef)
     with ThreadPoolExecutor(2) as pool:  # JSON encoding beside the tiles' numpy work
         side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, light, docs,
-                            [d["heading_rad"] for d in docs], georef, title),
+                            [d["heading_rad"] for d in docs], georef, title, templates,
+                            stage / "twin.city.jsonl" if seq else None),
                 pool.submit(write_geojson, stage / "twin.geojson", docs, ll)]
         summary = write_tiles(stage, instances, meshes, georef, groups, scans, tile_meshes=light)
         write_sections(stage / "sections.json", outputs)

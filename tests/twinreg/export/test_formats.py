@@ -142,36 +142,97 @@ def test_a_car_facing_east_is_drawn_facing_east(catalogue16, tmp_path):
     assert "origin" in gltf["asset"]["extras"]
 
 
-def test_cityjson_is_valid_and_places_each_car_at_its_centroid(twin):  # noqa: F811
+def _cjio(path: Path, stdin: bool = False) -> list:
+    """cjio reads the file (in its own process: importing cjio here changed how a later test's pyproj read a LAS
+    header): [version, number of city objects, EPSG]."""
+    if stdin:  # CityJSONSeq, as `cat twin.city.jsonl | cjio stdin ...` reads it
+        code = ("import sys, json; from cjio import cityjson; c = cityjson.read_stdin(); "
+                "print(json.dumps([c.get_version(), len(c.j['CityObjects']), c.get_epsg()]))")
+        proc = subprocess.run([sys.executable, "-c", code], stdin=open(path), capture_output=True, text=True,
+                              timeout=120)
+    else:
+        code = ("import sys, json; from cjio import cityjson; c = cityjson.reader(file=open(sys.argv[1])); "
+                "print(json.dumps([c.get_version(), len(c.j['CityObjects']), c.get_epsg()]))")
+        proc = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def _schema_valid(cj: dict) -> None:
     import jsonschema
 
+    jsonschema.validate(cj, json.loads((ROOT / "docs" / "schemas" / "cityjson-2.0-twin.schema.json").read_text()))
+
+
+def _explicit_vertices(cj: dict, oid: str) -> np.ndarray:
+    scale, translate = np.array(cj["transform"]["scale"]), np.array(cj["transform"]["translate"])
+    geometry = cj["CityObjects"][oid]["geometry"][0]
+    assert geometry["type"] == "MultiSurface"
+    idx = np.unique(np.array([i for surface in geometry["boundaries"] for ring in surface for i in ring]))
+    return np.array(cj["vertices"])[idx] * scale + translate
+
+
+def _template_vertices(cj: dict, oid: str) -> np.ndarray:
+    scale, translate = np.array(cj["transform"]["scale"]), np.array(cj["transform"]["translate"])
+    gi = cj["CityObjects"][oid]["geometry"][0]
+    assert gi["type"] == "GeometryInstance"
+    m = np.array(gi["transformationMatrix"]).reshape(4, 4)  # row-major
+    assert np.allclose(m[3], [0, 0, 0, 1]) and np.allclose(m[:3, 3], 0)
+    ref = np.array(cj["vertices"][gi["boundaries"][0]]) * scale + translate
+    t = cj["geometry-templates"]["templates"][gi["template"]]
+    idx = np.unique(np.array([i for surface in t["boundaries"] for ring in surface for i in ring]))
+    return np.array(cj["geometry-templates"]["vertices-templates"])[idx] @ m[:3, :3].T + ref
+
+
+def test_cityjson_is_valid_and_places_each_car_at_its_centroid(twin):  # noqa: F811
     doc, out = twin
     cj = json.loads((out / "twin.city.json").read_text())
-    schema = json.loads((ROOT / "docs" / "schemas" / "cityjson-2.0-twin.schema.json").read_text())
-    jsonschema.validate(cj, schema)
-    # cjio reads it (in its own process: importing cjio here changed how a later test's pyproj read a LAS header)
-    code = ("import sys, json; from cjio import cityjson; c = cityjson.reader(file=open(sys.argv[1])); "
-            "print(json.dumps([c.get_version(), len(c.j['CityObjects']), c.get_epsg()]))")
-    proc = subprocess.run([sys.executable, "-c", code, str(out / "twin.city.json")], capture_output=True, text=True,
-                          timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    version, n, epsg = json.loads(proc.stdout)
+    _schema_valid(cj)
+    version, n, epsg = _cjio(out / "twin.city.json")
     assert version == "2.0" and n == len(doc["objects"]) and (epsg is None or epsg > 0)
-    scale, translate = np.array(cj["transform"]["scale"]), np.array(cj["transform"]["translate"])
-    tv = np.array(cj["geometry-templates"]["vertices-templates"])
+    assert "geometry-templates" not in cj  # explicit geometry by default: every viewer draws it
     for o in doc["objects"]:
         co = cj["CityObjects"][o["id"]]
         assert co["type"] == "CityFurniture" and co["attributes"]["function"] == "vehicle"
-        gi = co["geometry"][0]
-        m = np.array(gi["transformationMatrix"]).reshape(4, 4)  # row-major
-        assert np.allclose(m[3], [0, 0, 0, 1]) and np.allclose(m[:3, 3], 0)
-        ref = np.array(cj["vertices"][gi["boundaries"][0]]) * scale + translate
-        t = cj["geometry-templates"]["templates"][gi["template"]]
-        idx = np.unique(np.array([i for surface in t["boundaries"] for ring in surface for i in ring]))
-        world = tv[idx] @ m[:3, :3].T + ref
+        world = _explicit_vertices(cj, o["id"])
         centre = (world[:, :2].min(0) + world[:, :2].max(0)) / 2
-        # the template's footprint centre lands on the object's centroid (the placed footprint's centre)
+        # the model's footprint centre lands on the object's centroid (the placed footprint's centre)
         assert np.hypot(*(centre - o["centroid"][:2])) < 0.15
+
+
+def test_cityjson_templates_on_request_place_the_same_geometry(twin, park, catalogue16, tmp_path):  # noqa: F811
+    doc, out = twin
+    res = CliRunner().invoke(app, ["build-twin", str(park["path"]), *DUBLIN, "--anchor", str(park["offset"][0]),
+                                   str(park["offset"][1]), "--library", str(catalogue16.folder), "--out",
+                                   str(tmp_path / "t"), "--cityjson-templates"])
+    assert res.exit_code == 0, res.output
+    cj_t = json.loads((tmp_path / "t" / "twin.city.json").read_text())
+    cj_e = json.loads((out / "twin.city.json").read_text())
+    _schema_valid(cj_t)
+    assert _cjio(tmp_path / "t" / "twin.city.json")[1] == len(doc["objects"])
+    assert len(cj_t["geometry-templates"]["templates"]) <= len(doc["objects"])
+    for o in doc["objects"]:
+        explicit, placed = _explicit_vertices(cj_e, o["id"]), _template_vertices(cj_t, o["id"])
+        # the same mesh: each explicit vertex is a template vertex placed by its matrix, within 1 mm
+        assert explicit.shape == placed.shape
+        d, _ = __import__("scipy.spatial", fromlist=["cKDTree"]).cKDTree(placed).query(explicit)
+        assert d.max() < 0.001, (o["id"], d.max())
+        assert cj_t["CityObjects"][o["id"]]["attributes"] == cj_e["CityObjects"][o["id"]]["attributes"]
+
+
+def test_city_cityjson_seq_reads_a_feature_a_line(city_twin, small_city):
+    root, _ = small_city
+    lines = (root / "out" / "twin.city.jsonl").read_text().splitlines()
+    head, features = json.loads(lines[0]), [json.loads(x) for x in lines[1:]]
+    assert head["type"] == "CityJSON" and head["CityObjects"] == {} and head["vertices"] == []
+    assert [f["id"] for f in features] == [o["id"] for o in city_twin["objects"]]
+    whole = json.loads((root / "out" / "twin.city.json").read_text())
+    for f in features:
+        assert f["type"] == "CityJSONFeature" and list(f["CityObjects"]) == [f["id"]]
+        mine = np.array(f["vertices"]) * head["transform"]["scale"] + head["transform"]["translate"]
+        assert np.allclose(np.sort(mine, axis=0), np.sort(_explicit_vertices(whole, f["id"]), axis=0), atol=1e-6)
+    version, n, _ = _cjio(root / "out" / "twin.city.jsonl", stdin=True)
+    assert version == "2.0" and n == len(features)
 
 
 def test_geojson_footprints_surround_each_car(twin):  # noqa: F811
