@@ -15,6 +15,7 @@ from .catalogue.repository import Catalogue
 from .change import observed
 from .detect import describe_detected, detect_file, object_points
 from .errors import CatalogueError, HelperError, SceneReadError
+from .export.classified import scan_classes, write_classified
 from .export.formats import write_formats
 from .export.kmz import write_kmz
 from .export.objects import object_output
@@ -263,6 +264,8 @@ def _match_and_export(run: SceneRun) -> dict:
         if clusters.method == "full":
             plot_taxonomy(stage, [o["id"] for o in objects], clusters.matrix, clusters.linkage, clusters.threshold)
         write_report(*report_args)
+    classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets, [o["match"] is not None for o in objects])
+    write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
     twin["observation"] = observed.write(stage / observed.FILE, [observed.raster(
         det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
         [s.sections for s in shapes])

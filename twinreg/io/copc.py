@@ -10,8 +10,10 @@ from pathlib import Path
 import numpy as np
 
 
-def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, seed: int = 0) -> Path:
-    """Write (n, 3) float64 metre points to ``path`` (``.copc.laz``) with ``crs`` (pyproj input) in its header."""
+def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, seed: int = 0, classes=None,
+               source_ids=None) -> Path:
+    """Write (n, 3) float64 points to ``path`` (``.copc.laz``) with ``crs`` (pyproj input; None: none) in its header;
+    ``classes``: (n,) ASPRS classification codes, ``source_ids``: (n,) uint16 point source ids (None: zeros)."""
     import copclib as copc
     import laspy
     import pyproj
@@ -19,6 +21,17 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     lo, hi = pts.min(0), pts.max(0)
     offset = np.floor(lo / 1000.0) * 1000.0
+    las_header = laspy.LasHeader(point_format=6, version="1.4")
+    las_header.scales, las_header.offsets = [0.001] * 3, offset
+    rec = laspy.ScaleAwarePointRecord.zeros(len(pts), header=las_header)
+    rec.x, rec.y, rec.z = pts[:, 0], pts[:, 1], pts[:, 2]
+    if classes is not None:
+        rec.classification = np.asarray(classes, dtype=np.uint8)
+    if source_ids is not None:
+        rec.point_source_id = np.asarray(source_ids, dtype=np.uint16)
+    # the nodes hold the points as stored (millimetre integers), so each lies inside its node's bounds
+    pts = np.column_stack([np.asarray(rec.x), np.asarray(rec.y), np.asarray(rec.z)])
+    lo, hi = pts.min(0), pts.max(0)
     cfg = copc.CopcConfigWriter(6, copc.Vector3(0.001, 0.001, 0.001), copc.Vector3(*offset))
     header = cfg.las_header
     header.min, header.max = copc.Vector3(*lo), copc.Vector3(*hi)
@@ -46,11 +59,7 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
                 i = np.flatnonzero((level == d) & (keys[d] == k).all(1))[0]
                 level[i] = d - 1
                 above.add(parent)
-    las_header = laspy.LasHeader(point_format=6, version="1.4")
-    las_header.scales, las_header.offsets = [0.001] * 3, offset
-    rec = laspy.ScaleAwarePointRecord.zeros(len(pts), header=las_header)
-    rec.x, rec.y, rec.z = pts[:, 0], pts[:, 1], pts[:, 2]
-    writer = copc.FileWriter(str(path), cfg, wkt=pyproj.CRS(crs).to_wkt())
+    writer = copc.FileWriter(str(path), cfg, wkt=pyproj.CRS(crs).to_wkt() if crs else "")
     try:
         for d in range(depth + 1):
             sel_level = np.flatnonzero(level == d)
