@@ -264,7 +264,8 @@ def _match_and_export(run: SceneRun) -> dict:
         if clusters.method == "full":
             plot_taxonomy(stage, [o["id"] for o in objects], clusters.matrix, clusters.linkage, clusters.threshold)
         write_report(*report_args)
-    classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets, [o["match"] is not None for o in objects])
+    classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,
+                                [o["match"] is not None for o in objects])
     write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
     twin["observation"] = observed.write(stage / observed.FILE, [observed.raster(
         det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],

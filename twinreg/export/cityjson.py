@@ -69,7 +69,8 @@ def _placed(instances, meshes, docs, headings, georef) -> _Placed:
         m = np.eye(4)
         m[:3, :3] = to_crs @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.diag(inst.scale or (1, 1, 1))
         matrices.append(m)
-        attributes.append({"function": "vehicle", **{k: v for k, v in _flat(doc).items() if v is not None and k != "id"}})
+        flat = {k: v for k, v in _flat(doc).items() if v is not None and k != "id"}
+        attributes.append({"function": "vehicle", **flat})
     translate = np.floor(ref.min(0)) if len(ref) else np.zeros(3)
     return _Placed(used, [i.mesh for i in instances], ref, matrices, attributes, [d["id"] for d in docs], translate)
 
