@@ -99,35 +99,95 @@ def plot_taxonomy(folder: Path, names: list[str], matrix: np.ndarray, linkage: n
             plot_dendrogram(linkage, names, threshold, folder / "dendrogram.png")]
 
 
+def short_reason(reason: str) -> str:
+    """A no-match reason's gist (its first clause, models' names left out), for grouping and for table cells.
+
+    >>> short_reason("the best model (uaz_469) fits only 15 cm sunk into the ground (at most 7 cm allowed)")
+    'the best model fits only 15 cm sunk into the ground'
+    """
+    import re
+
+    first = re.split(r"[;:]", reason or "no reason given", maxsplit=1)[0]
+    first = re.sub(r"\s*\([^)]*\)", "", first).strip()
+    return first if len(first) <= 60 else first[:57].rstrip() + "..."
+
+
+def plot_confidence(twin: dict, path) -> Path:
+    """The matches' confidence (0-1) as a histogram, the objects without a model beside it."""
+    plt = pyplot()
+    conf = [o["match"]["confidence"] for o in twin["objects"] if o["match"] and o["match"].get("confidence") is not None]
+    fig, ax = plt.subplots(figsize=(4.2, 2.4))
+    ax.hist(conf, bins=np.linspace(0, 1, 11), color="#2c7fb8", edgecolor="white")
+    none = sum(1 for o in twin["objects"] if not o["match"])
+    ax.set_xlabel("confidence of the match")
+    ax.set_ylabel("objects")
+    ax.set_title(f"{len(conf)} matched, {none} without a model", fontsize=9)
+    return save_figure(fig, path, dpi=100)
+
+
+STYLE = ("body{font-family:sans-serif;margin:1.2em 2em;color:#222}h1{font-size:1.4em;margin:.2em 0}"
+         "td,th{padding:2px 8px;border-bottom:1px solid #ddd;text-align:left;white-space:nowrap;vertical-align:top}"
+         "th{background:#f3f3f3}.lead{max-width:100%;max-height:68vh;border:1px solid #ddd}"
+         ".row{display:flex;flex-wrap:wrap;gap:2em;align-items:flex-start;margin:1em 0}"
+         "details{display:inline}summary{cursor:pointer}details[open] span{white-space:normal;display:block;"
+         "max-width:40em}img.pic{max-width:100%}")
+
+
+def _e(x) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _summary_tables(twin: dict) -> str:
+    from collections import Counter
+
+    per_model = Counter((o["match"]["name"], o["match"].get("make") or "") for o in twin["objects"] if o["match"])
+    why = Counter(short_reason(o.get("reason", "")) for o in twin["objects"] if not o["match"])
+    models = "".join(f"<tr><td>{_e(n)}</td><td>{_e(m)}</td><td>{c}</td></tr>" for (n, m), c in per_model.most_common())
+    reasons = "".join(f"<tr><td>{_e(r)}</td><td>{c}</td></tr>" for r, c in why.most_common())
+    return (f"<table><tr><th>model</th><th>make</th><th>cars</th></tr>{models}</table>"
+            f"<img class='pic' src='confidence.png' alt='confidence of the matches'>"
+            + (f"<table><tr><th>without a model, because</th><th>objects</th></tr>{reasons}</table>" if why else ""))
+
+
+def _object_row(o: dict) -> str:
+    m = o["match"]
+    doubt = ", ".join(m.get("ambiguous_with") or []) if m else ""
+    if m and m.get("outside_tolerance"):
+        doubt += " (outside the size tolerance)"
+    if m:
+        outcome = _e(m["name"])
+    else:
+        full = o.get("reason", "")
+        outcome = f"<details><summary>no model: {_e(short_reason(full))}</summary><span>{_e(full)}</span></details>"
+    cells = [_e(o["id"]), _e(o["n_points"]),
+             _e(f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}"), _e(o["cluster"]),
+             outcome, _e(f"{m['rmse_m'] * 100:.1f} cm" if m else ""),
+             _e("" if not m or m.get("confidence") is None else f"{m['confidence']:.2f}"), _e(doubt),
+             _e(f"{o['bearing_deg']:.1f}"), _e((m.get("runner_up") or {}).get("name", "") if m else "")]
+    return "<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>"
+
+
 def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: list[dict]) -> list[Path]:
-    """topview.png, sections.png and report.html (which also shows heatmap.png and dendrogram.png)."""
+    """topview.png, confidence.png, sections.png and report.html (which also shows heatmap.png and
+    dendrogram.png): the map of the twin over its scan first, then the summary (cars per model, the confidence
+    histogram, the objects without a model by reason), a compact table (a no-match reason's gist, the full text on
+    demand), the pictures."""
     folder = Path(folder)
-    files = [plot_twin_top(path=folder / "topview.png", **top_png_args)]
-    files += [folder / n for n in ("heatmap.png", "dendrogram.png")
-              if len(twin["objects"]) >= 2 and twin.get("dissimilarity") is not None]
+    top = plot_twin_top(path=folder / "topview.png", **top_png_args)
+    conf = plot_confidence(twin, folder / "confidence.png")
+    files = [folder / n for n in ("heatmap.png", "dendrogram.png")
+             if len(twin["objects"]) >= 2 and twin.get("dissimilarity") is not None]
     files.append(plot_object_sections(section_items, folder / "sections.png"))
-    rows = []
-    for o in twin["objects"]:
-        m = o["match"]
-        doubt = ", ".join(m.get("ambiguous_with") or []) if m else ""
-        if m and m.get("outside_tolerance"):
-            doubt += " (outside the size tolerance)"
-        rows.append("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in (
-            o["id"], o["n_points"], f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}",
-            o["cluster"], m["name"] if m else "no match: " + o.get("reason", ""),
-            f"{m['rmse_m'] * 100:.1f} cm" if m else "",
-            "" if not m or m.get("confidence") is None else f"{m['confidence']:.2f}",
-            doubt,
-            f"{o['bearing_deg']:.1f}",
-            (m.get("runner_up") or {}).get("name", "") if m else "")) + "</tr>")
-    pics = "".join(f'<h2>{html.escape(p.stem)}</h2><img src="{p.name}" style="max-width:100%">' for p in files)
-    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {html.escape(twin['scene'])}"
-            "</title><style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 8px;border-bottom:1px solid #ddd}"
-            "</style></head><body>"
-            f"<h1>Digital twin of {html.escape(twin['scene'])}</h1><p>{len(twin['objects'])} objects, "
-            f"{sum(1 for o in twin['objects'] if o['match'])} matched; total {twin['timing_s']['total']:.2f} s.</p>"
+    pics = "".join(f"<h2>{_e(p.stem)}</h2><img class='pic' src='{_e(p.name)}' alt='{_e(p.stem)}'>" for p in files)
+    matched = sum(1 for o in twin["objects"] if o["match"])
+    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {_e(twin['scene'])}</title>"
+            f"<style>{STYLE}</style></head><body>"
+            f"<h1>Digital twin of {_e(twin['scene'])}</h1><p>{len(twin['objects'])} objects, {matched} with a "
+            f"model; built in {twin['timing_s']['total']:.2f} s.</p>"
+            f"<img class='lead' src='topview.png' alt='the twin over its scan'>"
+            f"<div class='row'>{_summary_tables(twin)}</div>"
             "<table><tr><th>object</th><th>points</th><th>size (m)</th><th>cluster</th><th>model</th><th>RMSE</th>"
             "<th>confidence</th><th>ambiguous with</th><th>bearing (deg)</th><th>runner-up</th></tr>"
-            + "".join(rows) + "</table>" + pics + "</body></html>")
+            + "".join(_object_row(o) for o in twin["objects"]) + "</table>" + pics + "</body></html>")
     (folder / "report.html").write_text(page, encoding="utf-8")
-    return files + [folder / "report.html"]
+    return [top, conf] + files + [folder / "report.html"]

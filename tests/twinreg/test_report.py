@@ -1,0 +1,45 @@
+"""report.html leads with the picture: on the real AHN tile (many objects without a model, long reasons) in the
+system's headless Chromium at 1280 px, the map is above the fold, every image is loaded, no table cell runs over
+two lines; the full reasons are on demand."""
+
+from __future__ import annotations
+
+import html
+import json
+import subprocess
+
+import pytest
+from typer.testing import CliRunner
+
+from tests.conftest import SHARED_DATA, need
+from tests.twinreg.viewer.test_viewer import CHROMIUM, ROOT
+from twinreg.cli import app
+
+
+def test_report_leads_with_the_map_and_keeps_cells_short(catalogue16, tmp_path):
+    if not CHROMIUM.exists():
+        pytest.fail("chromium is missing: run `make install`")
+    tile = need(SHARED_DATA / "ahn_amsterdam") / "ahn_2397_9705.laz"
+    r = CliRunner().invoke(app, ["--library", str(catalogue16.folder), "build-twin", str(tile), "--crs",
+                                 "EPSG:28992", "--vertical-crs", "EPSG:5709", "--out", str(tmp_path / "ahn")])
+    assert r.exit_code == 0, r.output
+    twin = json.loads((tmp_path / "ahn" / "twin.json").read_text())
+    unmatched = [o for o in twin["objects"] if not o["match"]]
+    assert len(unmatched) >= 3 and max(len(o["reason"]) for o in unmatched) > 80  # long reasons to keep short
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "report_layout.mjs"),
+                           (tmp_path / "ahn" / "report.html").as_uri(), "1280", "900"],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["errors"] == [] and got["blocked"] == [], got
+    assert len(got["images"]) >= 3 and all(i["loaded"] for i in got["images"]), got["images"]
+    assert got["images"][0]["src"] == "topview.png" and got["lead"]["top"] < 200 and got["lead"]["bottom"] <= 900
+    assert got["cells"] > 10 * len(twin["objects"]) and got["tall"] == [], got["tall"]
+    shot = subprocess.run(["node", str(ROOT / "tests" / "js" / "shoot_page.mjs"),
+                           (tmp_path / "ahn" / "report.html").as_uri(), str(ROOT / "docs" / "report_ahn.png"), "1280",
+                           "900"], capture_output=True, text=True, timeout=300, cwd=ROOT)  # the README's picture
+    assert shot.returncode == 0, shot.stderr
+    page = (tmp_path / "ahn" / "report.html").read_text()
+    assert page.count("<details>") == len(unmatched)
+    for o in unmatched:  # the full reason is there, behind its gist
+        assert f"<span>{html.escape(o['reason'], quote=True)}</span>" in page
