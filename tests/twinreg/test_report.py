@@ -43,3 +43,17 @@ def test_report_leads_with_the_map_and_keeps_cells_short(catalogue16, tmp_path):
     assert page.count("<details>") == len(unmatched)
     for o in unmatched:  # the full reason is there, behind its gist
         assert f"<span>{html.escape(o['reason'], quote=True)}</span>" in page
+
+
+def test_city_report_leads_with_the_map(city_twin, small_city):
+    if not CHROMIUM.exists():
+        pytest.fail("chromium is missing: run `make install`")
+    root, _ = small_city
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "report_layout.mjs"),
+                           (root / "out" / "report.html").as_uri(), "1280", "900"],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["errors"] == [] and got["blocked"] == [], got
+    assert all(i["loaded"] for i in got["images"]) and got["images"][0]["src"] == "map.png"
+    assert got["lead"]["top"] < 200 and got["lead"]["bottom"] <= 900 and got["tall"] == [], got

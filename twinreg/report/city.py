@@ -12,6 +12,7 @@ import numpy as np
 
 from ..change.observed import heights
 from .plots import plot_dendrogram, pyplot, save_figure
+from .scene import STYLE, short_reason
 
 #: at most this many cluster representatives (the largest clusters) in the report's dendrogram
 MAX_REPRESENTATIVES = 30
@@ -94,6 +95,8 @@ def plot_representatives(objects, outcomes, labels, path, params):
 
 
 def write_city_report(folder, twin: dict, results, objects, outcomes, plan, params=None) -> list[Path]:
+    """map.png, histograms.png, taxonomy.png and report.html: the map first, then the cars per model and the
+    objects without a model by reason, the pictures, the cells."""
     from cosco.params import DEFAULT
 
     folder = Path(folder)
@@ -117,27 +120,28 @@ def write_city_report(folder, twin: dict, results, objects, outcomes, plan, para
         f"<tr><td>{html.escape(c['name'])}</td><td>{c['n_points']:,}</td><td>{c['n_objects']}</td>"
         f"<td>{c['n_matched']}</td><td>{c['noise_m'] * 100:.1f} cm</td>"
         f"<td>{sum(c['timing_s'].values()):.1f} s</td></tr>" for c in twin["cells"])
-    reasons = Counter(o.get("reason", "").split(":")[0].split("(")[0].strip() for o in objs if not o["match"])
-    reason_rows = "".join(f"<li>{n} x {html.escape(r)}</li>" for r, n in reasons.most_common())
+    reasons = Counter(short_reason(o.get("reason", "")) for o in objs if not o["match"])
+    reason_rows = "".join(f"<tr><td>{html.escape(r)}</td><td>{n}</td></tr>" for r, n in reasons.most_common())
     n_matched = sum(1 for o in objs if o["match"])
     t = twin.get("timing_s", {})
     page = (
         "<!doctype html><html><head><meta charset='utf-8'>"
-        f"<title>twin of {html.escape(twin['scene'])}</title><style>body{{font-family:sans-serif;margin:2em}}"
-        "td,th{padding:2px 8px;border-bottom:1px solid #ddd;text-align:left}table{border-collapse:collapse;"
-        "margin-bottom:1.5em}</style></head><body>"
+        f"<title>twin of {html.escape(twin['scene'])}</title><style>{STYLE}</style></head><body>"
         f"<h1>Digital twin of {html.escape(twin['scene'])}</h1>"
-        f"<p>{twin['n_points']:,} points in {twin['grid']['n_cells']} cells of {twin['grid']['cell_m']:g} m "
-        f"(buffer {twin['grid']['buffer_m']:g} m); {len(objs)} car-sized objects, {n_matched} matched to a model, "
-        f"{twin['clustering']['n_clusters']} clusters ({twin['clustering']['method']} taxonomy, "
-        f"{twin['clustering']['n_comparisons']:,} comparisons), {twin['matching']['n_trials']:,} registration "
-        f"trials.</p>"
-        + (f"<p>Objects without a model:</p><ul>{reason_rows}</ul>" if reason_rows else "")
-        + "<h2>Models</h2><table><tr><th>model</th><th>objects</th><th>median RMSE</th></tr>" + model_rows
+        f"<p>{len(objs)} car-sized objects, {n_matched} with a model; {twin['n_points']:,} points in "
+        f"{twin['grid']['n_cells']} cells of {twin['grid']['cell_m']:g} m"
+        + (f"; built in {t['total']:.1f} s" if t.get("total") else "") + ".</p>"
+        f"<img class='lead' src='{pics[0].name}' alt='the city map'>"
+        "<div class='row'><table><tr><th>model</th><th>objects</th><th>median RMSE</th></tr>" + model_rows
         + "</table>"
-        + "".join(f'<h2>{html.escape(p.stem)}</h2><img src="{p.name}" style="max-width:100%">' for p in pics)
+        + (f"<table><tr><th>without a model, because</th><th>objects</th></tr>{reason_rows}</table>"
+           if reason_rows else "") + "</div>"
+        f"<p>{twin['clustering']['n_clusters']} clusters ({twin['clustering']['method']} taxonomy, "
+        f"{twin['clustering']['n_comparisons']:,} comparisons), {twin['matching']['n_trials']:,} registration "
+        f"trials; cells with a buffer of {twin['grid']['buffer_m']:g} m.</p>"
+        + "".join(f"<h2>{html.escape(p.stem)}</h2><img class='pic' src='{p.name}' alt='{html.escape(p.stem)}'>"
+                  for p in pics[1:])
         + "<h2>Cells</h2><table><tr><th>cell</th><th>points</th><th>objects</th><th>matched</th><th>noise</th>"
-        "<th>worker time</th></tr>" + cell_rows + "</table>"
-        + (f"<p>Total {t.get('total', 0):.1f} s.</p>" if t else "") + "</body></html>")
+        "<th>worker time</th></tr>" + cell_rows + "</table></body></html>")
     (folder / "report.html").write_text(page, encoding="utf-8")
     return pics + [folder / "report.html"]
