@@ -6,6 +6,8 @@ truth: events right, cars of the strip called left, the offset's error, the unch
 
     python bench/bench_compare.py [--seeds 5] [--densities 150,50,20] [--catalogue shared|parametric] [--out DIR]
 
+A kept --out folder is reused: its catalogue and the twins already built (compare runs again on them).
+
 When Debian's CloudCompare is installed (`apt-get install cloudcompare`), bench_cloudcompare.py then runs on the
 same pairs (what a CloudCompare user gets).
 """
@@ -55,8 +57,10 @@ def run_pair(cat, seed: int, density: float, folder: Path) -> dict:
                        sizes=[(r.length, r.width, r.height) for r in rows])
     twins = []
     for k, (pts, date) in enumerate(((pair.before, "2026-03-02"), (pair.after, "2026-06-02"))):
-        write_ply(folder / f"scan{k}.ply", pts)
-        build_twin(folder / f"scan{k}.ply", cat, georef_from_options(53.35, -6.26), folder / f"twin{k}", date=date)
+        if not (folder / f"twin{k}" / "twin.json").exists():  # a kept --out folder: its twins are reused
+            write_ply(folder / f"scan{k}.ply", pts)
+            build_twin(folder / f"scan{k}.ply", cat, georef_from_options(53.35, -6.26), folder / f"twin{k}",
+                       date=date)
         twins.append(folder / f"twin{k}")
     t = time.perf_counter()
     doc = compare(twins[::-1], folder / "changes")
@@ -76,7 +80,12 @@ def main() -> None:
     args = ap.parse_args()
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bench_compare_"))
     root.mkdir(parents=True, exist_ok=True)
-    cat = catalogue(args.catalogue, root / "catalogue")
+    if (root / "catalogue" / "catalogue.sqlite").exists():
+        from twinreg.catalogue.repository import Catalogue
+
+        cat = Catalogue(root / "catalogue", create=False)
+    else:
+        cat = catalogue(args.catalogue, root / "catalogue")
     print(f"machine: {machine()}; catalogue: {args.catalogue} ({cat.count()} models)")
     print("| later density (pts/m2) | events right | wrong | strip cars called left | offset error (cm, max of "
           "x, y, z) | unchanged cars keeping their model | compare (s) |\n|---|---|---|---|---|---|---|")

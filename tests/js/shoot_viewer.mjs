@@ -1,10 +1,11 @@
 // Open the twinreg viewer in the system's headless Chromium (local_browser.mjs: every request that is not local is
 // refused), wait for the viewer's ready flag, save a screenshot and print one JSON
-// line: {"ready", "ms", "stats", "errors", "blocked", "cars": [{id, x, y, colour}]}.
-//   node shoot_viewer.mjs URL SCREENSHOT.png [width height]
+// line: {"ready", "ms", "stats", "errors", "blocked", "cars": [{id, x, y, colour}], "clicked", "found", "zoom"};
+// with "zoom" as the fifth argument, the camera then goes close and back ("zoom": the stats at each step).
+//   node shoot_viewer.mjs URL SCREENSHOT.png [width height [zoom]]
 import { localPage } from "./local_browser.mjs";
 
-const [url, shot, w = "1280", h = "800"] = process.argv.slice(2);
+const [url, shot, w = "1280", h = "800", zoomed = ""] = process.argv.slice(2);
 const { browser, page, errors, blocked } = await localPage(w, h);
 try {
   const t0 = Date.now();
@@ -28,7 +29,14 @@ try {
     await page.fill("#search", model);
     found = { model, hits: await page.evaluate(() => document.querySelectorAll("#hits div[data-id]").length) };
   }
-  console.log(JSON.stringify({ ready, ms, stats, errors, blocked, cars, clicked, found }));
+  // the scan streamed by level of detail: closer to a car, denser tiles are requested; back out, they are hidden
+  let zoom = null;
+  if (ready && zoomed) {
+    const near = await page.evaluate(() => window.twinViewerZoom(0.08));
+    const far = await page.evaluate(() => window.twinViewerZoom(1 / 0.08));
+    zoom = { start: stats, near, far };
+  }
+  console.log(JSON.stringify({ ready, ms, stats, errors, blocked, cars, clicked, found, zoom }));
 } finally {
   await browser.close();
 }

@@ -8,7 +8,8 @@
   no model are one unit box scaled per instance; ``EXT_instance_features`` + ``EXT_structural_metadata`` give each
   instance its row: object id, model, make, confidence, matched, sizes.
 - The scan beside it: ``tiles/scan/tileset.json`` (an external tileset referenced from the root, so a viewer shows
-  both), one point GLB per cell, thinned to at most ``SCAN_POINTS`` points each, coloured by height above ground.
+  both), a level-of-detail quadtree of point tiles per cell (:mod:`.scan_tiles`): every point of a scene; a city's
+  cells at most ``SCAN_POINTS`` points each (evenly thinned); coloured by height above ground.
 - ``twin.glb``: every instance in one GLB in the root's east-north-up frame (origin and CRS in ``asset.extras``).
 
 glTF content is Y-up and tiles are Z-up; :mod:`twinreg.export.gltf` writes ``(x, y, z)`` as ``(x, z, -y)`` once,
@@ -28,7 +29,7 @@ from .gltf import Glb
 from .objects import box_mesh
 from .twin_ply import PALETTE as TAB10
 
-#: points of the scan kept per cell (thinned evenly)
+#: points of the scan kept per cell of a city run (thinned evenly); a scene keeps every point
 SCAN_POINTS = 200_000
 #: triangles of a model in the tiles (a city of thousands of cars must draw in a browser; twin.glb and the KMZ
 #: keep Google Earth's 21,845)
@@ -131,11 +132,13 @@ def thin(n: int, keep: int) -> np.ndarray:
     return np.arange(n) if n <= keep else np.linspace(0, n - 1, keep).astype(np.int64)
 
 
-def scan_sample(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, rows=None) -> tuple:
-    """The scan as the tiles carry it: the points ``rows`` (all when None) thinned evenly to at most
-    :data:`SCAN_POINTS`, and their colours: ``(indices into points, (m, 3) uint8)``."""
+def scan_sample(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, rows=None,
+                keep: int | None = SCAN_POINTS) -> tuple:
+    """The scan as the tiles carry it: the points ``rows`` (all when None) thinned evenly to at most ``keep``
+    (None: every point), and their colours: ``(indices into points, (m, 3) uint8)``."""
     rows = np.arange(len(points)) if rows is None else np.asarray(rows)
-    rows = rows[thin(len(rows), SCAN_POINTS)]
+    if keep is not None:
+        rows = rows[thin(len(rows), keep)]
     return rows, scan_colours(hag[rows], is_ground[rows])
 
 
@@ -193,26 +196,18 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
 
 
 def _write_scan(folder: Path, frame: EnuFrame, georef, scans, all_lo: list, all_hi: list) -> int:
+    """The scan's level-of-detail tileset (:mod:`.scan_tiles`), a quadtree per cell."""
+    from .scan_tiles import write_cell_quadtree, write_scan_tileset
+
     folder.mkdir(parents=True, exist_ok=True)
-    children, total = [], 0
-    for name, pts, rgb in scans:
+    entries = []
+    for k, (name, pts, rgb) in enumerate(scans):
         if not len(pts):
             continue
         centre = (pts.min(0) + pts.max(0)) / 2
         a, b = frame.affine_near(georef, centre)
         p = (pts - centre) @ a.T + b
-        c = (p.min(0) + p.max(0)) / 2
-        g = Glb()
-        g.node(g.points(p - c, rgb, f"scan {name}"), f"scan {name}")
-        (folder / f"{name}.glb").write_bytes(g.to_bytes())
-        children.append({"transform": _translation(c), "boundingVolume": {"box": _box(p.min(0) - c, p.max(0) - c)},
-                         "geometricError": 0.0, "content": {"uri": f"{name}.glb"}})
+        entries.append(write_cell_quadtree(folder, name, p, rgb, seed=k))
         all_lo.append(p.min(0))
         all_hi.append(p.max(0))
-        total += len(p)
-    lo, hi = np.min(all_lo, 0), np.max(all_hi, 0)
-    doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": 1.0,
-           "root": {"boundingVolume": {"box": _box(lo, hi)}, "geometricError": 1.0, "refine": "ADD",
-                    "children": children}}
-    (folder / "tileset.json").write_text(json.dumps(doc, indent=1), encoding="utf-8")
-    return total
+    return write_scan_tileset(folder, entries) if entries else 0

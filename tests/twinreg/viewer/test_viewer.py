@@ -66,7 +66,9 @@ def test_the_viewer_shows_the_demo_cars_in_a_real_browser_offline(demo_twin, ser
     got = json.loads(proc.stdout.strip().splitlines()[-1])
     assert got["ready"] and got["errors"] == [] and got["blocked"] == [], got
     twin = json.loads((demo_twin / "twin.json").read_text())
-    assert got["stats"]["instances"] == len(twin["objects"]) and got["stats"]["points"] > 10_000
+    assert got["stats"]["instances"] == len(twin["objects"]) and got["stats"]["scanPoints"] > 10_000
+    tiles = json.loads((demo_twin / "tiles" / "scan" / "tileset.json").read_text())
+    assert tiles["root"]["refine"] == "ADD"
     assert got["ms"] < 30_000
     import matplotlib.image
 
@@ -89,6 +91,23 @@ def test_the_viewer_shows_the_demo_cars_in_a_real_browser_offline(demo_twin, ser
     assert model and got["found"]["hits"] == sum(1 for o in twin["objects"] if o["match"]
                                                  and model.lower() in o["match"]["name"].lower())
     shutil.copy(shot, ROOT / "docs" / "viewer_demo.png")
+
+
+def test_the_scan_streams_by_level_of_detail(demo_twin, served):
+    """On a small screen (where a screen-space error is small), the whole park needs only the coarse tiles;
+    close to a car, denser tiles are requested and shown; back out, they are hidden."""
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "shoot_viewer.mjs"), served,
+                           str(demo_twin.parent / "small.png"), "480", "200", "zoom"],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["ready"] and got["errors"] == [], got
+    z = got["zoom"]
+    assert z["near"]["scanRequests"] > z["start"]["scanRequests"], z
+    assert z["near"]["scanPoints"] > 2 * z["start"]["scanPoints"] > 0, z
+    assert z["far"]["scanPoints"] == z["start"]["scanPoints"], z
+    twin = json.loads((demo_twin / "twin.json").read_text())
+    assert twin["tiles"]["n_scan_points"] == twin["n_points"]  # every point of the scan is in the tiles
 
 
 def test_the_server_serves_only_its_folders(demo_twin, served):

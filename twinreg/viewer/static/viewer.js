@@ -4,6 +4,7 @@
 // A twin may come from someone else: what it says is shown as text (textContent), never parsed as HTML.
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
+import { LodTile } from "./lod.js";
 import { makeStage, textTable } from "./stage.js";
 
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
@@ -12,7 +13,34 @@ const stage = makeStage([new THREE.HemisphereLight(0xffffff, 0x555555, 2.2), sun
 const { camera, controls, world, redraw } = stage;
 const loader = new GLTFLoader();
 const cars = [];        // instanced meshes of the models, each with userData.ids
-const stats = { tiles: 0, instances: 0, points: 0 };
+const stats = { tiles: 0, instances: 0, points: 0, scanRequests: 0, scanTiles: 0, scanPoints: 0 };
+const scanRoots = [];   // the scan's tilesets, streamed by screen-space error (lod.js)
+
+async function loadPoints(href) {
+  const gltf = await loader.loadAsync(href);
+  gltf.scene.rotation.x = Math.PI / 2;   // glTF Y-up -> the tile's Z-up
+  gltf.scene.traverse((o) => { if (o.isPoints) { o.material.size = 1.5; o.material.sizeAttenuation = false; } });
+  return gltf.scene;
+}
+
+// refine the scan for the current view; the stats say what is shown
+let lodRunning = null, lodAgain = false;
+async function updateScan() {
+  if (lodRunning) { lodAgain = true; return lodRunning; }
+  lodRunning = (async () => {
+    do {
+      lodAgain = false;
+      world.updateMatrixWorld(true);
+      const shown = { points: 0, tiles: 0 };
+      const height = stage.renderer.domElement.clientHeight;
+      await Promise.all(scanRoots.map((r) => r.update(camera, height, shown)));
+      stats.scanPoints = shown.points; stats.scanTiles = shown.tiles;
+      redraw();
+    } while (lodAgain);
+  })();
+  await lodRunning;
+  lodRunning = null;
+}
 
 function matrixOf(tile) {
   const m = new THREE.Matrix4();
@@ -27,7 +55,10 @@ async function loadTile(tile, base, parent) {
   parent.add(group);
   if (tile.content) {
     const uri = new URL(tile.content.uri, base);
-    if (uri.pathname.endsWith(".json")) {
+    if (uri.pathname.endsWith(".json") && uri.pathname.includes("/scan/")) {
+      scanRoots.push(new LodTile({ boundingVolume: tile.boundingVolume, content: tile.content,
+        geometricError: tile.geometricError }, base, group, loadPoints, stats));
+    } else if (uri.pathname.endsWith(".json")) {
       const ext = await (await fetch(uri)).json();
       await loadTile(ext.root, uri, group);
     } else {
@@ -137,6 +168,17 @@ function focusOn(id) {
 stage.onClick(() => cars, (hit) => showObject(hit.object.userData.ids[hit.instanceId]));
 
 // screen positions of the cars (for tests and scripts): [{id, x, y, model}]
+// move the camera towards (factor < 1) or away from its target, then stream the scan for the new view
+window.twinViewerZoom = async (factor, target) => {
+  if (target) controls.target.set(target[0], target[1], target[2]);
+  const offset = camera.position.clone().sub(controls.target).multiplyScalar(factor);
+  camera.position.copy(controls.target).add(offset);
+  controls.update();
+  await updateScan();
+  stage.render();
+  return Object.assign({}, stats);
+};
+
 window.twinViewerProbe = () => {
   const out = [];
   for (const mesh of cars) {
@@ -165,10 +207,12 @@ async function main() {
   stage.frame(new THREE.Box3().setFromObject(world), new THREE.Vector3(0.1, 0.85, 0.52));
   const matched = twin.objects.filter((o) => o.match).length;
   document.getElementById("title").textContent = `twinreg: ${twin.scene}`;
-  document.getElementById("summary").textContent =
-    `${twin.objects.length} objects, ${matched} with a model; ${stats.instances} instances in ${stats.tiles} tiles, ` +
-    `${stats.points.toLocaleString()} scan points`;
   document.getElementById("search").oninput = (e) => search(e.target.value);
+  await updateScan();
+  controls.addEventListener("change", () => { updateScan(); });
+  document.getElementById("summary").textContent =
+    `${twin.objects.length} objects, ${matched} with a model; ${stats.instances} instances in ${stats.tiles} tiles; ` +
+    `the scan streamed by level of detail (${stats.scanPoints.toLocaleString()} points in view)`;
   stage.render();
   stats.ms = performance.now() - t0;
   window.twinViewerStats = stats;

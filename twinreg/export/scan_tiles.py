@@ -1,0 +1,123 @@
+"""The scan as a level-of-detail point tileset (``tiles/scan/``): every point of each cell (or a stated budget) in
+a quadtree whose tiles refine as a viewer comes closer (``refine: ADD``), the way point-cloud tilers (py3dtiles,
+Entwine, untwine/COPC) stream a scan.
+
+Each point is given one level at random, level ``d`` with a probability proportional to ``4^d`` up to the depth
+that leaves about :data:`NODE_POINTS` points a tile, so every tile holds about as many points and each level is an
+even thinning of the scan four times denser than the one above. A tile at level ``d`` covers a quarter of its
+parent's square and holds its level's points there; its ``geometricError`` is the spacing of the points shown down
+to it (what a viewer misses by not loading its children), 0 at the leaves. Each cell's quadtree is an external
+tileset (``scan/<cell>.json``) referenced from ``scan/tileset.json``, so a city's cells are written one at a time
+in bounded memory.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .gltf import Glb
+
+#: points a tile holds (about)
+NODE_POINTS = 50_000
+
+
+def _box(lo: np.ndarray, hi: np.ndarray) -> list[float]:
+    c, h = (lo + hi) / 2, np.maximum((hi - lo) / 2, 0.01)
+    return [*map(float, c), float(h[0]), 0.0, 0.0, 0.0, float(h[1]), 0.0, 0.0, 0.0, float(h[2])]
+
+
+def _translation(c: np.ndarray) -> list[float]:
+    m = np.eye(4)
+    m[:3, 3] = c
+    return [float(v) for v in m.T.ravel()]
+
+
+def levels(n: int, seed: int = 0) -> tuple[np.ndarray, int]:
+    """(each of n points' level, the depth): level d with a probability proportional to 4^d."""
+    depth = max(0, int(np.ceil(np.log(max(n / NODE_POINTS, 1.0)) / np.log(4))))
+    share = 4.0 ** np.arange(depth + 1)
+    return np.random.default_rng(seed).choice(depth + 1, n, p=share / share.sum()), depth
+
+
+def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarray, seed: int = 0) -> dict:
+    """Write one cell's quadtree (``folder/<name>/L-I-J.glb`` and ``folder/<name>.json``) of (n, 3) east-north-up
+    points (the twin's frame) and their colours; returns its entry for the scan tileset's root."""
+    lo, hi = enu.min(0), enu.max(0)
+    side = float(max(hi[0] - lo[0], hi[1] - lo[1], 1.0)) * (1 + 1e-9)
+    level, depth = levels(len(enu), seed)
+    (folder / name).mkdir(parents=True, exist_ok=True)
+    area = side * side
+    nodes = {}
+    for d in range(depth + 1):
+        sel = np.flatnonzero(level == d)
+        n_cells = 2 ** d
+        ij = np.clip(np.floor((enu[sel, :2] - lo[:2]) / (side / n_cells)).astype(np.int64), 0, n_cells - 1)
+        order = np.lexsort((ij[:, 1], ij[:, 0]))
+        sel, ij = sel[order], ij[order]
+        cuts = np.flatnonzero(np.any(np.diff(ij, axis=0) != 0, axis=1)) + 1
+        shown = max(np.sum(level <= d), 1)
+        error = 0.0 if d == depth else float(np.sqrt(area / shown))
+        for rows, key in zip(np.split(sel, cuts), ij[np.r_[0, cuts]] if len(ij) else []):
+            p = enu[rows]
+            c = (p.min(0) + p.max(0)) / 2
+            uri = f"{name}/{d}-{key[0]}-{key[1]}.glb"
+            g = Glb()
+            g.node(g.points(p - c, rgb[rows], f"scan {name} {d}"), f"scan {name} {d}")
+            (folder / uri).write_bytes(g.to_bytes())
+            nodes[(d, int(key[0]), int(key[1]))] = {"transform": _translation(c),
+                                                    "boundingVolume": {"box": _box(p.min(0) - c, p.max(0) - c)},
+                                                    "geometricError": error, "content": {"uri": uri},
+                                                    "children": [], "_lo": p.min(0), "_hi": p.max(0), "_c": c}
+    # every tile under its parent (a tile whose level drew no points there gets an empty parent)
+    for (d, i, j) in sorted(nodes, reverse=True):
+        if d == 0:
+            continue
+        parent = (d - 1, i // 2, j // 2)
+        if parent not in nodes:
+            nodes[parent] = {"boundingVolume": None, "geometricError": float(np.sqrt(area / max(
+                np.sum(level <= d - 1), 1))), "children": [], "_lo": nodes[(d, i, j)]["_lo"],
+                "_hi": nodes[(d, i, j)]["_hi"], "_c": np.zeros(3)}
+        par, child = nodes[parent], nodes[(d, i, j)]
+        par["_lo"], par["_hi"] = np.minimum(par["_lo"], child["_lo"]), np.maximum(par["_hi"], child["_hi"])
+        par["children"].append(child)
+    root = nodes[(0, 0, 0)]
+    cell_error = float(np.sqrt(area / max(np.sum(level == 0), 1))) if depth else 0.0
+
+    def finish(node, parent_c):
+        """Child transforms are relative to the parent's; boxes in the tile's own frame."""
+        c = node["_c"]
+        node["transform"] = _translation(c - parent_c)
+        node["boundingVolume"] = {"box": _box(node["_lo"] - c, node["_hi"] - c)}
+        for ch in node["children"]:
+            finish(ch, c)
+        if not node["children"]:
+            node.pop("children")
+        for k in ("_lo", "_hi", "_c"):
+            node.pop(k)
+        return node
+
+    lo_all, hi_all, c0 = root["_lo"], root["_hi"], root["_c"]
+    tree = finish(root, np.zeros(3))
+    tree["refine"] = "ADD"
+    doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": max(cell_error * 2, 1.0),
+           "root": tree}
+    (folder / f"{name}.json").write_text(json.dumps(doc), encoding="utf-8")
+    return {"boundingVolume": {"box": _box(lo_all, hi_all)}, "geometricError": max(cell_error * 2, 1.0),
+            "content": {"uri": f"{name}.json"}, "_lo": lo_all, "_hi": hi_all, "_n": len(enu), "_c": c0}
+
+
+def write_scan_tileset(folder: Path, entries: list[dict]) -> int:
+    """``scan/tileset.json`` over the cells' quadtrees; returns the points they hold."""
+    lo = np.min([e["_lo"] for e in entries], axis=0)
+    hi = np.max([e["_hi"] for e in entries], axis=0)
+    total = sum(e["_n"] for e in entries)
+    error = float(max(e["geometricError"] for e in entries)) * 2
+    children = [{k: v for k, v in e.items() if not k.startswith("_")} for e in entries]
+    doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": error,
+           "root": {"boundingVolume": {"box": _box(lo, hi)}, "geometricError": error, "refine": "ADD",
+                    "children": children}}
+    (folder / "tileset.json").write_text(json.dumps(doc), encoding="utf-8")
+    return total
