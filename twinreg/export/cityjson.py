@@ -1,6 +1,6 @@
 """twin.city.json (CityJSON 2.0): one ``CityFurniture`` (function: vehicle) per object, with the object's twin.json
-record as attributes, drawn by its catalogue model's mesh (the tiles' mesh of at most 2,000 triangles) or a box of
-its measured size when it has no model. For city runs also ``twin.city.jsonl``, the same objects as CityJSONSeq
+record as attributes, drawn by its catalogue model's mesh (decimated to at most 300 triangles: each car carries its
+own copy) or a box of its measured size when it has no model. For city runs also ``twin.city.jsonl``, the same objects as CityJSONSeq
 (CityJSON Text Sequences: a first line with the transform and metadata, then one ``CityJSONFeature`` a line, each
 with its own vertices), which cjio and the streaming tools read a feature at a time.
 
