@@ -52,7 +52,8 @@ class RunSettings:
     """The options of a build-twin run (the command's, in one object): the unit, the size tolerance and cluster
     threshold (None: the defaults), the tiled run's cell, buffer, workers, scheduler and restart, and whether to
     write PLY (None: twin.ply for one scene, none for tiles); the survey's date (``YYYY-MM-DD``; None: the
-    LAS/LAZ headers'); CityJSON with geometry templates instead of explicit geometry."""
+    LAS/LAZ headers'); a scene's CityJSON with geometry templates instead of explicit geometry (a city's has
+    templates, and explicit geometry in its CityJSONSeq)."""
 
     unit: str = "auto"
     tol: float | None = None
@@ -88,7 +89,7 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
-                               date=s.date, templates=s.cityjson_templates)
+                               date=s.date)
     say = (lambda msg: progress(msg, None, None)) if progress else None
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                       progress=say, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates)

@@ -246,8 +246,8 @@ class Catalogue:
         if max_faces is None:
             geo = self.geometry(row)
             v, f = decimate(geo.mesh_vertices, geo.mesh_faces, GE_MAX_TRIANGLES)
-        else:  # from the next larger cached mesh: a small target is reached in a fraction of the time
-            v, f = decimate(*(self.ge_mesh(row, 2_000) if max_faces < 2_000 else self.ge_mesh(row)), max_faces)
+        else:  # from the Google Earth mesh: a small target is reached in a fraction of the time
+            v, f = decimate(*self.ge_mesh(row), max_faces)
         try:
             _atomic_npz(path, vertices=v.astype(np.float32), faces=f.astype(np.int32))
         except OSError:

@@ -154,8 +154,7 @@ def _clean_work(store: CellStore) -> None:
 def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: float | None = None,
                     threshold: float | None = None, params: CoscoParams = DEFAULT, cell: float | None = None,
                     buffer: float = 10.0, workers: int | None = None, scheduler: str | None = None,
-                    restart: bool = False, ply: bool = False, progress=None, date: str | None = None,
-                    templates: bool = False) -> dict:
+                    restart: bool = False, ply: bool = False, progress=None, date: str | None = None) -> dict:
     """Build the twin of tiles (files, folders, globs of LAS/LAZ/COPC) cell by cell on Dask; returns the twin JSON
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances."""
     import twinreg
@@ -212,7 +211,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     _say(progress, "export", 0, 1)
     run = CityRun(out=out, protect=protect, store=store, keys=keys, sources=sources, plan=p, georef=georef,
                   results=results, objects=objects, tax=tax, outcomes=outcomes, stats=stats, models=models,
-                  catalogue=catalogue, params=params, ply=ply, templates=templates, timing=timing, t_start=t_start, progress=progress,
+                  catalogue=catalogue, params=params, ply=ply, timing=timing, t_start=t_start, progress=progress,
                   reused=p.n_cells - len(todo), date=date)
     twin = export_city(run)
     timing["export"] = time.perf_counter() - t

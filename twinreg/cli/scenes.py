@@ -95,8 +95,9 @@ def build_twin_cmd(
                                              "creation date]; written to twin.json as survey_date.",
         show_default=False)] = None,
     cityjson_templates: Annotated[bool, typer.Option(
-        "--cityjson-templates", help="twin.city.json with one geometry template per model (smaller; for tools "
-                                     "that read templates) instead of explicit geometry (opens everywhere).")] = False,
+        "--cityjson-templates", help="A scene's twin.city.json with one geometry template per model (smaller; for "
+                                     "tools that read templates) instead of explicit geometry (opens everywhere). A "
+                                     "city's always has templates, and twin.city.jsonl the explicit geometry.")] = False,
     ply: Annotated[Optional[bool], typer.Option(
         "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
                                "--ply writes ply/<cell>.ply].", show_default=False)] = None,

@@ -1,6 +1,6 @@
 """twin.city.json (CityJSON 2.0): one ``CityFurniture`` (function: vehicle) per object, with the object's twin.json
-record as attributes, drawn by its catalogue model's mesh (decimated to at most 300 triangles: each car carries its
-own copy) or a box of its measured size when it has no model. For city runs also ``twin.city.jsonl``, the same objects as CityJSONSeq
+record as attributes, drawn by its catalogue model's mesh (the tiles' mesh of at most 2,000 triangles) or a box of
+its measured size when it has no model. For city runs also ``twin.city.jsonl``, the same objects as CityJSONSeq
 (CityJSON Text Sequences: a first line with the transform and metadata, then one ``CityJSONFeature`` a line, each
 with its own vertices), which cjio and the streaming tools read a feature at a time.
 
@@ -8,7 +8,8 @@ Geometry is explicit by default (one ``MultiSurface`` per object, its vertices p
 the web viewer ninja, the three.js CityJSON loader and older cjio cannot draw geometry templates, and explicit
 geometry opens everywhere. With ``templates`` (``build-twin --cityjson-templates``) each model is one geometry
 template (a unit box for objects with no model) and each object a ``GeometryInstance`` of it: a much smaller file
-for a city of many cars of few models, for the tools that read templates.
+for the tools that read templates. A city run's twin.city.json always has templates (explicit geometry is 69 kB a
+car: 500 MB for a city of 5,200), and its CityJSONSeq the explicit geometry, a feature a line.
 
 Coordinates are in the scene's CRS and its units (``metadata.referenceSystem``); a template is the model's mesh in
 metres (Z up, front +X, footprint centred, lowest point at 0) and each instance's ``transformationMatrix`` (4 x 4,

@@ -12,9 +12,6 @@ from .cityjson import write_cityjson
 from .geojson import footprints_lonlat, write_geojson
 from .tiles3d import TILE_MAX_TRIANGLES, instance_of, write_tiles
 
-#: triangles of a model in CityJSON (each car carries its own copy in explicit geometry)
-CITYJSON_MAX_TRIANGLES = 300
-
 
 def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: list, scans: list | None,
                   title: str, models, templates: bool = False, seq: bool = False) -> dict:
@@ -28,16 +25,13 @@ def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: lis
     meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
     light = {key: (*models.light_mesh(int(key[len("model"):]), TILE_MAX_TRIANGLES), rgb)
              for key, (_, _, rgb) in meshes.items()}
-    # CityJSON draws each car with its own copy of the mesh (explicit geometry): a lighter one keeps a city's file
-    # tens of megabytes, not hundreds
-    coarse = {key: (*models.light_mesh(int(key[len("model"):]), CITYJSON_MAX_TRIANGLES), rgb)
-              for key, (_, _, rgb) in meshes.items()}
+
     docs = [o.doc for o in outputs]
     # pyproj's transformations stay in this thread (its objects are not shared between threads)
     ll = footprints_lonlat([np.asarray(o.footprint["corners"]) + np.asarray(off)[:2]
                             for o, off in zip(outputs, offsets)], georef)
     with ThreadPoolExecutor(2) as pool:  # JSON encoding beside the tiles' numpy work
-        side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, coarse, docs,
+        side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, light, docs,
                             [d["heading_rad"] for d in docs], georef, title, templates,
                             stage / "twin.city.jsonl" if seq else None),
                 pool.submit(write_geojson, stage / "twin.geojson", docs, ll)]
