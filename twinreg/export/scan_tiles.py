@@ -24,12 +24,14 @@ from .gltf import Glb
 NODE_POINTS = 50_000
 
 
-def _box(lo: np.ndarray, hi: np.ndarray) -> list[float]:
+def box_volume(lo: np.ndarray, hi: np.ndarray) -> list[float]:
+    """3D Tiles' ``box`` bounding volume of the axis-aligned box ``[lo, hi]`` (at least 1 cm thick)."""
     c, h = (lo + hi) / 2, np.maximum((hi - lo) / 2, 0.01)
     return [*map(float, c), float(h[0]), 0.0, 0.0, 0.0, float(h[1]), 0.0, 0.0, 0.0, float(h[2])]
 
 
-def _translation(c: np.ndarray) -> list[float]:
+def translation(c: np.ndarray) -> list[float]:
+    """A tile's ``transform`` (column-major 4 x 4) moving it by ``c``."""
     m = np.eye(4)
     m[:3, 3] = c
     return [float(v) for v in m.T.ravel()]
@@ -67,8 +69,8 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
             g = Glb()
             g.node(g.points(p - c, rgb[rows], f"scan {name} {d}"), f"scan {name} {d}")
             (folder / uri).write_bytes(g.to_bytes())
-            nodes[(d, int(key[0]), int(key[1]))] = {"transform": _translation(c),
-                                                    "boundingVolume": {"box": _box(p.min(0) - c, p.max(0) - c)},
+            nodes[(d, int(key[0]), int(key[1]))] = {"transform": translation(c),
+                                                    "boundingVolume": {"box": box_volume(p.min(0) - c, p.max(0) - c)},
                                                     "geometricError": error, "content": {"uri": uri},
                                                     "children": [], "_lo": p.min(0), "_hi": p.max(0), "_c": c}
     # every tile under its parent (a tile whose level drew no points there gets an empty parent)
@@ -89,8 +91,8 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
     def finish(node, parent_c):
         """Child transforms are relative to the parent's; boxes in the tile's own frame."""
         c = node["_c"]
-        node["transform"] = _translation(c - parent_c)
-        node["boundingVolume"] = {"box": _box(node["_lo"] - c, node["_hi"] - c)}
+        node["transform"] = translation(c - parent_c)
+        node["boundingVolume"] = {"box": box_volume(node["_lo"] - c, node["_hi"] - c)}
         for ch in node["children"]:
             finish(ch, c)
         if not node["children"]:
@@ -105,7 +107,7 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
     doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": max(cell_error * 2, 1.0),
            "root": tree}
     (folder / f"{name}.json").write_text(json.dumps(doc), encoding="utf-8")
-    return {"boundingVolume": {"box": _box(lo_all, hi_all)}, "geometricError": max(cell_error * 2, 1.0),
+    return {"boundingVolume": {"box": box_volume(lo_all, hi_all)}, "geometricError": max(cell_error * 2, 1.0),
             "content": {"uri": f"{name}.json"}, "_lo": lo_all, "_hi": hi_all, "_n": len(enu), "_c": c0}
 
 
@@ -117,7 +119,7 @@ def write_scan_tileset(folder: Path, entries: list[dict]) -> int:
     error = float(max(e["geometricError"] for e in entries)) * 2
     children = [{k: v for k, v in e.items() if not k.startswith("_")} for e in entries]
     doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": error,
-           "root": {"boundingVolume": {"box": _box(lo, hi)}, "geometricError": error, "refine": "ADD",
+           "root": {"boundingVolume": {"box": box_volume(lo, hi)}, "geometricError": error, "refine": "ADD",
                     "children": children}}
     (folder / "tileset.json").write_text(json.dumps(doc), encoding="utf-8")
     return total

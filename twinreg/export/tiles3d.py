@@ -27,6 +27,7 @@ import numpy as np
 from ..geo.earth import EnuFrame, enu_angles
 from .gltf import Glb
 from .objects import box_mesh
+from .scan_tiles import box_volume, translation
 from .twin_ply import PALETTE as TAB10
 
 #: points of the scan kept per cell of a city run (thinned evenly); a scene keeps every point
@@ -108,17 +109,6 @@ def instances_glb(instances: list[Instance], positions: np.ndarray, angles: np.n
     return g.to_bytes()
 
 
-def _box(lo: np.ndarray, hi: np.ndarray) -> list[float]:
-    c, h = (lo + hi) / 2, np.maximum((hi - lo) / 2, 0.01)
-    return [*map(float, c), float(h[0]), 0.0, 0.0, 0.0, float(h[1]), 0.0, 0.0, 0.0, float(h[2])]
-
-
-def _translation(c: np.ndarray) -> list[float]:
-    m = np.eye(4)
-    m[:3, 3] = c
-    return [float(v) for v in m.T.ravel()]
-
-
 def scan_colours(hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
     """(n, 3) uint8: ground grey, the rest from blue (low) to yellow (4 m and more) by height above ground."""
     t = np.clip(np.asarray(hag, dtype=np.float64) / 4.0, 0.0, 1.0)[:, None]
@@ -172,12 +162,12 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
         blo, bhi = p.min(0) - c - reach, p.max(0) - c + reach
         all_lo.append(blo + c)
         all_hi.append(bhi + c)
-        children.append({"transform": _translation(c), "boundingVolume": {"box": _box(blo, bhi)},
+        children.append({"transform": translation(c), "boundingVolume": {"box": box_volume(blo, bhi)},
                          "geometricError": 0.0, "content": {"uri": f"cells/{name}.glb"}})
     n_scan = 0
     if scans:
         n_scan = _write_scan(out / "tiles" / "scan", frame, georef, scans, all_lo, all_hi)
-        children.append({"boundingVolume": {"box": _box(np.min(all_lo, 0), np.max(all_hi, 0))},
+        children.append({"boundingVolume": {"box": box_volume(np.min(all_lo, 0), np.max(all_hi, 0))},
                          "geometricError": 1.0, "content": {"uri": "scan/tileset.json"}})
     root_lo, root_hi = np.min(all_lo, 0), np.max(all_hi, 0)
     size = float(np.linalg.norm(root_hi - root_lo))
@@ -186,7 +176,7 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
                          "extras": {"origin": origin, "crs": georef.crs, "frame": "east-north-up metres about origin"}},
                "geometricError": size,
                "root": {"transform": [float(v) for v in frame.to_ecef_matrix().T.ravel()],
-                        "boundingVolume": {"box": _box(root_lo, root_hi)}, "geometricError": size / 2,
+                        "boundingVolume": {"box": box_volume(root_lo, root_hi)}, "geometricError": size / 2,
                         "refine": "ADD", "children": children}}
     (out / "tiles" / "tileset.json").write_text(json.dumps(tileset, indent=1), encoding="utf-8")
     extras = {"origin": origin, "crs": georef.crs,
