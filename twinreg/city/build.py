@@ -253,7 +253,7 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
     for n in todo:
         reads = tuple(str(folders[s.path]) for s in p.feeds[n] if s.path in folders)
         boxes = tuple(s for s in p.feeds[n] if s.path not in folders)
-        cell_jobs.append(CellJob(p.cells[n], reads, boxes, params, keys[n], p.offset))
+        cell_jobs.append(CellJob(p.cells[n], reads, boxes, params, keys[n], p.offset, str(store.scan_folder())))
         deps[n] = [splits[s.path] for s in p.feeds[n] if s.path in splits]
     done = [p.n_cells - len(todo)]
     _say(progress, "cells", done[0], p.n_cells)

@@ -24,7 +24,8 @@ class CellJob:
     """What a worker needs for one cell: the cell, and for each tile that feeds it either the folder of its split
     (plain LAS/LAZ cut once into cells) or the tile itself (COPC, or a run of one cell), read by bounds; and the
     run's local frame (``offset``, the same for every cell, as a reader would choose for all the tiles merged),
-    so that every grid the stages cut lies where it would on the whole scene."""
+    so that every grid the stages cut lies where it would on the whole scene; ``scan_dir``: where the worker writes
+    the cell's scan tiles (every point of its core, :mod:`twinreg.export.scan_tiles`), None for none."""
 
     cell: Cell
     splits: tuple = ()
@@ -32,6 +33,7 @@ class CellJob:
     params: CoscoParams = DEFAULT
     key: str = ""
     offset: tuple = (0.0, 0.0, 0.0)
+    scan_dir: str | None = None
 
 
 @dataclass
@@ -54,8 +56,9 @@ class CellObject:
 class CellResult:
     """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings,
     where its core's scan saw anything (``observed``, a :class:`~twinreg.change.observed.Raster`: the report's map
-    and the twin's observation record) and a thinned sample of its core's points for the 3D tiles:
-    ``(points (n, 3) float32 scene-local, colours (n, 3) uint8)``."""
+    and the twin's observation record) and its scan for the 3D tiles: ``scan_tiles``, where the worker wrote every
+    point of its core as tiles (:func:`~twinreg.export.scan_tiles.write_cell_scan`), or else ``scan``, a thinned
+    sample ``(points (n, 3) float32 scene-local, colours (n, 3) uint8)``."""
 
     name: str
     key: str
@@ -71,6 +74,7 @@ class CellResult:
     timing_s: dict = field(default_factory=dict)
     observed: object = None
     scan: tuple | None = None
+    scan_tiles: dict | None = None
 
 
 def read_cell(job: CellJob) -> np.ndarray:
@@ -97,6 +101,7 @@ def _process_cell(job: CellJob) -> CellResult:
 
     from ..change.observed import raster
     from ..detect import describe_detected, detect_points, object_ground, object_points
+    from ..export.scan_tiles import cell_scan_folder, write_cell_scan
     from ..export.tiles3d import scan_sample
     from ..io.points import PointSet
     from ..matching.acceptance import sample_cloud, scene_noise
@@ -108,6 +113,8 @@ def _process_cell(job: CellJob) -> CellResult:
     out.n_read = len(pts[0])
     out.timing_s["read"] = time.perf_counter() - t0
     if out.n_read < 100:
+        if job.scan_dir:  # an empty cell has no tiles: its empty folder says it is done
+            cell_scan_folder(Path(job.scan_dir), cell.name, job.key).mkdir(parents=True, exist_ok=True)
         return out
     offset = np.asarray(job.offset, dtype=np.float64)
     # the ground from everything read (the filter's reach), the objects from the core and its buffer
@@ -121,8 +128,15 @@ def _process_cell(job: CellJob) -> CellResult:
     out.n_outliers = int(det.scene.n_outliers)
     out.noise = scene_noise(det.hag, det.is_ground)
     out.observed = raster(pts, det.hag, det.is_ground, cell.lo, cell.hi)
-    rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
-    out.scan = ((pts[rows] - offset).astype(np.float32), colours)
+    if job.scan_dir:  # every point of the core, as level-of-detail tiles written here on the worker
+        rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own), keep=None)
+        if len(rows):
+            out.scan_tiles = write_cell_scan(Path(job.scan_dir), cell.name, job.key, pts[rows], colours)
+        else:
+            cell_scan_folder(Path(job.scan_dir), cell.name, job.key).mkdir(parents=True, exist_ok=True)
+    else:
+        rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
+        out.scan = ((pts[rows] - offset).astype(np.float32), colours)
     t = time.perf_counter()
     owned, centres = [], []
     for o in det.segmentation.objects:

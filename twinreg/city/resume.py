@@ -38,8 +38,8 @@ class CellStore:
         return self.folder / f"{name}-{key}.npz"
 
     def has(self, name: str, key: str) -> bool:
-        """True when a readable result of this cell and key is kept (an unreadable or foreign file is deleted:
-        the cell is then computed again)."""
+        """True when a readable result of this cell and key is kept with its scan tiles (an unreadable or foreign
+        file is deleted: the cell is then computed again)."""
         p = self.path(name, key)
         if not p.is_file():
             return False
@@ -49,7 +49,7 @@ class CellStore:
             ok = False
         if not ok:
             p.unlink(missing_ok=True)
-        return ok
+        return ok and (self.scan_folder() / f"{name}-{key}").is_dir()  # its scan tiles too
 
     def save(self, result) -> Path:
         return cellfile.save(result, self.path(result.name, result.key))
@@ -60,18 +60,28 @@ class CellStore:
     def split_folder(self, key: str) -> Path:
         return self.folder / "split" / key
 
+    def scan_folder(self) -> Path:
+        """Where the workers write the cells' scan tiles (one folder a cell and key)."""
+        return self.folder / "scan"
+
     def clear(self) -> None:
         """Forget every stored result (``--restart``)."""
         shutil.rmtree(self.folder, ignore_errors=True)
 
     def prune(self, keep: set[tuple[str, str]]) -> None:
-        """Remove the splits, temporary files and results of cells other than ``keep`` ((name, key) pairs)."""
+        """Remove the splits, temporary files and results (and scan tiles) of cells other than ``keep`` ((name, key)
+        pairs)."""
         if not self.folder.is_dir():
             return
         shutil.rmtree(self.folder / "split", ignore_errors=True)
         wanted = {self.path(n, k).name for n, k in keep}
+        scans = {f"{n}-{k}" for n, k in keep}
+        if (self.folder / "scan").is_dir():
+            for p in (self.folder / "scan").iterdir():
+                if p.name not in scans:
+                    shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
         for p in self.folder.iterdir():
-            if p.is_dir():
+            if p.is_dir() and p.name != "scan":
                 shutil.rmtree(p, ignore_errors=True)
-            elif p.name not in wanted:
+            elif p.is_file() and p.name not in wanted:
                 p.unlink(missing_ok=True)

@@ -123,3 +123,59 @@ def write_scan_tileset(folder: Path, entries: list[dict]) -> int:
                     "children": children}}
     (folder / "tileset.json").write_text(json.dumps(doc), encoding="utf-8")
     return total
+
+
+def cell_scan_folder(scan_dir: Path, name: str, key: str) -> Path:
+    """Where a city cell's scan tiles are kept (``OUT/.cells/scan/<cell>-<key>``)."""
+    return Path(scan_dir) / f"{name}-{key}"
+
+
+def write_cell_scan(scan_dir: Path, name: str, key: str, points: np.ndarray, rgb: np.ndarray) -> dict:
+    """A city cell's quadtree of every point of its core, written by its worker in the cell's own frame (scene
+    metres about the points' centre; the export places it in the twin's frame by an affine ``transform``), into a
+    temporary folder renamed when complete. Returns what the export needs: the folder, the centre and the
+    quadtree's entry (its box in the cell's frame, error and point count)."""
+    import os
+    import shutil
+
+    final = cell_scan_folder(scan_dir, name, key)
+    tmp = final.with_name(final.name + ".tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    centre = (points.min(0) + points.max(0)) / 2
+    entry = write_cell_quadtree(tmp, name, np.asarray(points - centre, dtype=np.float64), rgb)
+    shutil.rmtree(final, ignore_errors=True)
+    os.replace(tmp, final)
+    return {"folder": str(final), "centre": [float(v) for v in centre], "lo": [float(v) for v in entry["_lo"]],
+            "hi": [float(v) for v in entry["_hi"]], "n": int(entry["_n"]), "error": float(entry["geometricError"]),
+            "uri": entry["content"]["uri"]}
+
+
+def link_tree(src: Path, dst: Path) -> None:
+    """``dst`` a copy of folder ``src`` made of hard links where the file system allows (no bytes copied: the work
+    folder keeps its tiles for a rerun), else of copies."""
+    import os
+    import shutil
+
+    for root, _, files in os.walk(src):
+        here = dst / Path(root).relative_to(src)
+        here.mkdir(parents=True, exist_ok=True)
+        for f in files:
+            try:
+                os.link(Path(root) / f, here / f)
+            except OSError:
+                shutil.copy2(Path(root) / f, here / f)
+
+
+def prebuilt_entry(info: dict, a: np.ndarray, b: np.ndarray) -> dict:
+    """A worker-written cell quadtree as an entry of ``scan/tileset.json``: its box in the cell's frame and the
+    affine ``transform`` (cell frame -> the twin's east-north-up frame: ``enu = p @ a.T + b``)."""
+    m = np.eye(4)
+    m[:3, :3] = a
+    m[:3, 3] = b
+    lo, hi = np.asarray(info["lo"]), np.asarray(info["hi"])
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    enu = corners @ a.T + b
+    return {"transform": [float(v) for v in m.T.ravel()], "boundingVolume": {"box": box_volume(lo, hi)},
+            "geometricError": info["error"], "content": {"uri": info["uri"]}, "_lo": enu.min(0), "_hi": enu.max(0),
+            "_n": info["n"]}

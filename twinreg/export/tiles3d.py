@@ -133,14 +133,14 @@ def scan_sample(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, rows
 
 
 def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, groups: list[tuple[str, list[int]]],
-                scans: list[tuple[str, np.ndarray, np.ndarray]] | None = None,
-                tile_meshes: dict | None = None) -> dict:
+                scans: list | None = None, tile_meshes: dict | None = None) -> dict:
     """Write ``out/tiles/`` (tileset.json, one GLB per group, the scan tileset) and ``out/twin.glb``.
 
     instances : every object; groups : (name, indices into instances) per cell; meshes : key -> (vertices,
     faces, rgb) in model coordinates (metres, Z up, front +X), for twin.glb, and ``tile_meshes`` the same with
     lighter meshes for the tiles (None: ``meshes``); scans : (name, (n, 3) scene points, (n, 3) uint8
-    colours) per cell, or None. Also writes ``out/twin.glb``. Returns a summary (the frame's origin, counts)."""
+    colours) per cell, or (name, dict) for a cell whose worker wrote its tiles
+    (:func:`~twinreg.export.scan_tiles.write_cell_scan`), or None. Also writes ``out/twin.glb``. Returns a summary (the frame's origin, counts)."""
     tile_meshes = meshes if tile_meshes is None else tile_meshes
     out = Path(out)
     (out / "tiles" / "cells").mkdir(parents=True, exist_ok=True)
@@ -187,11 +187,20 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
 
 def _write_scan(folder: Path, frame: EnuFrame, georef, scans, all_lo: list, all_hi: list) -> int:
     """The scan's level-of-detail tileset (:mod:`.scan_tiles`), a quadtree per cell."""
-    from .scan_tiles import write_cell_quadtree, write_scan_tileset
+    from .scan_tiles import link_tree, prebuilt_entry, write_cell_quadtree, write_scan_tileset
 
     folder.mkdir(parents=True, exist_ok=True)
     entries = []
-    for k, (name, pts, rgb) in enumerate(scans):
+    for k, (name, *data) in enumerate(scans):
+        if isinstance(data[0], dict):  # written by the cell's worker: linked here, placed by an affine transform
+            info = data[0]
+            link_tree(Path(info["folder"]), folder)
+            a, b = frame.affine_near(georef, np.asarray(info["centre"]))
+            entries.append(prebuilt_entry(info, a, b))
+            all_lo.append(entries[-1]["_lo"])
+            all_hi.append(entries[-1]["_hi"])
+            continue
+        pts, rgb = data
         if not len(pts):
             continue
         centre = (pts.min(0) + pts.max(0)) / 2

@@ -87,8 +87,12 @@ def test_city_output_is_complete_and_clean(small_city, city_twin):
     names = {p.name for p in out.iterdir()}
     assert {"twin.json", "twin.kmz", "report.html", "map.png", "histograms.png", "taxonomy.png"} <= names
     assert not [p for p in out.rglob("*") if p.name.startswith(".tmp-") or ".tmp-" in p.name]
-    stored = sorted(p.name for p in (out / ".cells").iterdir())
+    stored = sorted(p.name for p in (out / ".cells").iterdir() if p.is_file())
     assert len(stored) == city_twin["grid"]["n_cells"] and not (out / ".cells" / "split").exists()
+    # each cell's scan tiles are kept beside its result (a rerun reuses both), and linked into tiles/scan
+    kept = sorted(p.name for p in (out / ".cells" / "scan").iterdir())
+    assert kept == sorted(n[:-4] for n in stored)
+    assert city_twin["tiles"]["n_scan_points"] == city_twin["n_points"]  # every point of every cell
     with zipfile.ZipFile(out / "twin.kmz") as z:
         kml = z.read("doc.kml").decode()
     import xml.etree.ElementTree as ET

@@ -76,4 +76,6 @@ def test_planted_files_are_refused_and_never_run(tmp_path):
     except CellFileError:
         pass
     save(_result(), target)
+    assert not store.has("c0_0", "k123")  # a result without its scan tiles is computed again
+    (store.scan_folder() / "c0_0-k123").mkdir(parents=True)
     assert store.has("c0_0", "k123") and not store.has("c0_0", "other")
