@@ -248,7 +248,7 @@ def _match_and_export(run: SceneRun) -> dict:
     if ply:
         write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
     write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
-    rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground, keep=None)  # every point, streamed
+    rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
     twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
                                   [("scene", det.scene.points[rows], colours)], f"twinreg: {scene_path.name}", models,
                                   templates=run.templates)

@@ -16,6 +16,14 @@ def corners(centre: np.ndarray, heading: np.ndarray, length: np.ndarray, width: 
     return np.stack([x, y], axis=-1)
 
 
+def record_corners(objs: list[dict]) -> np.ndarray:
+    """(n, 4, 2) footprint corners of changes.json's object records (``centroid``, ``heading_rad``, ``size``)."""
+    c = np.array([o["centroid"] for o in objs], dtype=np.float64).reshape(-1, 3)
+    h = np.array([o["heading_rad"] for o in objs], dtype=np.float64)
+    size = np.array([[o["size"]["length"], o["size"]["width"]] for o in objs], dtype=np.float64).reshape(-1, 2)
+    return corners(c[:, :2], h, size[:, 0], size[:, 1])
+
+
 def samples(centre, heading, length, width, nu: int = 12, nv: int = 5, inset: float = 0.0) -> np.ndarray:
     """(n, nu * nv, 2) points on a regular grid inside each rectangle (its edges moved in by ``inset`` metres)."""
     fu = (np.arange(nu) + 0.5) / nu - 0.5

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from .footprints import corners
+from .footprints import record_corners
 
 _KEYS = ("status", "confidence", "from", "to", "displacement_m", "turn_rad", "reason")
 
@@ -15,11 +15,8 @@ _KEYS = ("status", "confidence", "from", "to", "displacement_m", "turn_rad", "re
 def _rings(epoch, objs: list[dict]) -> list:
     if not objs:
         return []
-    c = np.array([o["centroid"] for o in objs], dtype=np.float64)
-    h = np.array([o["heading_rad"] for o in objs])
-    size = np.array([[o["size"]["length"], o["size"]["width"]] for o in objs])
-    quad = corners(c[:, :2], h, size[:, 0], size[:, 1])
-    flat = np.column_stack([quad.reshape(-1, 2), np.repeat(c[:, 2], 4)])
+    z = np.array([o["centroid"][2] for o in objs], dtype=np.float64)
+    flat = np.column_stack([record_corners(objs).reshape(-1, 2), np.repeat(z, 4)])
     ll = epoch.georef.to_wgs84(flat)[:, :2].reshape(-1, 4, 2)
     return [[[round(float(x), 8), round(float(y), 8)] for x, y in np.vstack([q, q[:1]])] for q in ll]
 

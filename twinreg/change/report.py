@@ -5,14 +5,14 @@ the moved and replaced cars with their displacement. Every text from the twins i
 
 from __future__ import annotations
 
-import html
 from pathlib import Path
 
 import numpy as np
 
 from ..report.plots import pyplot, save_figure
+from ..report.scene import text
 from . import observed
-from .footprints import corners
+from .footprints import record_corners
 
 COLOURS = {"same": "#7f8c8d", "moved": "#e67e22", "replaced": "#8e44ad", "left": "#c0392b", "arrived": "#27ae60",
            "unobserved": "#b0b7bf"}
@@ -27,13 +27,6 @@ def _background(record: observed.Record, lo, hi):
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     code, _ = record.lookup(np.column_stack([gx.ravel(), gy.ravel()]))
     return observed.heights(code).reshape(len(xs), len(ys)), code.reshape(len(xs), len(ys)) == observed.NONE
-
-
-def _polygons(objs: list[dict]) -> np.ndarray:
-    c = np.array([o["centroid"] for o in objs], dtype=np.float64).reshape(-1, 3)
-    h = np.array([o["heading_rad"] for o in objs], dtype=np.float64)
-    size = np.array([[o["size"]["length"], o["size"]["width"]] for o in objs], dtype=np.float64).reshape(-1, 2)
-    return corners(c[:, :2], h, size[:, 0], size[:, 1])
 
 
 def plot_step(doc: dict, epochs, k: int, path: Path) -> Path:
@@ -61,10 +54,10 @@ def plot_step(doc: dict, epochs, k: int, path: Path) -> Path:
         after = [dict(c["after"], centroid=list(np.asarray(c["after"]["centroid"]) - shift)) for c in sel
                  if c["after"] is not None]
         if before:
-            ax.add_collection(PolyCollection(_polygons(before), facecolors="none", edgecolors=colour, linewidths=0.9,
+            ax.add_collection(PolyCollection(record_corners(before), facecolors="none", edgecolors=colour, linewidths=0.9,
                                              linestyles="--"))
         if after:
-            ax.add_collection(PolyCollection(_polygons(after), facecolors=colour, edgecolors=colour, alpha=0.55,
+            ax.add_collection(PolyCollection(record_corners(after), facecolors=colour, edgecolors=colour, alpha=0.55,
                                              linewidths=0.6))
         ax.plot([], [], color=colour, lw=6, alpha=0.7, label=f"{status} ({len(sel)})")
         if status == "moved" and sel:  # one arrow per moved car, drawn as one artist
@@ -95,13 +88,9 @@ def plot_occupancy(doc: dict, path: Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
-def _e(v) -> str:
-    return html.escape(str(v), quote=True)
-
-
 def _table(head: list[str], rows: list[list]) -> str:
-    out = ["<table><tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>"]
-    out += ["<tr>" + "".join(f"<td>{_e(v)}</td>" for v in r) + "</tr>" for r in rows]
+    out = ["<table><tr>" + "".join(f"<th>{text(h)}</th>" for h in head) + "</tr>"]
+    out += ["<tr>" + "".join(f"<td>{text(v)}</td>" for v in r) + "</tr>" for r in rows]
     return "\n".join(out) + "</table>"
 
 
@@ -132,15 +121,15 @@ def write_report(stage: Path, doc: dict, epochs) -> None:
         plot_step(doc, epochs, k, stage / f"changes_{k}.png")
         al = doc["alignment"][k]
         shift = ", ".join(f"{v * 100:+.1f}" for v in al["shift"])
-        parts.append(f"<h2>{_e(epochs[k].date or k)} to {_e(epochs[k + 1].date or k + 1)}</h2>")
+        parts.append(f"<h2>{text(epochs[k].date or k)} to {text(epochs[k + 1].date or k + 1)}</h2>")
         parts.append(f"<img src='changes_{k}.png' alt='map of the changes'>")
         parts.append(_table(["same", "moved", "replaced", "left", "arrived", "unobserved"],
                             [[s[c] for c in ("same", "moved", "replaced", "left", "arrived", "unobserved")]]))
-        parts.append(f"<p class='note'>The later survey is offset by {_e(shift)} cm (x, y, z) from the earlier one, "
+        parts.append(f"<p class='note'>The later survey is offset by {text(shift)} cm (x, y, z) from the earlier one, "
                      f"estimated from {al['n_pairs']} vehicles that stayed (residual "
-                     f"{_e('-' if al['rms_m'] is None else round(al['rms_m'] * 100, 1))} cm) and "
+                     f"{text('-' if al['rms_m'] is None else round(al['rms_m'] * 100, 1))} cm) and "
                      f"{al['n_ground']:,} ground pixels; positions are compared after removing it. "
-                     f"{_e(al.get('note', ''))}</p>")
+                     f"{text(al.get('note', ''))}</p>")
     plot_occupancy(doc, stage / "occupancy.png")
     parts.append("<h2>Occupancy</h2><img src='occupancy.png' alt='occupancy per epoch'>")
     parts.append(_table(["epoch", "date", "objects", "in the area every survey saw", "per hectare"],

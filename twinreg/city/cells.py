@@ -57,8 +57,7 @@ class CellResult:
     """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings,
     where its core's scan saw anything (``observed``, a :class:`~twinreg.change.observed.Raster`: the report's map
     and the twin's observation record) and its scan for the 3D tiles: ``scan_tiles``, where the worker wrote every
-    point of its core as tiles (:func:`~twinreg.export.scan_tiles.write_cell_scan`), or else ``scan``, a thinned
-    sample ``(points (n, 3) float32 scene-local, colours (n, 3) uint8)``."""
+    point of its core as tiles (:func:`~twinreg.export.scan_tiles.write_cell_scan`)."""
 
     name: str
     key: str
@@ -73,7 +72,6 @@ class CellResult:
     objects: list = field(default_factory=list)
     timing_s: dict = field(default_factory=dict)
     observed: object = None
-    scan: tuple | None = None
     scan_tiles: dict | None = None
 
 
@@ -129,14 +127,11 @@ def _process_cell(job: CellJob) -> CellResult:
     out.noise = scene_noise(det.hag, det.is_ground)
     out.observed = raster(pts, det.hag, det.is_ground, cell.lo, cell.hi)
     if job.scan_dir:  # every point of the core, as level-of-detail tiles written here on the worker
-        rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own), keep=None)
+        rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
         if len(rows):
             out.scan_tiles = write_cell_scan(Path(job.scan_dir), cell.name, job.key, pts[rows], colours)
         else:
             cell_scan_folder(Path(job.scan_dir), cell.name, job.key).mkdir(parents=True, exist_ok=True)
-    else:
-        rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
-        out.scan = ((pts[rows] - offset).astype(np.float32), colours)
     t = time.perf_counter()
     owned, centres = [], []
     for o in det.segmentation.objects:

@@ -126,13 +126,10 @@ def export_city(run: CityRun) -> dict:
         rows: dict = {}
         for k, o in enumerate(objects):
             rows.setdefault(o.cell, []).append(k)
-        off = np.asarray(plan.offset)
         for r in results:  # a kept cell's tiles are where this run's store keeps them, whatever its file says
-            if getattr(r, "scan_tiles", None):
+            if r.scan_tiles:
                 r.scan_tiles = dict(r.scan_tiles, folder=str(store.scan_folder() / f"{r.name}-{keys[r.name]}"))
-        scans = [(r.name, r.scan_tiles) if getattr(r, "scan_tiles", None) else
-                 (r.name, r.scan[0].astype(np.float64) + off, r.scan[1]) for r in results
-                 if getattr(r, "scan_tiles", None) or (getattr(r, "scan", None) is not None and len(r.scan[0]))]
+        scans = [(r.name, r.scan_tiles) for r in results if r.scan_tiles]
         twin["tiles"] = write_formats(stage, outs, [o.offset for o in objects], georef,
                                       [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
                                       f"twinreg: {twin['scene']}", models, templates=True, seq=True)

@@ -8,8 +8,8 @@
   no model are one unit box scaled per instance; ``EXT_instance_features`` + ``EXT_structural_metadata`` give each
   instance its row: object id, model, make, confidence, matched, sizes.
 - The scan beside it: ``tiles/scan/tileset.json`` (an external tileset referenced from the root, so a viewer shows
-  both), a level-of-detail quadtree of point tiles per cell (:mod:`.scan_tiles`): every point of a scene; a city's
-  cells at most ``SCAN_POINTS`` points each (evenly thinned); coloured by height above ground.
+  both), a level-of-detail quadtree of point tiles per cell (:mod:`.scan_tiles`) holding every point, coloured by
+  height above ground.
 - ``twin.glb``: every instance in one GLB in the root's east-north-up frame (origin and CRS in ``asset.extras``).
 
 glTF content is Y-up and tiles are Z-up; :mod:`twinreg.export.gltf` writes ``(x, y, z)`` as ``(x, z, -y)`` once,
@@ -30,8 +30,6 @@ from .objects import box_mesh
 from .scan_tiles import box_volume, translation
 from .twin_ply import PALETTE as TAB10
 
-#: points of the scan kept per cell of a city run (thinned evenly); a scene keeps every point
-SCAN_POINTS = 200_000
 #: triangles of a model in the tiles (a city of thousands of cars must draw in a browser; twin.glb and the KMZ
 #: keep Google Earth's 21,845)
 TILE_MAX_TRIANGLES = 2_000
@@ -117,18 +115,10 @@ def scan_colours(hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
     return rgb.astype(np.uint8)
 
 
-def thin(n: int, keep: int) -> np.ndarray:
-    """Indices of an even thinning of ``n`` points to at most ``keep``."""
-    return np.arange(n) if n <= keep else np.linspace(0, n - 1, keep).astype(np.int64)
-
-
-def scan_sample(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, rows=None,
-                keep: int | None = SCAN_POINTS) -> tuple:
-    """The scan as the tiles carry it: the points ``rows`` (all when None) thinned evenly to at most ``keep``
-    (None: every point), and their colours: ``(indices into points, (m, 3) uint8)``."""
+def scan_sample(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, rows=None) -> tuple:
+    """The scan as the tiles carry it: the points ``rows`` (all when None), every one of them, and their colours:
+    ``(indices into points, (m, 3) uint8)``."""
     rows = np.arange(len(points)) if rows is None else np.asarray(rows)
-    if keep is not None:
-        rows = rows[thin(len(rows), keep)]
     return rows, scan_colours(hag[rows], is_ground[rows])
 
 

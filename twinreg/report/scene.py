@@ -133,7 +133,8 @@ STYLE = ("body{font-family:sans-serif;margin:1.2em 2em;color:#222}h1{font-size:1
          "max-width:40em}img.pic{max-width:100%}")
 
 
-def _e(x) -> str:
+def text(x) -> str:
+    """Anything as HTML text (quotes escaped too: also safe inside an attribute)."""
     return html.escape(str(x), quote=True)
 
 
@@ -142,8 +143,8 @@ def _summary_tables(twin: dict) -> str:
 
     per_model = Counter((o["match"]["name"], o["match"].get("make") or "") for o in twin["objects"] if o["match"])
     why = Counter(short_reason(o.get("reason", "")) for o in twin["objects"] if not o["match"])
-    models = "".join(f"<tr><td>{_e(n)}</td><td>{_e(m)}</td><td>{c}</td></tr>" for (n, m), c in per_model.most_common())
-    reasons = "".join(f"<tr><td>{_e(r)}</td><td>{c}</td></tr>" for r, c in why.most_common())
+    models = "".join(f"<tr><td>{text(n)}</td><td>{text(m)}</td><td>{c}</td></tr>" for (n, m), c in per_model.most_common())
+    reasons = "".join(f"<tr><td>{text(r)}</td><td>{c}</td></tr>" for r, c in why.most_common())
     return (f"<table><tr><th>model</th><th>make</th><th>cars</th></tr>{models}</table>"
             f"<img class='pic' src='confidence.png' alt='confidence of the matches'>"
             + (f"<table><tr><th>without a model, because</th><th>objects</th></tr>{reasons}</table>" if why else ""))
@@ -155,15 +156,15 @@ def _object_row(o: dict) -> str:
     if m and m.get("outside_tolerance"):
         doubt += " (outside the size tolerance)"
     if m:
-        outcome = _e(m["name"])
+        outcome = text(m["name"])
     else:
         full = o.get("reason", "")
-        outcome = f"<details><summary>no model: {_e(short_reason(full))}</summary><span>{_e(full)}</span></details>"
-    cells = [_e(o["id"]), _e(o["n_points"]),
-             _e(f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}"), _e(o["cluster"]),
-             outcome, _e(f"{m['rmse_m'] * 100:.1f} cm" if m else ""),
-             _e("" if not m or m.get("confidence") is None else f"{m['confidence']:.2f}"), _e(doubt),
-             _e(f"{o['bearing_deg']:.1f}"), _e((m.get("runner_up") or {}).get("name", "") if m else "")]
+        outcome = f"<details><summary>no model: {text(short_reason(full))}</summary><span>{text(full)}</span></details>"
+    cells = [text(o["id"]), text(o["n_points"]),
+             text(f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}"), text(o["cluster"]),
+             outcome, text(f"{m['rmse_m'] * 100:.1f} cm" if m else ""),
+             text("" if not m or m.get("confidence") is None else f"{m['confidence']:.2f}"), text(doubt),
+             text(f"{o['bearing_deg']:.1f}"), text((m.get("runner_up") or {}).get("name", "") if m else "")]
     return "<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>"
 
 
@@ -178,11 +179,11 @@ def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: li
     files = [folder / n for n in ("heatmap.png", "dendrogram.png")
              if len(twin["objects"]) >= 2 and twin.get("dissimilarity") is not None]
     files.append(plot_object_sections(section_items, folder / "sections.png"))
-    pics = "".join(f"<h2>{_e(p.stem)}</h2><img class='pic' src='{_e(p.name)}' alt='{_e(p.stem)}'>" for p in files)
+    pics = "".join(f"<h2>{text(p.stem)}</h2><img class='pic' src='{text(p.name)}' alt='{text(p.stem)}'>" for p in files)
     matched = sum(1 for o in twin["objects"] if o["match"])
-    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {_e(twin['scene'])}</title>"
+    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {text(twin['scene'])}</title>"
             f"<style>{STYLE}</style></head><body>"
-            f"<h1>Digital twin of {_e(twin['scene'])}</h1><p>{len(twin['objects'])} objects, {matched} with a "
+            f"<h1>Digital twin of {text(twin['scene'])}</h1><p>{len(twin['objects'])} objects, {matched} with a "
             f"model; built in {twin['timing_s']['total']:.2f} s.</p>"
             f"<img class='lead' src='topview.png' alt='the twin over its scan'>"
             f"<div class='row'>{_summary_tables(twin)}</div>"

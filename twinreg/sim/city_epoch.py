@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .city import Placed, Survey, car_truth, ground_height, layout, write_tiles, write_truth
+from .epochs import other_sizes
 from .scan import pose_matrix, transform
 
 #: the later survey's passes: other azimuths than :data:`twinreg.sim.city.PASSES`
@@ -78,9 +79,7 @@ def later_layout(models, sizes, placed: list[Placed], seed: int) -> tuple[list[P
             event, q = "left", None
         elif u < sum(SHARES.values()):
             room = 2 * min(back, ahead) - 0.6
-            other = [k for k in range(len(models)) if (abs(sizes[k][0] - sizes[p.model][0]) > 0.45
-                                                       or abs(sizes[k][2] - sizes[p.model][2]) > 0.2)
-                     and sizes[k][0] - sizes[p.model][0] < room]
+            other = [k for k in other_sizes(sizes, p.model) if sizes[k][0] - sizes[p.model][0] < room]
             if other:
                 q = _placed(models, int(rng.choice(other)), p.x, p.y, p.heading, p.radius)
                 event = "replaced"

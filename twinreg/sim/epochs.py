@@ -61,9 +61,14 @@ def passes_for(density: float, azimuths_deg, elevation_deg: float = 70.0) -> tup
     return tuple(Pass(np.radians(a), np.radians(elevation_deg), spacing) for a in azimuths_deg)
 
 
+def other_sizes(size, m) -> list[int]:
+    """The models whose length or height differs clearly from model ``m``'s (``size``: (n, 3) of the models): what
+    a replacing car of "another size" may be."""
+    return [k for k in range(len(size)) if abs(size[k][0] - size[m][0]) > 0.45 or abs(size[k][2] - size[m][2]) > 0.2]
+
+
 def _other_size(size, m, rng):
-    """A model whose length or height differs clearly from model ``m``'s (``size``: (n, 3) of the models)."""
-    far = [k for k in range(len(size)) if abs(size[k][0] - size[m][0]) > 0.45 or abs(size[k][2] - size[m][2]) > 0.2]
+    far = other_sizes(size, m)
     return int(rng.choice(far)) if far else (m + 1) % len(size)
 
 

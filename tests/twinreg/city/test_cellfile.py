@@ -26,7 +26,8 @@ def _result() -> CellResult:
     return CellResult("c0_0", "k123", (0.0, 0.0), (50.0, 50.0), n_read=10, n_points=9, objects=[obj],
                       timing_s={"read": 0.1},
                       observed=raster(pts + [10.0, 10.0, 0.0], pts[:, 2], pts[:, 2] < 0.1, (0.0, 0.0), (50.0, 50.0)),
-                      scan=(np.zeros((3, 3), np.float32), np.zeros((3, 3), np.uint8)))
+                      scan_tiles={"folder": "x", "centre": [1.0, 2.0, 3.0], "lo": [0.0] * 3, "hi": [1.0] * 3, "n": 3,
+                                  "error": 0.5, "uri": "c0_0.json"})
 
 
 def test_a_cell_result_comes_back_equal(tmp_path):
@@ -38,7 +39,7 @@ def test_a_cell_result_comes_back_equal(tmp_path):
     assert a.shape.size == b.shape.size and a.shape.symmetry == b.shape.symmetry
     assert np.array_equal(a.shape.sections.longitudinal, b.shape.sections.longitudinal)
     assert a.shape.frame.heading == b.shape.frame.heading
-    assert np.array_equal(back.scan[0], r.scan[0]) and back.scan[1].dtype == np.uint8
+    assert back.scan_tiles == r.scan_tiles
     assert np.array_equal(back.observed.code, r.observed.code) and back.observed.z0 == r.observed.z0
     assert (back.observed.code != 255).sum() > 10
 

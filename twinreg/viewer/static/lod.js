@@ -5,7 +5,8 @@ import * as THREE from "three";
 
 export const MAX_SSE = 16;
 
-function matrixOf(spec) {
+// a tile's transform as a three.js matrix
+export function matrixOf(spec) {
   const m = new THREE.Matrix4();
   if (spec.transform) m.fromArray(spec.transform);   // column-major, as 3D Tiles stores it
   return m;

@@ -4,7 +4,7 @@
 // A twin may come from someone else: what it says is shown as text (textContent), never parsed as HTML.
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
-import { LodTile } from "./lod.js";
+import { LodTile, matrixOf } from "./lod.js";
 import { makeStage, textTable } from "./stage.js";
 
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
@@ -40,12 +40,6 @@ async function updateScan() {
   })();
   await lodRunning;
   lodRunning = null;
-}
-
-function matrixOf(tile) {
-  const m = new THREE.Matrix4();
-  if (tile.transform) m.fromArray(tile.transform);   // column-major, as 3D Tiles stores it
-  return m;
 }
 
 async function loadTile(tile, base, parent) {
