@@ -71,3 +71,15 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path, parametric_catalogue):
     assert "tcp://127.0.0.1:9: cannot start or reach the Dask cluster" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_epoch_of_a_folder_that_is_not_a_simulated_city_is_one_line(tmp_path, parametric_catalogue):
+    (tmp_path / "stranger").mkdir()
+    (tmp_path / "stranger" / "notes.txt").write_text("not a city")
+    out = tmp_path / "later"
+    r = CliRunner().invoke(app, ["--library", str(parametric_catalogue.folder), "simulate-city", str(out),
+                                 "--epoch-of", str(tmp_path / "stranger")])
+    assert r.exit_code == 1, r.output
+    line = r.output.strip()
+    assert line.startswith("error:") and "\n" not in line and "truth.json" in line and "simulate-city" in line
+    assert not out.exists() and sorted(p.name for p in (tmp_path / "stranger").iterdir()) == ["notes.txt"]
