@@ -54,8 +54,8 @@ def plot_step(doc: dict, epochs, k: int, path: Path) -> Path:
         after = [dict(c["after"], centroid=list(np.asarray(c["after"]["centroid"]) - shift)) for c in sel
                  if c["after"] is not None]
         if before:
-            ax.add_collection(PolyCollection(record_corners(before), facecolors="none", edgecolors=colour, linewidths=0.9,
-                                             linestyles="--"))
+            ax.add_collection(PolyCollection(record_corners(before), facecolors="none", edgecolors=colour,
+                                             linewidths=0.9, linestyles="--"))
         if after:
             ax.add_collection(PolyCollection(record_corners(after), facecolors=colour, edgecolors=colour, alpha=0.55,
                                              linewidths=0.6))
