@@ -22,6 +22,15 @@ UNIT_WORDS = {"centimetres": "cm", "metres": "m", "inches": "in"}
 REQUIRE_SHARED = os.environ.get("TWINREG_REQUIRE_SHARED_DATA") == "1"
 
 
+def keep_picture(shot: Path, name: str) -> None:
+    """Copy a test's screenshot to docs/NAME (the README's pictures) when TWINREG_UPDATE_DOCS=1: a plain test run
+    leaves the tree as it found it."""
+    import shutil
+
+    if os.environ.get("TWINREG_UPDATE_DOCS") == "1":
+        shutil.copy(shot, REPO / "docs" / name)
+
+
 def need(path: Path) -> Path:
     if not path.exists():
         if REQUIRE_SHARED:

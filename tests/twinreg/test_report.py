@@ -11,7 +11,7 @@ import subprocess
 import pytest
 from typer.testing import CliRunner
 
-from tests.conftest import SHARED_DATA, need
+from tests.conftest import SHARED_DATA, keep_picture, need
 from tests.twinreg.viewer.test_viewer import CHROMIUM, ROOT
 from twinreg.cli import app
 
@@ -36,9 +36,10 @@ def test_report_leads_with_the_map_and_keeps_cells_short(catalogue16, tmp_path):
     assert got["images"][0]["src"] == "topview.png" and got["lead"]["top"] < 200 and got["lead"]["bottom"] <= 900
     assert got["cells"] > 10 * len(twin["objects"]) and got["tall"] == [], got["tall"]
     shot = subprocess.run(["node", str(ROOT / "tests" / "js" / "shoot_page.mjs"),
-                           (tmp_path / "ahn" / "report.html").as_uri(), str(ROOT / "docs" / "report_ahn.png"), "1280",
-                           "900"], capture_output=True, text=True, timeout=300, cwd=ROOT)  # the README's picture
+                           (tmp_path / "ahn" / "report.html").as_uri(), str(tmp_path / "report_ahn.png"), "1280",
+                           "900"], capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert shot.returncode == 0, shot.stderr
+    keep_picture(tmp_path / "report_ahn.png", "report_ahn.png")  # the README's picture
     page = (tmp_path / "ahn" / "report.html").read_text()
     assert page.count("<details>") == len(unmatched)
     for o in unmatched:  # the full reason is there, behind its gist

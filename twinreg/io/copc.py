@@ -44,32 +44,42 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     info.spacing = 2 * half / 128 / 2 ** depth
     share = 4.0 ** np.arange(depth + 1)
     level = np.random.default_rng(seed).choice(depth + 1, len(pts), p=share / share.sum())
-    keys = {}
-    for d in range(depth, -1, -1):
-        n = 2 ** d
-        ijk = np.clip(np.floor((pts - (centre - half)) / (2 * half / n)).astype(np.int64), 0, n - 1)
-        keys[d] = ijk
-    # every node's parent must exist: promote one point of an orphan node to its parent
-    for d in range(depth, 0, -1):
-        here = {tuple(k) for k in keys[d][level == d]}
-        above = {tuple(k) for k in keys[d - 1][level == d - 1]}
-        for k in here:
-            parent = tuple(v // 2 for v in k)
-            if parent not in above:
-                i = np.flatnonzero((level == d) & (keys[d] == k).all(1))[0]
-                level[i] = d - 1
-                above.add(parent)
+    # each point's node at its level as one integer code ((i * n + j) * n + k), every level at once
+    ijk = np.floor((pts - (centre - half)) / (2 * half) * 2.0 ** depth).astype(np.int64)
+    ijk = np.clip(ijk, 0, 2 ** depth - 1)
+
+    def codes(rows, d):
+        n, k = 2 ** d, ijk[rows] >> (depth - d)
+        return (k[:, 0] * n + k[:, 1]) * n + k[:, 2]
+
+    # every node's parent must exist: one point of a node whose parent is empty moves up to the parent, again
+    # until none is missing (a node that gave its only point may leave its own children orphans; points only
+    # move up, so this ends)
+    moved = True
+    while moved:
+        moved = False
+        for d in range(depth, 0, -1):
+            here = np.flatnonzero(level == d)
+            parents = codes(here, d - 1)
+            missing = np.flatnonzero(~np.isin(parents, codes(np.flatnonzero(level == d - 1), d - 1)))
+            if len(missing):
+                _, first = np.unique(parents[missing], return_index=True)
+                level[here[missing[first]]] = d - 1
+                moved = True
     writer = copc.FileWriter(str(path), cfg, wkt=pyproj.CRS(crs).to_wkt() if crs else "")
+    raw = rec.array
     try:
         for d in range(depth + 1):
-            sel_level = np.flatnonzero(level == d)
-            ks = keys[d][sel_level]
-            order = np.lexsort(ks.T[::-1])
-            ks, sel_level = ks[order], sel_level[order]
-            cuts = np.flatnonzero(np.any(np.diff(ks, axis=0) != 0, axis=1)) + 1
-            for idx, k in zip(np.split(sel_level, cuts), ks[np.r_[0, cuts]] if len(ks) else []):
-                data = copc.VectorChar(np.frombuffer(rec.array[idx].tobytes(), dtype=np.int8))
-                writer.AddNode(copc.VoxelKey(d, *map(int, k)), copc.Points.Unpack(data, writer.copc_config.las_header))
+            rows = np.flatnonzero(level == d)
+            c = codes(rows, d)
+            order = np.argsort(c, kind="stable")
+            rows, c = rows[order], c[order]
+            cuts = np.flatnonzero(np.diff(c)) + 1
+            n = 2 ** d
+            for idx, code in zip(np.split(rows, cuts), c[np.r_[0, cuts]] if len(c) else []):
+                i, j, k = int(code // (n * n)), int(code // n % n), int(code % n)
+                data = copc.VectorChar(raw[idx].view(np.int8).reshape(-1))
+                writer.AddNode(copc.VoxelKey(d, i, j, k), data)
     finally:
         writer.Close()
     return Path(path)

@@ -2,7 +2,6 @@
 JSON against its schema, the same report for the same seed, and the page in a real browser."""
 
 import json
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -10,6 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from tests.conftest import keep_picture
 from twinreg.cli import app
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -79,4 +79,4 @@ def test_the_report_in_a_real_browser(report16):
     assert not page["errors"] and not page["blocked"]
     assert len(page["images"]) == 18 and all(i["loaded"] for i in page["images"])
     assert "near-duplicate of ford_fusion_2013" in page["text"]
-    shutil.copy(shot, ROOT / "docs" / "library_report.png")
+    keep_picture(shot, "library_report.png")

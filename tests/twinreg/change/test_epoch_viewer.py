@@ -5,7 +5,6 @@ car shows its history; the report opens with every image loaded."""
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import keep_picture
 from tests.twinreg.viewer.test_viewer import CHROMIUM, ROOT, _chroma, _env
 from twinreg.change.compare import compare
 from twinreg.change.report import COLOURS
@@ -72,7 +72,7 @@ def test_epoch_switch_draws_changed_cars_in_their_colour(comparison):
         assert status in got["epochs"][1]["legend"]
     hist = got["history"]
     assert hist and hist["status"] in hist["text"] and "epoch 0 -> 1" in hist["text"], hist
-    shutil.copy(comparison / "shot_1.png", ROOT / "docs" / "compare_epochs.png")  # the README's picture
+    keep_picture(comparison / "shot_1.png", "compare_epochs.png")  # the README's picture
 
 
 def test_report_opens_with_every_image(comparison):
@@ -87,5 +87,5 @@ def test_report_opens_with_every_image(comparison):
     assert got["errors"] == [] and got["blocked"] == [], got
     assert len(got["images"]) >= 2 and all(i["loaded"] for i in got["images"]), got
     assert "What changed" in got["text"] and "Occupancy" in got["text"]
-    shutil.copy(comparison / "changes_0.png", ROOT / "docs" / "compare_map.png")
+    keep_picture(comparison / "changes_0.png", "compare_map.png")
     assert set(COLOURS) == {"same", "moved", "replaced", "left", "arrived", "unobserved"}

@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import keep_picture
+
 ROOT = Path(__file__).resolve().parents[3]
 BIN = Path(sys.executable).parent
 CHROMIUM = Path("/usr/bin/chromium")
@@ -90,7 +92,7 @@ def test_the_viewer_shows_the_demo_cars_in_a_real_browser_offline(demo_twin, ser
     model = got["found"]["model"]
     assert model and got["found"]["hits"] == sum(1 for o in twin["objects"] if o["match"]
                                                  and model.lower() in o["match"]["name"].lower())
-    shutil.copy(shot, ROOT / "docs" / "viewer_demo.png")
+    keep_picture(shot, "viewer_demo.png")
 
 
 def test_the_scan_streams_by_level_of_detail(demo_twin, served):
