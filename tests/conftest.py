@@ -227,4 +227,5 @@ def city_twin(small_city, parametric_catalogue):
     from twinreg.city.build import build_city_twin
 
     root, _ = small_city
-    return build_city_twin([root / "laz"], parametric_catalogue, None, root / "out", cell=CELL, workers=2)
+    return build_city_twin([root / "laz"], parametric_catalogue, None, root / "out", cell=CELL, workers=2,
+                           classified=True)

@@ -53,7 +53,8 @@ class RunSettings:
     threshold (None: the defaults), the tiled run's cell, buffer, workers, scheduler and restart, and whether to
     write PLY (None: twin.ply for one scene, none for tiles); the survey's date (``YYYY-MM-DD``; None: the
     LAS/LAZ headers'); a scene's CityJSON with geometry templates instead of explicit geometry (a city's has
-    templates, and explicit geometry in its CityJSONSeq)."""
+    templates, and explicit geometry in its CityJSONSeq); a tiled run's classified scan (a scene always has
+    scan.copc.laz)."""
 
     unit: str = "auto"
     tol: float | None = None
@@ -66,6 +67,7 @@ class RunSettings:
     ply: bool | None = None
     date: str | None = None
     cityjson_templates: bool = False
+    classified_scan: bool = False
 
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
@@ -89,7 +91,7 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
-                               date=s.date)
+                               date=s.date, classified=s.classified_scan)
     say = (lambda msg: progress(msg, None, None)) if progress else None
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                       progress=say, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates)

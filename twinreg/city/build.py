@@ -18,6 +18,7 @@ from cosco.params import DEFAULT, CoscoParams
 
 from ..errors import CatalogueError, CityError, ParameterError, SceneReadError
 from .cells import CellJob, process_cell
+from .classified import FOLDER, write_classified_cells
 from .engine import Engine
 from .grid import Grid, cell_size_for
 from .resume import CellStore, cell_key
@@ -145,7 +146,8 @@ def city_georef(georef, sources: list[Source]):
 
 def _clean_work(store: CellStore) -> None:
     """Remove what killed runs left half-written in the work folder (temporary files and split folders)."""
-    for folder in (store.folder, store.folder / "split"):
+    shutil.rmtree(store.folder / FOLDER, ignore_errors=True)  # a killed run's classified files: written again
+    for folder in (store.folder, store.folder / "split", store.folder / "labels"):
         if folder.is_dir():
             for p in folder.glob(".tmp-*"):
                 shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
@@ -154,9 +156,11 @@ def _clean_work(store: CellStore) -> None:
 def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: float | None = None,
                     threshold: float | None = None, params: CoscoParams = DEFAULT, cell: float | None = None,
                     buffer: float = 10.0, workers: int | None = None, scheduler: str | None = None,
-                    restart: bool = False, ply: bool = False, progress=None, date: str | None = None) -> dict:
+                    restart: bool = False, ply: bool = False, progress=None, date: str | None = None,
+                    classified: bool = False) -> dict:
     """Build the twin of tiles (files, folders, globs of LAS/LAZ/COPC) cell by cell on Dask; returns the twin JSON
-    (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances."""
+    (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances;
+    ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`)."""
     import twinreg
 
     from ..io.outdir import check_replaceable, claim
@@ -187,10 +191,10 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
             store.clear()
         _clean_work(store)
         keys = {n: cell_key(n, p.feeds[n], p.grid, params, twinreg.__version__, p.offset) for n in p.cells}
-        todo = [n for n in p.cells if not store.has(n, keys[n])]
+        todo = [n for n in p.cells if not store.has(n, keys[n], labels=classified)]
         timing["plan"] = time.perf_counter() - t_start
         with Engine(workers=workers, scheduler=scheduler) as eng:
-            _run_cells(eng, p, todo, keys, store, params, progress, timing)
+            _run_cells(eng, p, todo, keys, store, params, progress, timing, classified)
             results = [store.load(n, keys[n]) for n in p.cells]
             objects = [o for r in results for o in r.objects]
             if not objects:
@@ -200,6 +204,11 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
 
             tax, outcomes, stats, models = classify_and_match(eng, results, objects, catalogue, params, progress,
                                                               timing)
+            copc = None
+            if classified:
+                t = time.perf_counter()
+                copc = write_classified_cells(eng, results, objects, outcomes, store, keys, georef, progress)
+                timing["classified"] = time.perf_counter() - t
     except BaseException:
         # a folder this run created and in which no cell finished goes again: OUT is as it was
         if created and not any(store.folder.glob("*.npz")):
@@ -212,14 +221,15 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     run = CityRun(out=out, protect=protect, store=store, keys=keys, sources=sources, plan=p, georef=georef,
                   results=results, objects=objects, tax=tax, outcomes=outcomes, stats=stats, models=models,
                   catalogue=catalogue, params=params, ply=ply, timing=timing, t_start=t_start, progress=progress,
-                  reused=p.n_cells - len(todo), date=date)
+                  reused=p.n_cells - len(todo), date=date, classified=copc)
     twin = export_city(run)
     timing["export"] = time.perf_counter() - t
     _say(progress, "export", 1, 1)
     return twin
 
 
-def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellStore, params, progress, timing):
+def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellStore, params, progress, timing,
+               classified: bool = False):
     """Split the plain tiles that feed many unfinished cells, then run those cells; each finished cell is stored
     at once. Failed cells raise :class:`CityError` after the others."""
     t = time.perf_counter()
@@ -253,7 +263,9 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
     for n in todo:
         reads = tuple(str(folders[s.path]) for s in p.feeds[n] if s.path in folders)
         boxes = tuple(s for s in p.feeds[n] if s.path not in folders)
-        cell_jobs.append(CellJob(p.cells[n], reads, boxes, params, keys[n], p.offset, str(store.scan_folder())))
+        labels = str(store.labels_path(n, keys[n])) if classified else None
+        cell_jobs.append(CellJob(p.cells[n], reads, boxes, params, keys[n], p.offset, str(store.scan_folder()),
+                                 labels))
         deps[n] = [splits[s.path] for s in p.feeds[n] if s.path in splits]
     done = [p.n_cells - len(todo)]
     _say(progress, "cells", done[0], p.n_cells)

@@ -15,6 +15,7 @@ import numpy as np
 
 from cosco.params import DEFAULT, CoscoParams
 
+from .classified import cell_labels, save_labels
 from .grid import Cell
 from .sources import read_box, read_splits
 
@@ -25,7 +26,9 @@ class CellJob:
     (plain LAS/LAZ cut once into cells) or the tile itself (COPC, or a run of one cell), read by bounds; and the
     run's local frame (``offset``, the same for every cell, as a reader would choose for all the tiles merged),
     so that every grid the stages cut lies where it would on the whole scene; ``scan_dir``: where the worker writes
-    the cell's scan tiles (every point of its core, :mod:`twinreg.export.scan_tiles`), None for none."""
+    the cell's scan tiles (every point of its core, :mod:`twinreg.export.scan_tiles`), None for none;
+    ``labels``: where it keeps its labelled points for the classified scan (:mod:`twinreg.city.classified`), None
+    for none."""
 
     cell: Cell
     splits: tuple = ()
@@ -34,6 +37,7 @@ class CellJob:
     key: str = ""
     offset: tuple = (0.0, 0.0, 0.0)
     scan_dir: str | None = None
+    labels: str | None = None
 
 
 @dataclass
@@ -113,6 +117,8 @@ def _process_cell(job: CellJob) -> CellResult:
     if out.n_read < 100:
         if job.scan_dir:  # an empty cell has no tiles: its empty folder says it is done
             cell_scan_folder(Path(job.scan_dir), cell.name, job.key).mkdir(parents=True, exist_ok=True)
+        if job.labels:
+            save_labels(Path(job.labels), np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0, np.uint16))
         return out
     offset = np.asarray(job.offset, dtype=np.float64)
     # the ground from everything read (the filter's reach), the objects from the core and its buffer
@@ -152,4 +158,7 @@ def _process_cell(job: CellJob) -> CellResult:
             cloud=sample_cloud(cloud, params.accept_max_points),
             spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o)))
     out.timing_s["sections"] = time.perf_counter() - t
+    if job.labels:
+        rows, classes, ids = cell_labels(det.is_ground, own, [o for o in det.segmentation.objects if o.target], owned)
+        save_labels(Path(job.labels), pts[rows], classes, ids)
     return out

@@ -20,6 +20,7 @@ from ..export.objects import object_output, pose
 from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from ..export.twin_ply import write_twin_ply
 from ..io.outdir import staged_folder
+from .classified import FOLDER as CLASSIFIED
 from .resume import WORK
 
 
@@ -61,6 +62,7 @@ class CityRun:
     progress: object = None
     reused: int = 0
     date: str | None = None
+    classified: dict | None = None
 
 
 def export_city(run: CityRun) -> dict:
@@ -134,6 +136,9 @@ def export_city(run: CityRun) -> dict:
                                       [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
                                       f"twinreg: {twin['scene']}", models, templates=True, seq=True)
         timing["formats"] = time.perf_counter() - t3
+        if run.classified is not None:  # the cells' classified COPC files, written on the workers
+            os.replace(store.folder / CLASSIFIED, stage / CLASSIFIED)
+            twin["classified_scan"] = run.classified
         twin["observation"] = observed.write(stage / observed.FILE, [r.observed for r in results if r.observed],
                                              [o.shape.sections for o in objects])
         timing["total"] = time.perf_counter() - t_start

@@ -37,9 +37,9 @@ class CellStore:
     def path(self, name: str, key: str) -> Path:
         return self.folder / f"{name}-{key}.npz"
 
-    def has(self, name: str, key: str) -> bool:
-        """True when a readable result of this cell and key is kept with its scan tiles (an unreadable or foreign
-        file is deleted: the cell is then computed again)."""
+    def has(self, name: str, key: str, labels: bool = False) -> bool:
+        """True when a readable result of this cell and key is kept with its scan tiles (and its labelled points,
+        when ``labels``; an unreadable or foreign file is deleted: the cell is then computed again)."""
         p = self.path(name, key)
         if not p.is_file():
             return False
@@ -49,6 +49,8 @@ class CellStore:
             ok = False
         if not ok:
             p.unlink(missing_ok=True)
+        if labels and not self.labels_path(name, key).is_file():
+            return False
         return ok and (self.scan_folder() / f"{name}-{key}").is_dir()  # its scan tiles too
 
     def save(self, result) -> Path:
@@ -64,6 +66,10 @@ class CellStore:
         """Where the workers write the cells' scan tiles (one folder a cell and key)."""
         return self.folder / "scan"
 
+    def labels_path(self, name: str, key: str) -> Path:
+        """A cell's labelled points for the classified scan (:mod:`twinreg.city.classified`)."""
+        return self.folder / "labels" / f"{name}-{key}.npz"
+
     def clear(self) -> None:
         """Forget every stored result (``--restart``)."""
         shutil.rmtree(self.folder, ignore_errors=True)
@@ -75,13 +81,14 @@ class CellStore:
             return
         shutil.rmtree(self.folder / "split", ignore_errors=True)
         wanted = {self.path(n, k).name for n, k in keep}
-        scans = {f"{n}-{k}" for n, k in keep}
-        if (self.folder / "scan").is_dir():
-            for p in (self.folder / "scan").iterdir():
-                if p.name not in scans:
-                    shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+        kept = {"scan": {f"{n}-{k}" for n, k in keep}, "labels": {f"{n}-{k}.npz" for n, k in keep}}
+        for sub, names in kept.items():
+            if (self.folder / sub).is_dir():
+                for p in (self.folder / sub).iterdir():
+                    if p.name not in names:
+                        shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
         for p in self.folder.iterdir():
-            if p.is_dir() and p.name != "scan":
+            if p.is_dir() and p.name not in kept:
                 shutil.rmtree(p, ignore_errors=True)
             elif p.is_file() and p.name not in wanted:
                 p.unlink(missing_ok=True)

@@ -98,6 +98,10 @@ def build_twin_cmd(
         "--cityjson-templates", help="A scene's twin.city.json with one geometry template per model (smaller; for "
                                      "tools that read templates) instead of explicit geometry (opens everywhere). A "
                                      "city's always has templates, and twin.city.jsonl the explicit geometry.")] = False,
+    classified_scan: Annotated[bool, typer.Option(
+        "--classified-scan", help="Tiled runs: also write the scan with each point's class and object as COPC, "
+                                  "classified/<cell>.copc.laz (for QGIS, PDAL, Potree; about 3 bytes a point). "
+                                  "A scene always writes scan.copc.laz.")] = False,
     ply: Annotated[Optional[bool], typer.Option(
         "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
                                "--ply writes ply/<cell>.ply].", show_default=False)] = None,
@@ -118,7 +122,8 @@ def build_twin_cmd(
     out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")
     settings = RunSettings(unit=unit, tol=tol, threshold=threshold, cell=cell, buffer=buffer, workers=workers,
                            scheduler=scheduler, restart=restart, ply=ply,
-                           date=date.date().isoformat() if date else None, cityjson_templates=cityjson_templates)
+                           date=date.date().isoformat() if date else None, cityjson_templates=cityjson_templates,
+                           classified_scan=classified_scan)
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
     tiled = "grid" in twin

@@ -36,7 +36,7 @@ def _merged(folder: Path, dst: Path) -> Path:
 def _strip(twin: dict) -> dict:
     """twin.json without what may change from run to run (timings, the reused-cell count, worker sums)."""
     t = json.loads(json.dumps(twin))
-    t.pop("timing_s")
+    t.pop("timing_s"), t.pop("classified_scan", None)
     t["grid"].pop("n_cells_reused")
     t["matching"].pop("worker_s"), t["matching"].pop("registration_ms_per_trial")
     for c in t["cells"]:
@@ -121,6 +121,7 @@ def test_copc_tiles_read_by_bounds_give_the_same_twin(small_city, city_twin, par
     root, _ = small_city
     assert all(s.copc for s in open_sources([root / "copc"]))
     twin = build_city_twin([root / "copc"], parametric_catalogue, None, root / "out_copc", cell=CELL, workers=2)
+    assert "classified_scan" not in twin and not (root / "out_copc" / "classified").exists()  # not asked for
     a, b = _strip(city_twin), _strip(twin)
     for t in (a, b):
         t.pop("sources"), t.pop("scene"), t["georef"].pop("scan_centre")  # from the headers' bounds
