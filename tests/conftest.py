@@ -208,15 +208,17 @@ CELL = 35.0  # cells that do not line up with the 40 m tiles: both kinds of seam
 
 @pytest.fixture(scope="session")
 def small_city(tmp_path_factory, parametric_catalogue):
-    """2 x 2 tiles of 40 m (about 1M points, 67 parked cars of the 8 parametric models), LAZ and COPC."""
+    """2 x 2 tiles of 40 m (about 1M points, 67 parked cars of the 8 parametric models), LAZ (EPSG:7415: RD New +
+    NAP) and COPC (EPSG:28992, no vertical datum)."""
     from twinreg.sim.city import simulate_city
 
     cat = parametric_catalogue
     rows = sorted(cat.list(), key=lambda r: r.name)
     models = [cat.ge_mesh(r) for r in rows]
     root = tmp_path_factory.mktemp("city")
+    # the LAZ tiles in RD New + NAP (their heights in a levelling datum), the COPC tiles in RD New alone
     laz = simulate_city(root / "laz", models, [r.name for r in rows], km2=0.0064, density=100.0, tile=40.0, seed=3,
-                        date="2026-03-02")
+                        date="2026-03-02", crs="EPSG:7415")
     simulate_city(root / "copc", models, [r.name for r in rows], km2=0.0064, density=100.0, tile=40.0, seed=3,
                   copc=True)
     return root, laz

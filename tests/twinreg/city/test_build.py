@@ -126,7 +126,21 @@ def test_copc_tiles_read_by_bounds_give_the_same_twin(small_city, city_twin, par
     for t in (a, b):
         t.pop("sources"), t.pop("scene"), t["georef"].pop("scan_centre")  # from the headers' bounds
         t.pop("survey_date"), t.pop("survey_date_source")  # the headers' dates: the COPC writer leaves it unset
+    ga, gb = a.pop("georef"), b.pop("georef")
+    assert (ga["crs"], gb["crs"]) == ("EPSG:7415", "EPSG:28992")
+    assert ga["vertical_crs"] == "EPSG:5709" and ga["vertical_source"] == "file header"  # the LAZ tiles: RD New + NAP
+    assert "RDNAPTRANS2018" in ga["height_transformation"] and gb["vertical_source"] is None
+    ha, hb = a["tiles"]["origin"].pop("h"), b["tiles"]["origin"].pop("h")
+    assert 40 < ha - hb < 46  # the tileset's origin: NAP to ellipsoidal in Amsterdam
     assert a == b
+    # the same cars, higher on the ellipsoid where the heights are NAP: by the geoid's undulation at each car
+    from tests.twinreg.geo.test_vertical import _heights, _undulation
+
+    stated, flat = _heights(root / "out"), _heights(root / "out_copc")
+    assert set(stated) == set(flat) == {o["id"] for o in twin["objects"]}
+    for oid, (lon, lat, h) in stated.items():
+        n = _undulation("nap", lon, lat)
+        assert abs(n) > 20 and abs(h - flat[oid][2] - n) < 0.02, (oid, h, flat[oid][2], n)
 
 
 def _cli(*args, **kw):
@@ -232,6 +246,6 @@ def test_the_citys_formats_have_a_tile_per_cell_and_its_crs(small_city, city_twi
     assert set(_instances(out)) == {o["id"] for o in city_twin["objects"]}
     cj = json.loads((out / "twin.city.json").read_text())
     jsonschema.validate(cj, json.loads((ROOT / "docs" / "schemas" / "cityjson-2.0-twin.schema.json").read_text()))
-    assert cj["metadata"]["referenceSystem"].endswith("/EPSG/0/28992")
+    assert cj["metadata"]["referenceSystem"].endswith("/EPSG/0/7415")  # RD New + NAP, as the tiles state
     for r in _node("validate_gltf.mjs", *map(str, sorted((out / "tiles").rglob("*.glb")))):
         assert r["errors"] == 0, r
