@@ -43,7 +43,8 @@ def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[
         shifts.append(shifts[-1] + al.shift)
     timing["compare"] = time.perf_counter() - t
     doc = {"epochs": [{"twin": str(e.folder), "date": e.date, "crs": e.georef.crs, "frame": e.frame(),
-                       "n_objects": len(e), "n_points": e.n_scan_points, "spacing_m": round(e.spacing, 3)}
+                       "n_objects": len(e), "n_points": e.n_scan_points, "spacing_m": round(e.spacing, 3),
+                       "heights": e.height}
                       for e in epochs],
            "alignment": alignments, "changes": changes, "summary": summaries,
            "tracks": tracks(epochs, changes), "occupancy": occupancy(epochs, shifts)}

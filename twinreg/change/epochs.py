@@ -30,7 +30,8 @@ class Epoch:
     (the model's, else the measured box), ``measured`` (n, 3), ``models`` (name or None), ``confidence``
     (NaN: none), ``n_points``, ``lonlat`` (n, 2) as twin.json states them; the scan's ``noise`` (m) and
     ``spacing`` (m, mean point spacing of the area it saw); and
-    its observation ``record``; ``vertical``: its heights' datum (None: unknown)."""
+    its observation ``record``; ``vertical``: its heights' datum (None: unknown), and ``height`` how its heights
+    were put in the comparison's datum (set by :func:`read_epochs`)."""
 
     folder: Path
     date: str | None
@@ -49,6 +50,7 @@ class Epoch:
     record: observed.Record
     n_scan_points: int = 0
     vertical: str | None = None
+    height: dict | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -177,7 +179,7 @@ def read_epoch(folder) -> Epoch:
 
 
 def same_frame(a: Epoch, b: Epoch) -> bool:
-    """Whether two epochs' coordinates are in one frame (the same CRS, or the same local anchor)."""
+    """Whether two epochs' coordinates are in one frame (the same horizontal CRS, or the same local anchor)."""
     ga, gb = a.georef, b.georef
     if bool(ga.crs) != bool(gb.crs):
         return False
@@ -186,8 +188,12 @@ def same_frame(a: Epoch, b: Epoch) -> bool:
             return True
         import pyproj
 
+        def horizontal(crs):  # a compound CRS's horizontal part: heights are checked on their own
+            c = pyproj.CRS.from_user_input(crs)
+            return c.sub_crs_list[0] if c.is_compound and c.sub_crs_list else c
+
         try:
-            return pyproj.CRS.from_user_input(ga.crs) == pyproj.CRS.from_user_input(gb.crs)
+            return horizontal(ga.crs) == horizontal(gb.crs)
         except pyproj.exceptions.CRSError:
             return False
     return (np.allclose([ga.lat, ga.lon], [gb.lat, gb.lon], atol=1e-9) and abs(ga.alt - gb.alt) < 1e-6
@@ -211,7 +217,6 @@ def read_epochs(folders, say=None) -> list[Epoch]:
         if not same_frame(epochs[0], e):
             raise CompareError(f"{e.folder}: its coordinates are in {e.frame()}, those of {epochs[0].folder} in "
                                f"{epochs[0].frame()}; rebuild one twin in the other's CRS (--crs) to compare them")
-    _check_heights(epochs, say)
     undated = [e for e in epochs if e.date is None]
     if undated:
         if say:
@@ -221,21 +226,58 @@ def read_epochs(folders, say=None) -> list[Epoch]:
         epochs = sorted(epochs, key=lambda e: e.date)
     for a, b in zip(epochs, epochs[1:]):
         _check_overlap(a, b)
+    _one_datum(epochs, say)
     return epochs
 
 
-def _check_heights(epochs: list[Epoch], say) -> None:
-    """Heights in two stated datums are not compared; a twin whose datum is unknown is said (its heights are
-    compared as they are: the alignment's height offset then holds any difference of datum)."""
-    known = {e.vertical for e in epochs if e.vertical}
-    if len(known) > 1:
-        a, b = [next(e for e in epochs if e.vertical == v) for v in sorted(known)[:2]]
-        raise CompareError(f"{b.folder}: its heights are in {b.vertical}, those of {a.folder} in {a.vertical}; "
-                           "rebuild one twin with the other's --vertical-crs to compare them")
+def _one_datum(epochs: list[Epoch], say) -> None:
+    """Put every epoch's heights in one datum: the first stated one in date order. An epoch in another stated
+    datum is converted (``H + N_own - N_first``, both undulations at the area's centre, as the exports compute
+    them; what varies across the area goes into the alignment's height offset); its ``height`` says how. A twin
+    whose datum is unknown is said and compared as it is (a difference of datum goes into the height offset)."""
+    from ..errors import GeorefError
+    from ..geo.vertical import vertical_of
+
+    stated = [e for e in epochs if e.vertical]
+    if not stated:
+        return
+    ref = stated[0]
+    lon, lat = (np.median(ref.lonlat, axis=0) if len(ref.lonlat) else _centre_lonlat(ref))
+    for e in epochs:
+        if not e.vertical:
+            continue
+        try:
+            own, first = (vertical_of(x.vertical, "twin.json", str(x.folder)) for x in (e, ref))
+        except GeorefError as exc:
+            raise CompareError(f"{exc}; rerun build-twin") from exc
+        shift = 0.0
+        if e.vertical != ref.vertical:
+            shift = float(own.undulation(lon, lat)[0] - first.undulation(lon, lat)[0])
+            _shift_heights(e, shift)
+        e.height = {"datum": e.vertical, "to": ref.vertical, "shift_m": round(shift, 4),
+                    "accuracy_m": max(own.accuracy_m or 0.0, first.accuracy_m or 0.0) if shift else 0.0}
     unknown = [e for e in epochs if not e.vertical]
-    if known and unknown and say:
+    if unknown and say:
         say(f"{', '.join(str(e.folder) for e in unknown)}: the heights' datum is unknown (the others' is "
-            f"{next(iter(known))}); compared as they are, a difference of datum goes into the height offset")
+            f"{ref.vertical}); compared as they are, a difference of datum goes into the height offset")
+    converted = [e for e in epochs if e.height and e.height["shift_m"]]
+    if converted and say:
+        say("; ".join(f"{e.folder}: heights in {e.vertical}, converted to {ref.vertical} "
+                      f"({e.height['shift_m']:+.3f} m)" for e in converted))
+
+
+def _centre_lonlat(e: Epoch) -> tuple[float, float]:
+    r = e.record.rasters[0]
+    c = (r.lo + r.hi) / 2
+    ll = e.georef.to_wgs84(np.array([[c[0], c[1], 0.0]]))
+    return float(ll[0, 0]), float(ll[0, 1])
+
+
+def _shift_heights(e: Epoch, dz: float) -> None:
+    """Add ``dz`` to every height of an epoch: its objects' centres and its record's ground."""
+    e.centre = e.centre + [0.0, 0.0, dz]
+    for r in e.record.rasters:
+        r.z0 = r.z0 + dz
 
 
 def _check_distinct(epochs: list[Epoch]) -> None:

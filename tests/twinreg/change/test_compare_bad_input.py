@@ -66,13 +66,44 @@ def test_other_crs(surveys, tmp_path):
     _refused([surveys.twins["before"], moved], tmp_path / "out", "local frame")
 
 
-def test_other_vertical_datum(surveys, tmp_path):
-    def heights(vertical):
-        return lambda doc: doc["georef"].update(vertical_crs=vertical, vertical_source="--vertical-crs")
+def test_another_vertical_datum_is_converted(surveys, tmp_path):
+    """The earlier twin's heights ellipsoidal (EPSG:4979), the later's in EGM96 heights (EPSG:5773: the same
+    survey, each height lowered by the undulation at Dublin): compare puts them in one datum and finds what the
+    plain pair gives."""
+    from twinreg.change.compare import changes_document
+    from twinreg.geo.vertical import vertical_of
 
-    nap = _copy(surveys.twins["before"], tmp_path / "nap", heights("EPSG:5709"))
-    navd = _copy(surveys.twins["after150"], tmp_path / "navd", heights("EPSG:5703"))
-    _refused([nap, navd], tmp_path / "out", "EPSG:5709", "EPSG:5703", "--vertical-crs")
+    n = float(vertical_of("EPSG:5773", "test", "test").undulation(-6.26, 53.35)[0])
+    assert 50 < n < 60  # EGM96 at Dublin
+
+    def stated(vertical, dz=0.0):
+        def edit(doc):
+            doc["georef"].update(vertical_crs=vertical, vertical_source="--vertical-crs")
+            for o in doc["objects"]:
+                o["centroid"][2] += dz
+        return edit
+
+    ell = _copy(surveys.twins["before"], tmp_path / "ell", stated("EPSG:4979"))
+    egm = _copy(surveys.twins["after150"], tmp_path / "egm", stated("EPSG:5773", -n))
+    with np.load(egm / "observed.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["z0"] = arrays["z0"] - n
+    np.savez(egm / "observed.npz", **arrays)
+    plain, _ = changes_document([surveys.twins["before"], surveys.twins["after150"]])
+    said = []
+    got, _ = changes_document([ell, egm], say=said.append)
+    h = got["epochs"][1]["heights"]
+    assert h["datum"] == "EPSG:5773" and h["to"] == "EPSG:4979" and abs(h["shift_m"] - n) < 0.05, h
+    assert h["accuracy_m"] == 1.0 and got["epochs"][0]["heights"]["shift_m"] == 0.0
+    assert any("converted to EPSG:4979" in s for s in said), said
+    assert abs(got["alignment"][0]["shift"][2] - plain["alignment"][0]["shift"][2]) < 0.02
+    def gist(doc):
+        return [(c["status"], *((c[k] or {}).get("id") for k in ("before", "after"))) for c in doc["changes"]]
+
+    assert gist(got) == gist(plain)
+    for c, p in zip(got["changes"], plain["changes"]):  # the later heights given in the earlier's datum
+        if c.get("after"):
+            assert abs(c["after"]["centroid"][2] - p["after"]["centroid"][2]) < 0.05
 
 
 def test_no_overlap(surveys, tmp_path):
