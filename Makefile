@@ -27,7 +27,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m compileall -q twinreg cosco
 	@touch $(STAMP)
 
-# three.js for the viewer, the Khronos glTF validator and playwright-core for the tests: exactly the locked
+# three.js for the viewer, the Khronos glTF validator, CesiumJS and playwright-core for the tests: exactly the locked
 # versions from the npm registry (no browser download: the tests drive the system's Chromium)
 $(NPM_STAMP): package.json package-lock.json
 	@command -v npm >/dev/null || { echo "installing nodejs and npm"; $(call apt_install,nodejs npm); }

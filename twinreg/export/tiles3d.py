@@ -27,7 +27,7 @@ import numpy as np
 from ..geo.earth import EnuFrame, enu_angles
 from .gltf import Glb
 from .objects import box_mesh
-from .scan_tiles import box_volume, translation
+from .scan_tiles import box_volume, link_error, translation
 from .twin_ply import PALETTE as TAB10
 
 #: triangles of a model in the tiles (a city of thousands of cars must draw in a browser; twin.glb and the KMZ
@@ -157,8 +157,9 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
     n_scan = 0
     if scans:
         n_scan = _write_scan(out / "tiles" / "scan", frame, georef, scans, all_lo, all_hi)
-        children.append({"boundingVolume": {"box": box_volume(np.min(all_lo, 0), np.max(all_hi, 0))},
-                         "geometricError": 1.0, "content": {"uri": "scan/tileset.json"}})
+        lo, hi = np.min(all_lo, 0), np.max(all_hi, 0)
+        children.append({"boundingVolume": {"box": box_volume(lo, hi)}, "geometricError": link_error(lo, hi, 0.0),
+                         "content": {"uri": "scan/tileset.json"}})
     root_lo, root_hi = np.min(all_lo, 0), np.max(all_hi, 0)
     size = float(np.linalg.norm(root_hi - root_lo))
     origin = {"lon": frame.lon, "lat": frame.lat, "h": frame.h}
