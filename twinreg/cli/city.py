@@ -25,6 +25,9 @@ def simulate_city_cmd(
     seed: Annotated[int, typer.Option(help="Seed (the city is deterministic).")] = 0,
     crs: Annotated[str, typer.Option(help="Projected CRS written in the headers.")] = "EPSG:28992",
     copc: Annotated[bool, typer.Option("--copc", help="Write COPC files (.copc.laz) instead of plain LAZ.")] = False,
+    layout: Annotated[str, typer.Option(
+        "--layout", help="streets (parked cars along streets, walls, trees, poles) or parks (dense car parks of "
+                         "10-16 cars with a kerb, wall, tree, kiosk and lamp post).")] = "streets",
     epoch_of: Annotated[Optional[Path], typer.Option(
         "--epoch-of", help="A later survey of the city in this folder (an earlier simulate-city): its cars stay, "
                            "move, leave, are replaced or arrive, flown along other lines, offset by (0.10, -0.08, "
@@ -38,11 +41,15 @@ def simulate_city_cmd(
     json_: JsonOpt = False,
 ):
     """A tiled city of LAZ files (CRS in their headers) and truth.json: streets of parked cars (the catalogue's
-    models, or parametric cars when it is empty), walls, trees, poles, sloping ground; or, with --epoch-of, a
-    later survey of such a city."""
+    models, or parametric cars when it is empty), walls, trees, poles, sloping ground, or dense car parks
+    (--layout parks); or, with --epoch-of, a later survey of such a city."""
     from ..io.outdir import staged_folder
     from ..sim.city import city_models, simulate_city
 
+    if layout not in ("streets", "parks"):
+        from ..errors import ParameterError
+
+        raise ParameterError(f"--layout must be streets or parks (got {layout!r})")
     models, names, source, sizes = city_models(library)
     if source != "catalogue":
         info("the catalogue is empty: the city's cars are the project's parametric ones")
@@ -52,7 +59,7 @@ def simulate_city_cmd(
             truth = _later(stage, epoch_of, models, names, sizes, density, seed, when, bars.update)
         else:
             truth = simulate_city(stage, models, names, km2=km2, density=density or 150.0, tile=tile, seed=seed,
-                                  crs=crs, progress=bars.update, copc=copc, date=when)
+                                  crs=crs, progress=bars.update, copc=copc, date=when, kind=layout)
     doc = {k: truth.get(k) for k in ("crs", "tile_m", "density", "seed", "side_m", "n_points", "tiles", "date")}
     doc |= {"n_cars": len(truth["cars"]), "truth": str(out / "truth.json"), "models": source}
     if epoch_of is not None:

@@ -107,6 +107,44 @@ def layout(models: list, side_x: float, side_y: float, seed: int,
     return placed
 
 
+#: a car park of the "parks" layout: a square of PARK metres, two rows of perpendicular bays facing an aisle
+PARK = 40.0
+BAY = 2.6
+
+
+def park_layout(models: list, side_x: float, side_y: float, seed: int, park: float = PARK) -> list[Placed]:
+    """Dense car parks over ``[0, side_x) x [0, side_y)``, one every ``park`` metres in x and y: 10-16 cars each
+    in two rows of perpendicular bays (nose in or out) either side of an aisle, the other bays left as ``slot``,
+    and the furniture of a real car park: a kerb behind the first row, a wall, a tree, a kiosk (car-sized, not a
+    car) and a lamp post."""
+    rng = np.random.default_rng(seed)
+    placed: list[Placed] = []
+    lengths = [float(np.ptp(v[:, 0])) for v, _ in models]
+    for y0 in np.arange(0.0, side_y - park + 1e-6, park):
+        for x0 in np.arange(0.0, side_x - park + 1e-6, park):
+            n_cars = int(rng.integers(10, 17))
+            bays = [(x0 + 3.0 + BAY * (k + 0.5), y0 + yr) for yr in (9.0, 22.0) for k in range(8)]
+            taken = set(rng.choice(len(bays), n_cars, replace=False).tolist())
+            for k, (cx, cy) in enumerate(bays):
+                m = int(rng.integers(len(models)))
+                heading = float(rng.choice([np.pi / 2, 3 * np.pi / 2]) + rng.normal(0.0, 0.03))
+                cx, cy = cx + rng.normal(0.0, 0.08), cy + rng.normal(0.0, 0.12)
+                v, f = models[m]
+                mesh = (transform(v, pose_matrix(cx, cy, heading, float(ground_height(cx, cy)))), f)
+                placed.append(Placed("car" if k in taken else "slot", m, float(cx), float(cy),
+                                     float(np.mod(heading, 2 * np.pi)), mesh, lengths[m] / 2 + 0.5))
+            things = [("kerb", x0 + 13.4, y0 + 5.6, [21.5, 0.3, 0.15], 0.0, 11.5),
+                      ("wall", x0 + 14.0, y0 + 36.5, [rng.uniform(14.0, 24.0), 0.3, 2.2], 0.0, 12.5),
+                      ("kiosk", x0 + 32.5, y0 + 26.0, [3.0, 2.4, 2.6], float(rng.uniform(0, np.pi)), 2.5),
+                      ("pole", x0 + 28.0, y0 + 15.5, [0.2, 0.2, 6.0], 0.0, 0.5)]
+            for kind, x, y, size, yaw, radius in things:
+                gz = float(ground_height(x, y))
+                placed.append(Placed(kind, -1, x, y, yaw, _box(size, [x, y, gz + size[2] / 2 - 0.02], yaw), radius))
+            tx, ty = x0 + 33.0 + rng.uniform(-1, 1), y0 + 9.0 + rng.uniform(-1, 1)
+            placed.append(Placed("tree", -1, tx, ty, 0.0, _tree(tx, ty, rng), 3.5))
+    return placed
+
+
 def _ground(x0, x1, y0, y1, step=1.0):
     xs = np.arange(x0, x1 + step, step)
     ys = np.arange(y0, y1 + step, step)
@@ -195,9 +233,10 @@ def city_models(library=None) -> tuple[list, list[str], str, np.ndarray]:
 def simulate_city(out, models: list, names: list[str], km2: float = 0.01, density: float = 150.0,
                   tile: float = 100.0, seed: int = 0, crs: str = DEFAULT_CRS, origin=DEFAULT_ORIGIN,
                   progress=None, copc: bool = False, street_spacing: float = STREET_SPACING,
-                  date: str | None = None) -> dict:
+                  date: str | None = None, kind: str = "streets") -> dict:
     """Write ``out/tile_<x>_<y>.laz`` (``tile`` metres square, ``crs`` and ``date`` (``YYYY-MM-DD``, None: today's)
-    in each header; ``.copc.laz`` files with ``copc``) and ``out/truth.json``.
+    in each header; ``.copc.laz`` files with ``copc``) and ``out/truth.json``; ``kind``: ``streets`` (see the
+    module's text) or ``parks`` (dense car parks with furniture, :func:`park_layout`).
 
     models : (vertices, faces) of each car model (metres, Z up, front +X, footprint centred, bottom at z 0);
     names : their names, written in the truth. Returns the truth document.
@@ -206,13 +245,16 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
     out.mkdir(parents=True, exist_ok=True)
     n_tiles = max(1, int(round(np.sqrt(km2 * 1e6) / tile)))
     side = n_tiles * tile
-    placed = layout(models, side, side, seed, street_spacing)
+    if kind not in ("streets", "parks"):
+        raise ValueError(f"unknown city layout {kind!r}: streets or parks")
+    placed = (layout(models, side, side, seed, street_spacing) if kind == "streets"
+              else park_layout(models, side, side, seed))
     origin = np.asarray(origin, dtype=np.float64)
     survey = Survey(density, seed, PASSES, date=date)
     files, n_points = write_tiles(out, [p for p in placed if p.kind != "slot"], side, tile, survey, crs, origin,
                                   copc, progress)
     truth = {"crs": crs, "origin": origin.tolist(), "tile_m": tile, "density": density, "seed": seed,
-             "street_spacing_m": street_spacing, "km2": km2, "date": date,
+             "street_spacing_m": street_spacing, "km2": km2, "date": date, "layout": kind,
              "side_m": side, "n_points": n_points, "tiles": files, "cars": car_truth(placed, names, origin),
              "others": [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]} for p in placed
                         if p.kind not in ("car", "slot")]}

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .city import Placed, Survey, car_truth, ground_height, layout, write_tiles, write_truth
+from .city import Placed, Survey, car_truth, ground_height, layout, park_layout, write_tiles, write_truth
 from .epochs import other_sizes
 from .scan import pose_matrix, transform
 
@@ -105,7 +105,8 @@ def simulate_later(out, earlier, models: list, names: list[str], sizes, density:
     earlier = Path(earlier)
     truth0 = json.loads((earlier / "truth.json").read_text(encoding="utf-8"))
     side, tile, origin = truth0["side_m"], truth0["tile_m"], np.asarray(truth0["origin"], dtype=np.float64)
-    placed = layout(models, side, side, truth0["seed"], truth0.get("street_spacing_m", 24.0))
+    placed = (park_layout(models, side, side, truth0["seed"]) if truth0.get("layout") == "parks"
+              else layout(models, side, side, truth0["seed"], truth0.get("street_spacing_m", 24.0)))
     if car_truth(placed, names, origin) != truth0["cars"]:
         raise ValueError(f"{earlier}: its cars are not the ones these models give; simulate the later epoch with "
                          "the catalogue the earlier one was made with")
@@ -133,7 +134,8 @@ def simulate_later(out, earlier, models: list, names: list[str], sizes, density:
             expected = ["unobserved"] if hidden else (["unobserved", e["event"]] if edge else [e["event"]])
         rows.append({"event": e["event"], "before": _car(e["before"], names, origin),
                      "after": _car(e["after"], names, origin), "expected": expected})
-    truth = {k: truth0[k] for k in ("crs", "origin", "tile_m", "seed", "street_spacing_m", "side_m") if k in truth0}
+    truth = {k: truth0[k] for k in ("crs", "origin", "tile_m", "seed", "street_spacing_m", "side_m", "layout")
+             if k in truth0}
     truth |= {"density": survey.density, "date": date, "epoch_of": earlier.name, "survey_seed": survey.seed,
               "shift": list(shift), "gap_x": [g + origin[0] for g in gap], "n_points": n_points, "tiles": files,
               "cars": [c for c in (_car(p, names, origin) for p in objects if p.kind == "car")], "events": rows}
