@@ -32,7 +32,8 @@ import sys, numpy as np, laspy
 from pathlib import Path
 from twinreg.export.scan_tiles import write_cell_quadtree
 las = laspy.read(sys.argv[1])
-unit = 0.3048 if las.header.parse_crs() and 'foot' in str(las.header.parse_crs().axis_info[0].unit_name).lower() else 1.0
+crs = las.header.parse_crs()
+unit = 0.3048 if crs and 'foot' in str(crs.axis_info[0].unit_name).lower() else 1.0
 pts = np.column_stack([las.x, las.y, las.z]) * unit
 rgb = np.full((len(pts), 3), 200, np.uint8)
 entry = write_cell_quadtree(Path(sys.argv[2]), "scan", pts - (pts.min(0) + pts.max(0)) / 2, rgb)
@@ -110,7 +111,8 @@ def main():
     print("| tiler | file | points | s | peak MB | files | MB |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['tiler']} | {r['file']} | {r['points']:,} | {r['s']} | {r['peak_mb']} | {r['files']:,} | {r['mb']} |")
+        print(f"| {r['tiler']} | {r['file']} | {r['points']:,} | {r['s']} | {r['peak_mb']} | {r['files']:,} "
+              f"| {r['mb']} |")
     if not a.keep:
         shutil.rmtree(work, ignore_errors=True)
 
