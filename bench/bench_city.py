@@ -3,7 +3,11 @@ parked cars, walls, trees, poles, slopes), timed from outside with the peak memo
 command, the Dask scheduler and its workers), sampled every 0.1 s; and the 9.2M-point case of issue 9 (a car park
 repeated 6 x 6 in one LAS file).
 
-    python bench/bench_city.py [--points 10,30,100] [--cars 12,100,400] [--keep DIR]
+    python bench/bench_city.py [--points 10,30,100] [--cars 12,100,400] [--parks 10,100] [--no-park6x6] [--keep DIR]
+
+``--parks`` adds dense car-park cities (simulate-city --layout parks: 10-16 cars a park with a kerb, wall, tree,
+kiosk and lamp post) at 150 and 300 pts/m2 beside a street city of the same size, with the cell stage per million
+points and the matching per object of each and their ratios.
 """
 
 from __future__ import annotations
@@ -65,14 +69,65 @@ def catalogue16(folder: Path):
     return cat
 
 
-def city(cat, folder: Path, km2: float, seed: int = 0, tile: float = 250.0) -> dict:
+def city(cat, folder: Path, km2: float, seed: int = 0, tile: float = 250.0, density: float = 150.0,
+         layout: str = "streets") -> dict:
     from twinreg.sim.city import simulate_city
 
     if (folder / "truth.json").exists():
         return json.loads((folder / "truth.json").read_text())
     rows = sorted(cat.list(), key=lambda r: r.name)
-    return simulate_city(folder, [cat.ge_mesh(r) for r in rows], [r.name for r in rows], km2=km2, density=150.0,
-                         tile=tile, seed=seed, street_spacing=STREETS)
+    return simulate_city(folder, [cat.ge_mesh(r) for r in rows], [r.name for r in rows], km2=km2, density=density,
+                         tile=tile, seed=seed, street_spacing=STREETS, kind=layout)
+
+
+def _tiles_for(km2: float) -> float:
+    """The tile side (m, at most 250, a multiple of 5) whose tiles make up a city of ``km2``."""
+    side = np.sqrt(km2) * 1000.0
+    n = int(np.ceil(side / 250.0))
+    return float(np.ceil(side / n / 5.0) * 5.0)
+
+
+def _per(twin: dict) -> tuple[float, float]:
+    """(cell stage seconds per million points, taxonomy + matching ms per object) of a city run."""
+    t = twin["timing_s"]
+    return (t["cells"] / (twin["n_points"] / 1e6),
+            1000 * (t.get("matrix", 0) + t.get("matching", 0)) / max(len(twin["objects"]), 1))
+
+
+def compare_layouts(cat, lib: Path, root: Path, size: int, densities=(150.0, 300.0)) -> list[Row]:
+    """Streets and dense car parks (simulate-city --layout parks) of ``size`` million points each: time, memory,
+    the cell stage per million points and the matching per object, and the ratios parks / streets."""
+    rows, per = [], {}
+    for layout, density in [("streets", 150.0)] + [("parks", d) for d in densities]:
+        km2 = size * 1e6 / (density * 1e6)  # every ray returns: about density x 1e6 points a km2
+        folder = root / f"city_{layout}_{size}_{density:g}"
+        truth = city(cat, folder, km2, seed=21, tile=_tiles_for(km2), density=density, layout=layout)
+        secs, peak, twin = build(lib, [str(folder)], root / f"out_{layout}_{size}_{density:g}")
+        right, found, pos = score(truth, twin)
+        per[(layout, density)] = _per(twin)
+        cells, match = per[(layout, density)]
+        others = sum(1 for o in truth.get("others", []) if o["kind"] in ("kiosk", "wall", "tree"))
+        data = (f"simulated {layout} city at {density:g} pts/m2, {twin['n_points']:,} points, {len(truth['cars'])} "
+                f"cars, {others} kiosks, walls and trees")
+        rows.append(Row(f"build-twin on {layout}, process start to files written", data,
+                        f"{secs:.1f} s, peak {peak / 2**30:.2f} GiB; {found}/{len(truth['cars'])} found once, "
+                        f"{right} own model; cells {cells:.2f} s per M points, taxonomy + matching {match:.1f} ms "
+                        f"an object; stages " + ", ".join(f"{k} {v:.1f}" for k, v in twin["timing_s"].items()
+                                                          if k in ("cells", "matrix", "matching", "formats"))))
+        stages: dict = {}
+        for c in twin["cells"]:
+            for k, v in c["timing_s"].items():
+                stages[k] = stages.get(k, 0.0) + v
+        rows.append(Row(f"cell time by stage on {layout} ({density:g} pts/m2), summed over cells", data,
+                        ", ".join(f"{k} {1000 * v / (twin['n_points'] / 1e6):.0f} ms" for k, v in stages.items())
+                        + " per million points"))
+    base = per[("streets", 150.0)]
+    for (layout, density), (cells, match) in per.items():
+        if layout == "parks":
+            rows.append(Row("parks / streets", f"{size}M points, parks at {density:g} pts/m2",
+                            f"cells per M points x{cells / base[0]:.2f}, matching per object x{match / base[1]:.2f}",
+                            "within 1.5x"))
+    return rows
 
 
 def score(truth: dict, twin: dict) -> tuple[int, int, float]:
@@ -130,13 +185,22 @@ def car_park_6x6(cat, path: Path) -> int:
     return len(allp)
 
 
-def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None) -> list[Row]:
+def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None, parks=(), park6x6: bool = True,
+        ) -> list[Row]:
     rows = []
     root = keep or Path(tempfile.mkdtemp(prefix="twinreg-city-bench-"))
     root.mkdir(parents=True, exist_ok=True)
     lib = root / "lib16"
     cat = catalogue16(lib)
-    per_object = []
+    for size in parks:
+        rows += compare_layouts(cat, lib, root, size)
+    if park6x6:
+        rows += _park6x6(cat, lib, root)
+    return rows + _cities(cat, lib, root, points, cars)
+
+
+def _park6x6(cat, lib: Path, root: Path) -> list[Row]:
+    rows = []
     # the 9.2M-point case of issue 9
     park = root / "park6x6.las"
     n = car_park_6x6(cat, park) if not park.exists() else None
@@ -147,14 +211,16 @@ def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None) -> 
                     f"{twin['n_points']:,} points, {len(twin['objects'])} objects, 16-model catalogue",
                     f"{secs:.1f} s, peak {peak / 2**30:.2f} GiB (all processes), {matched} matched, "
                     f"{twin['grid']['n_cells']} cells", "< 30 s (was 335 s and 15 GB)"))
-    curve = []
+    return rows
+
+
+def _cities(cat, lib: Path, root: Path, points, cars) -> list[Row]:
+    rows, per_object, curve = [], [], []
     for kind, sizes in (("cars", cars), ("points", points)):
         for size in sizes:
             km2 = size / CARS_PER_KM2 if kind == "cars" else size * 1e6 / POINTS_PER_KM2
             folder = root / f"city_{kind}_{size}"
-            side = np.sqrt(km2) * 1000.0
-            n = int(np.ceil(side / 250.0))  # tiles of at most 250 m that make up the side
-            truth = city(cat, folder, km2, tile=float(np.ceil(side / n / 5.0) * 5.0))
+            truth = city(cat, folder, km2, tile=_tiles_for(km2))
             secs, peak, twin = build(lib, [str(folder)], root / f"out_{kind}_{size}")
             right, found, pos = score(truth, twin)
             t = twin["timing_s"]
@@ -233,10 +299,14 @@ def main():
     ap.add_argument("--points", default="10,30,100", help="city sizes in millions of points")
     ap.add_argument("--cars", default="12,100,400", help="small cities by number of cars")
     ap.add_argument("--keep", type=Path, default=None, help="keep the cities and outputs here (reused)")
+    ap.add_argument("--parks", default="", help="dense car-park cities (150 and 300 pts/m2) beside a street city "
+                                                "of the same size, in millions of points (e.g. 10,100)")
+    ap.add_argument("--no-park6x6", action="store_true", help="leave out issue 9's car park repeated 6 x 6")
     args = ap.parse_args()
     pts = [int(v) for v in args.points.split(",") if v]
     cars = [int(v) for v in args.cars.split(",") if v]
-    rows = run(pts, cars, args.keep)
+    parks = [int(v) for v in args.parks.split(",") if v]
+    rows = run(pts, cars, args.keep, parks, not args.no_park6x6)
     print(f"machine: {machine()}")
     for r in rows:
         print(f"| {r['what']} | {r['data']} | {r['figure']} | {r['target']} |")
