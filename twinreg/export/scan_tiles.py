@@ -8,7 +8,9 @@ even thinning of the scan four times denser than the one above. A tile at level 
 parent's square and holds its level's points there; its ``geometricError`` is the spacing of the points shown down
 to it (what a viewer misses by not loading its children), 0 at the leaves. Each cell's quadtree is an external
 tileset (``scan/<cell>.json``) referenced from ``scan/tileset.json``, so a city's cells are written one at a time
-in bounded memory.
+in bounded memory. The tiles that only lead to points (``scan/tileset.json``'s root, its link to each cell's
+quadtree, the twin's link to the scan) carry what drawing none of the points below them misses
+(:func:`link_error`), so a viewer enters them from as far as their boxes are a few pixels wide.
 """
 
 from __future__ import annotations
