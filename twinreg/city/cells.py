@@ -131,6 +131,7 @@ def _process_cell(job: CellJob) -> CellResult:
     out.n_ground = int((det.is_ground & own).sum())
     out.n_outliers = int(det.scene.n_outliers)
     out.noise = scene_noise(det.hag, det.is_ground)
+    t = time.perf_counter()
     out.observed = raster(pts, det.hag, det.is_ground, cell.lo, cell.hi)
     if job.scan_dir:  # every point of the core, as level-of-detail tiles written here on the worker
         rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
@@ -138,6 +139,7 @@ def _process_cell(job: CellJob) -> CellResult:
             out.scan_tiles = write_cell_scan(Path(job.scan_dir), cell.name, job.key, pts[rows], colours)
         else:
             cell_scan_folder(Path(job.scan_dir), cell.name, job.key).mkdir(parents=True, exist_ok=True)
+    out.timing_s["scan_tiles"] = time.perf_counter() - t  # with the observation raster
     t = time.perf_counter()
     owned, centres = [], []
     for o in det.segmentation.objects:
@@ -159,6 +161,8 @@ def _process_cell(job: CellJob) -> CellResult:
             spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o)))
     out.timing_s["sections"] = time.perf_counter() - t
     if job.labels:
+        t = time.perf_counter()
         rows, classes, ids = cell_labels(det.is_ground, own, [o for o in det.segmentation.objects if o.target], owned)
         save_labels(Path(job.labels), pts[rows], classes, ids)
+        out.timing_s["labels"] = time.perf_counter() - t
     return out
