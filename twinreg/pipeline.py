@@ -117,17 +117,22 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     if catalogue.count() == 0:
         raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
                              "`twinreg add-model MESH` or `twinreg import-models DIR`")
+    from .matching.prober import Prober
+
+    prober = Prober.start()  # open3d loads in a helper while this process detects and registers
     painter = Painter.start(warm=warm_up)
     try:
         return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply,
-                      date, templates)
+                      date, templates, prober)
     finally:
         if painter:
             painter.stop()
+        if prober:
+            prober.stop()
 
 
 def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing,
-           ply=True, date=None, templates=False) -> dict:
+           ply=True, date=None, templates=False, prober=None) -> dict:
     _say(progress, "reading and detecting")
     det = detect_file(scene_path, unit=unit, params=params,
                       crs=georef.crs if georef is not None and georef.crs_source == "--crs" else None)
@@ -151,7 +156,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
-                           templates=templates)
+                           templates=templates, prober=prober)
             twin = _match_and_export(run)
         except BaseException:
             if painter:  # the helper may be drawing into the stage: stopped before the stage is deleted
@@ -187,7 +192,7 @@ class SceneRun:
     """One scene's run once its objects are described: where it writes (``stage``), what it read (``scene_path``,
     the detection ``det``, its ``targets`` and their ``shapes``, the taxonomy ``clusters``), with what
     (``catalogue``, ``georef``, ``params``), and how it runs (``progress``, ``timing``, ``t_start``, the picture
-    helper ``painter`` and its ``taxonomy`` job, ``ply``)."""
+    helper ``painter`` and its ``taxonomy`` job, ``ply``, the distance helper ``prober``)."""
 
     stage: Path
     scene_path: Path
@@ -206,6 +211,7 @@ class SceneRun:
     ply: bool = True
     date: str | None = None
     templates: bool = False
+    prober: object = None
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -216,7 +222,7 @@ def _match_and_export(run: SceneRun) -> dict:
     offset = det.scene.offset
     _say(progress, "prefilter and registration")
     noise = scene_noise(det.hag, det.is_ground)
-    models = ModelCache(catalogue, params)
+    models = ModelCache(catalogue, params, prober=run.prober)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
                                    clouds=[object_points(det, o) for o in targets], noise=noise, cache=models)
     timing["prefilter"] = stats["prefilter_s"]

@@ -14,9 +14,10 @@ from ..catalogue.repository import Catalogue, ModelGeometry
 class ModelCache:
     """Catalogue models loaded once (arrays, section pairs and frames)."""
 
-    def __init__(self, catalogue: Catalogue, params: CoscoParams = DEFAULT):
+    def __init__(self, catalogue: Catalogue, params: CoscoParams = DEFAULT, prober=None):
         self.catalogue = catalogue
         self.params = params
+        self.prober = prober  # a Prober: distance queries answered by a helper process (twinreg.matching.prober)
         self._geo: dict[int, ModelGeometry] = {}
         self._pairs: dict[int, cosco.SectionPair] = {}
         self._frames: dict[int, cosco.Frame] = {}
@@ -87,9 +88,12 @@ class ModelCache:
     def surface(self, model_id: int):
         """The twin's mesh of the model as a :class:`~twinreg.matching.acceptance.SurfaceIndex` (distance queries)."""
         if model_id not in self._surfaces:
-            from .acceptance import SurfaceIndex
+            if self.prober is not None:
+                self._surfaces[model_id] = self.prober.surface(model_id, lambda: self.mesh(model_id))
+            else:
+                from .acceptance import SurfaceIndex
 
-            self._surfaces[model_id] = SurfaceIndex(*self.mesh(model_id))
+                self._surfaces[model_id] = SurfaceIndex(*self.mesh(model_id))
         return self._surfaces[model_id]
 
     def frame(self, model_id: int) -> cosco.Frame:

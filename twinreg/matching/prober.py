@@ -1,0 +1,81 @@
+"""The verification's point-to-surface distances in a helper process (the run's second
+:class:`~twinreg.report.painter.Painter`), so that open3d, whose import alone takes about a second, loads on the
+other core while this process detects, describes and registers.
+
+The helper is started with the run and imports open3d at once; each model's mesh is sent with its first query and
+kept there (one :class:`~twinreg.matching.acceptance.SurfaceIndex` per model, as in-process). The answers are the
+same distances open3d gives in-process. It is a speed-up only: when the helper is missing, stuck or failed, the
+queries are answered in this process (and the helper stopped)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import HelperError
+
+#: in the helper: model id -> its SurfaceIndex
+_SURFACES: dict = {}
+
+
+def warm_up() -> bool:
+    """Import open3d (the helper's first call)."""
+    import open3d  # noqa: F401
+
+    return True
+
+
+def _distances(model_id: int, mesh, points: np.ndarray) -> np.ndarray:
+    from .acceptance import SurfaceIndex
+
+    if model_id not in _SURFACES:
+        if mesh is None:
+            raise HelperError(f"model {model_id}: no mesh sent")
+        _SURFACES[model_id] = SurfaceIndex(*mesh)
+    return _SURFACES[model_id].distances(points)
+
+
+class Prober:
+    """Distance queries answered by a helper process, or here once it fails."""
+
+    def __init__(self, helper):
+        self.helper = helper
+        self._sent: set = set()
+        self._local: dict = {}
+
+    @classmethod
+    def start(cls) -> "Prober | None":
+        from ..report.painter import Painter
+
+        helper = Painter.start(warm=warm_up)
+        return cls(helper) if helper is not None else None
+
+    def surface(self, model_id: int, mesh_of) -> "_Remote":
+        """A stand-in for the model's SurfaceIndex (``mesh_of()`` gives its (vertices, faces) when first needed)."""
+        return _Remote(self, model_id, mesh_of)
+
+    def distances(self, model_id: int, mesh_of, points: np.ndarray) -> np.ndarray:
+        if self.helper is not None:
+            try:
+                mesh = None if model_id in self._sent else mesh_of()
+                self._sent.add(model_id)
+                return self.helper.result(self.helper.submit(_distances, model_id, mesh, np.asarray(points)))
+            except HelperError:
+                self.stop()
+        if model_id not in self._local:
+            from .acceptance import SurfaceIndex
+
+            self._local[model_id] = SurfaceIndex(*mesh_of())
+        return self._local[model_id].distances(points)
+
+    def stop(self) -> None:
+        if self.helper is not None:
+            self.helper.stop()
+            self.helper = None
+
+
+class _Remote:
+    def __init__(self, prober: Prober, model_id: int, mesh_of):
+        self.prober, self.model_id, self.mesh_of = prober, model_id, mesh_of
+
+    def distances(self, points: np.ndarray) -> np.ndarray:
+        return self.prober.distances(self.model_id, self.mesh_of, points)
