@@ -51,7 +51,8 @@ class ModelCache:
         return self._trees[model_id]
 
     def top(self, model_id: int) -> np.ndarray:
-        """The model's top surface (:func:`twinreg.matching.decision.top_surface` of its sampled points), model frame."""
+        """The model's top surface (:func:`twinreg.matching.decision.top_surface` of its sampled points), model
+        frame."""
         if model_id not in self._tops:
             from .decision import top_surface
 
