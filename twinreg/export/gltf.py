@@ -41,10 +41,28 @@ def turn_quaternions(angles) -> np.ndarray:
     return np.column_stack([np.zeros(len(a)), np.sin(a), np.zeros(len(a)), np.cos(a)])
 
 
+#: the normals of the last meshes seen, by content (a model's mesh goes to the KMZ, the tiles and twin.glb)
+_NORMALS: dict = {}
+_NORMALS_KEPT = 64
+
+
 def vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """(n, 3) unit normals of a triangle mesh's vertices (area-weighted face normals; +Z where undefined)."""
-    v = np.asarray(v, dtype=np.float64)
-    f = np.asarray(f, dtype=np.int64)
+    """(n, 3) unit normals of a triangle mesh's vertices (area-weighted face normals; +Z where undefined); the
+    same mesh again (by content) gets the normals computed the first time."""
+    import hashlib
+
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    f = np.ascontiguousarray(f, dtype=np.int64)
+    key = (v.shape, f.shape, hashlib.blake2b(v.tobytes() + f.tobytes(), digest_size=16).digest())
+    if key not in _NORMALS:
+        if len(_NORMALS) >= _NORMALS_KEPT:
+            _NORMALS.pop(next(iter(_NORMALS)))
+        _NORMALS[key] = _normals(v, f)
+        _NORMALS[key].setflags(write=False)
+    return _NORMALS[key]
+
+
+def _normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     corner = f.ravel()  # each face's normal goes to its three vertices (bincount: many times faster than add.at)
     vn = np.column_stack([np.bincount(corner, weights=np.repeat(fn[:, c], 3), minlength=len(v)) for c in range(3)])
