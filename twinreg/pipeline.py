@@ -159,8 +159,9 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
                            templates=templates, prober=prober)
             twin = _match_and_export(run)
         except BaseException:
-            if painter:  # the helper may be drawing into the stage: stopped before the stage is deleted
-                painter.stop()
+            for helper in (painter, prober):  # a helper may be writing into the stage: stopped before it goes
+                if helper:
+                    helper.stop()
             raise
     return twin
 
@@ -251,15 +252,27 @@ def _match_and_export(run: SceneRun) -> dict:
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,
                     "title": f"{scene_path.name}: {len(objects)} objects"}, section_items)
-    # the pictures are drawn by the helper process (already warm) while this one writes the PLY and KMZ
+    # the pictures are drawn by the helper process (already warm) and the KMZ written by the distance helper
+    # (done with its queries) while this one writes the other files
     report = painter.submit(write_report, *report_args) if painter else None
+    kmz_args = (stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
+    kmz = run.prober.call(write_kmz, *kmz_args) if run.prober else None
+    if kmz is None:
+        write_kmz(*kmz_args)
     if ply:
         write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
-    write_kmz(stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
     rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
     twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
                                   [("scene", det.scene.points[rows], colours)], f"twinreg: {scene_path.name}", models,
                                   templates=run.templates)
+    classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,
+                                [o["match"] is not None for o in objects])
+    write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
+    twin["observation"] = observed.write(stage / observed.FILE, [observed.raster(
+        det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
+        [s.sections for s in shapes])
+    if kmz is not None:
+        kmz.wait()
     try:
         if painter is None:
             raise HelperError("no helper process")
@@ -273,12 +286,6 @@ def _match_and_export(run: SceneRun) -> dict:
         if clusters.method == "full":
             plot_taxonomy(stage, [o["id"] for o in objects], clusters.matrix, clusters.linkage, clusters.threshold)
         write_report(*report_args)
-    classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,
-                                [o["match"] is not None for o in objects])
-    write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
-    twin["observation"] = observed.write(stage / observed.FILE, [observed.raster(
-        det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
-        [s.sections for s in shapes])
     timing["export"] = time.perf_counter() - t
     timing["total"] = time.perf_counter() - t_start
     twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
