@@ -32,6 +32,19 @@ class Failure:
     error: str
 
 
+def _reachable(address: str, timeout: float = 5.0) -> None:
+    """Raise OSError when nothing listens at a ``tcp://`` or ``tls://`` HOST:PORT address (other forms: Dask's
+    own checks)."""
+    import socket
+    from urllib.parse import urlsplit
+
+    u = urlsplit(address)
+    if u.scheme not in ("tcp", "tls") or not u.hostname or u.port is None:
+        return
+    with socket.create_connection((u.hostname, u.port), timeout=timeout):
+        pass
+
+
 class Engine:
     """``with Engine(workers=2) as eng: eng.run(fn, jobs, names, on_result)`` (see the module's text)."""
 
@@ -48,6 +61,7 @@ class Engine:
 
         try:
             if self.scheduler:
+                _reachable(self.scheduler)  # a refused port is said at once (Dask retries it for 20 s)
                 self.client = Client(self.scheduler, timeout="20s")
             else:
                 n = self.workers or os.cpu_count() or 1
