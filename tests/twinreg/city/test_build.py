@@ -177,7 +177,7 @@ def test_an_interrupted_run_resumes_with_the_same_twin(small_city, city_twin, pa
     done = len(_finished(out))
     assert 2 <= done < city_twin["grid"]["n_cells"]
     assert not (out / "twin.json").exists()
-    q = _cli(*args)
+    q = _cli(*args[:-3], "--workers", "2", "--json")  # the rerun on two workers: the same twin
     stdout, stderr = q.communicate(timeout=300)
     assert q.returncode == 0, stderr
     twin = json.loads(stdout)
