@@ -59,7 +59,7 @@ const server = http.createServer((req, res) => {
 await new Promise((ok) => server.listen(0, "127.0.0.1", ok));
 const base = `http://127.0.0.1:${server.address().port}/`;
 
-const { browser, page, errors, blocked } = await localPage(Number(process.env.WIDTH || 800), Number(process.env.HEIGHT || 500));
+const { browser, page, errors, blocked } = await localPage(Number(process.env.WIDTH || 640), Number(process.env.HEIGHT || 400));
 let requests = [];
 page.on("request", (r) => {
   const p = new URL(r.url()).pathname;
@@ -72,12 +72,12 @@ try {
   out.failed = await page.evaluate(() => window.failed || null);
   if (!out.failed) {
     const settle = async () => {
-      // loaded and drawn: 6 frames drawn since the move, then no tile pending for 20 polls in a row
+      // loaded and drawn: 6 frames drawn since the move, then no tile pending for 8 polls in a row
       const start = await page.evaluate(() => window.frames);
       await page.waitForFunction((f0) => {
         const t = window.tileset;
         window.__calm = t.tilesLoaded && window.frames > f0 + 6 ? (window.__calm || 0) + 1 : 0;
-        return window.__calm > 20;
+        return window.__calm > 8;
       }, start, { timeout: 120000, polling: 100 });
       return page.evaluate(() => ({ points: window.tileset.statistics.numberOfPointsSelected,
         selected: window.tileset.statistics.selected, height: window.viewer.camera.positionCartographic.height }));

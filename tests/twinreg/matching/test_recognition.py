@@ -12,9 +12,22 @@ from twinreg.sim.accuracy import body_class, park_outcomes, summary
 SEEDS = (1, 2, 3)
 
 
+def _park(folder, density, seed):
+    from twinreg.catalogue.repository import Catalogue
+
+    return park_outcomes(Catalogue(folder, create=False), density, seed)[0]
+
+
 @pytest.fixture(scope="module")
 def outcomes(catalogue16):
-    return {d: sum((park_outcomes(catalogue16, d, s)[0] for s in SEEDS), []) for d in (300.0, 150.0, 20.0, 8.0)}
+    """Every (density, seed) park, two at a time in fresh processes (the parks are independent)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    runs = [(d, s) for d in (300.0, 150.0, 20.0, 8.0) for s in SEEDS]
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        got = list(pool.map(_park, [catalogue16.folder] * len(runs), *zip(*runs)))
+    return {d: sum((o for (dd, _), o in zip(runs, got) if dd == d), []) for d in (300.0, 150.0, 20.0, 8.0)}
 
 
 @pytest.mark.parametrize("density", [300.0, 150.0])
