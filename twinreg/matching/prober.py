@@ -45,8 +45,14 @@ class Prober:
 
     @classmethod
     def start(cls) -> "Prober | None":
+        """A started helper, or None where open3d is loaded here already (a second run in one process: its queries
+        are then quickest here) or no helper can start."""
+        import sys
+
         from ..report.painter import Painter
 
+        if "open3d" in sys.modules:
+            return None
         helper = Painter.start(warm=warm_up)
         return cls(helper) if helper is not None else None
 
