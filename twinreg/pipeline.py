@@ -14,7 +14,7 @@ from cosco.params import DEFAULT, CoscoParams
 from .catalogue.repository import Catalogue
 from .change import observed
 from .detect import describe_detected, detect_file, object_points
-from .errors import CatalogueError, HelperError, SceneReadError
+from .errors import CatalogueError, SceneReadError
 from .export.classified import scan_classes, write_classified
 from .export.formats import write_formats
 from .export.kmz import write_kmz
@@ -26,7 +26,7 @@ from .geo.georef import Georef, scene_georef
 from .io.outdir import check_replaceable, staged_folder
 from .matching.acceptance import scene_noise
 from .matching.match import ModelCache, match_objects
-from .report.painter import HELPER_TIMEOUT_S, Painter
+from .report.painter import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
 
 
@@ -151,8 +151,8 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     with staged_folder(Path(out), protect=[scene_path, catalogue.folder]) as stage:
         try:
             names = [f"obj{k + 1}" for k in range(len(targets))]
-            taxonomy = painter.submit(plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,
-                                      clusters.threshold) if painter and clusters.method == "full" else None
+            taxonomy = Pending(painter, plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,
+                               clusters.threshold) if clusters.method == "full" else None
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
@@ -254,11 +254,9 @@ def _match_and_export(run: SceneRun) -> dict:
                     "title": f"{scene_path.name}: {len(objects)} objects"}, section_items)
     # the pictures are drawn by the helper process (already warm) and the KMZ written by the distance helper
     # (done with its queries) while this one writes the other files
-    report = painter.submit(write_report, *report_args) if painter else None
-    kmz_args = (stage / "twin.kmz", f"twinreg: {scene_path.name}", kmz_objects, meshes)
-    kmz = run.prober.call(write_kmz, *kmz_args) if run.prober else None
-    if kmz is None:
-        write_kmz(*kmz_args)
+    report = Pending(painter, write_report, *report_args)
+    kmz = Pending(run.prober.helper if run.prober else None, write_kmz, stage / "twin.kmz",
+                  f"twinreg: {scene_path.name}", kmz_objects, meshes)
     if ply:
         write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
     rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
@@ -271,21 +269,12 @@ def _match_and_export(run: SceneRun) -> dict:
     twin["observation"] = observed.write(stage / observed.FILE, [observed.raster(
         det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
         [s.sections for s in shapes])
-    if kmz is not None:
-        kmz.wait()
-    try:
-        if painter is None:
-            raise HelperError("no helper process")
-        deadline = time.monotonic() + HELPER_TIMEOUT_S
-        if taxonomy is not None:
-            painter.result(taxonomy, timeout=max(deadline - time.monotonic(), 0.0))
-        painter.result(report, timeout=max(deadline - time.monotonic(), 0.0))
-    except HelperError:  # the helper is a speed-up only: stop it and draw here if it is missing, stuck or failed
-        if painter is not None:
-            painter.stop()
-        if clusters.method == "full":
-            plot_taxonomy(stage, [o["id"] for o in objects], clusters.matrix, clusters.linkage, clusters.threshold)
-        write_report(*report_args)
+    # each job done there or, when its helper is missing, stuck or failed, here (the pictures within one deadline)
+    kmz.wait()
+    deadline = time.monotonic() + HELPER_TIMEOUT_S
+    for job in (taxonomy, report):
+        if job is not None:
+            job.wait(timeout=max(deadline - time.monotonic(), 0.0))
     timing["export"] = time.perf_counter() - t
     timing["total"] = time.perf_counter() - t_start
     twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}

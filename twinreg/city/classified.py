@@ -52,18 +52,18 @@ def save_labels(path: Path, points: np.ndarray, classes: np.ndarray, ids: np.nda
 @dataclass(frozen=True)
 class CopcJob:
     """One cell's file: its ``labels``, the ``out`` path, the class of each of its objects (``k`` - 1 indexes
-    ``classes``), the CRS and the metres of its units (horizontal, vertical)."""
+    ``classes``) and the run's ``georef`` (its CRS and units)."""
 
     labels: str
     out: str
     classes: tuple
-    crs: str | None
-    units: tuple
+    georef: object
 
 
 def write_cell_copc(job: CopcJob) -> int:
-    """Write one cell's classified COPC (temp file then rename); returns its number of points (0: no file)."""
-    from ..io.copc import write_copc
+    """Write one cell's classified COPC as a scene's is written (temp file then rename); returns its number of
+    points (0: no file)."""
+    from ..export.classified import write_classified
 
     with np.load(job.labels, allow_pickle=False) as z:
         origin, mm, classes, ids = z["origin"], z["mm"], z["classes"].copy(), z["ids"]
@@ -72,12 +72,11 @@ def write_cell_copc(job: CopcJob) -> int:
     lut = np.array([PENDING, *job.classes], dtype=np.uint8)
     mine = ids > 0
     classes[mine] = lut[np.minimum(ids[mine], len(lut) - 1)]
-    pts = (origin + mm / 1000.0) / np.array([job.units[0], job.units[0], job.units[1]])
     out = Path(job.out)
     tmp = out.with_name(f".tmp-{out.name}")
-    write_copc(tmp, pts, job.crs, classes=classes, source_ids=ids)
+    write_classified(tmp, origin + mm / 1000.0, classes, ids, job.georef)
     os.replace(tmp, out)
-    return int(len(pts))
+    return int(len(mm))
 
 
 def write_classified_cells(eng, results, objects, outcomes, store, keys, georef, progress=None) -> dict:
@@ -92,14 +91,13 @@ def write_classified_cells(eng, results, objects, outcomes, store, keys, georef,
     for o, res in zip(objects, outcomes):
         by_cell.setdefault(o.cell, {})[int(o.id.rsplit("-", 1)[1])] = CAR if res.match is not None else NO_MODEL
     jobs, names = [], []
-    units = (georef.crs_unit_m, georef.vertical_unit_m) if georef.crs else (1.0, 1.0)
     for r in results:
         labels = store.labels_path(r.name, keys[r.name])
         if not labels.is_file():
             continue
         got = by_cell.get(r.name, {})
         classes = tuple(got.get(k, NO_MODEL) for k in range(1, max(got, default=0) + 1))
-        jobs.append(CopcJob(str(labels), str(folder / f"{r.name}.copc.laz"), classes, georef.crs, units))
+        jobs.append(CopcJob(str(labels), str(folder / f"{r.name}.copc.laz"), classes, georef))
         names.append(r.name)
     if progress:
         progress("classified scan", 0, len(jobs))

@@ -4,9 +4,9 @@ other core while this process detects, describes and registers.
 
 The helper is started with the run and imports open3d at once; each model's mesh is sent with its first query and
 kept there (one :class:`~twinreg.matching.acceptance.SurfaceIndex` per model, as in-process). The answers are the
-same distances open3d gives in-process. Once the matching is done, the helper also writes a file of the export
-(:meth:`Prober.call`). It is a speed-up only: when the helper is missing, stuck or failed, the queries are answered
-and the calls run in this process (and the helper stopped)."""
+same distances open3d gives in-process. Once the matching is done, the helper (``Prober.helper``) can take other
+calls, e.g. a file of the export (:class:`~twinreg.report.painter.Pending`). It is a speed-up only: when the helper
+is missing, stuck or failed, the queries are answered in this process (and the helper stopped)."""
 
 from __future__ import annotations
 
@@ -74,37 +74,10 @@ class Prober:
             self._local[model_id] = SurfaceIndex(*mesh_of())
         return self._local[model_id].distances(points)
 
-    def call(self, fn, *args) -> "Pending":
-        """Run ``fn(*args)`` (a module-level function, picklable arguments) in the helper once its queries are done,
-        e.g. a file of the export while this process writes the others; :meth:`Pending.wait` gives its value."""
-        if self.helper is None:
-            return Pending(None, None, fn, args)
-        try:
-            key = self.helper.submit(fn, *args)
-        except Exception:  # not picklable (e.g. a function made at run time): run here
-            return Pending(None, None, fn, args)
-        return Pending(self, key, fn, args)
-
     def stop(self) -> None:
         if self.helper is not None:
             self.helper.stop()
             self.helper = None
-
-
-class Pending:
-    """A call sent to the helper (or to run here: ``prober`` None)."""
-
-    def __init__(self, prober, key, fn, args):
-        self.prober, self.key, self.fn, self.args = prober, key, fn, args
-
-    def wait(self):
-        """The call's value; run here when the helper is missing, stuck or failed (the helper is then stopped)."""
-        if self.prober is not None and self.prober.helper is not None:
-            try:
-                return self.prober.helper.result(self.key)
-            except HelperError:
-                self.prober.stop()
-        return self.fn(*self.args)
 
 
 class _Remote:

@@ -88,7 +88,7 @@ class Painter:
         self._next += 1
         try:
             self._conn.send((key, fn, args))
-        except (OSError, ValueError) as exc:
+        except Exception as exc:  # a closed pipe, or a call that does not pickle (nothing was sent)
             self._done[key] = (False, f"cannot send to the helper ({exc})")
         return key
 
@@ -131,3 +131,20 @@ class Painter:
     @property
     def pid(self) -> int | None:
         return self._proc.pid
+
+
+class Pending:
+    """``fn(*args)`` sent to ``helper`` (a :class:`Painter`, or None to run it here): :meth:`wait` gives its value,
+    computed here when the helper is missing, stuck or failed (the helper is then stopped)."""
+
+    def __init__(self, helper: Painter | None, fn, *args):
+        self.helper, self.fn, self.args = helper, fn, args
+        self.key = helper.submit(fn, *args) if helper is not None else None
+
+    def wait(self, timeout: float = HELPER_TIMEOUT_S):
+        if self.helper is not None:
+            try:
+                return self.helper.result(self.key, timeout=timeout)
+            except HelperError:
+                self.helper.stop()
+        return self.fn(*self.args)
