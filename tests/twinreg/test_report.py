@@ -16,6 +16,17 @@ from tests.twinreg.viewer.test_viewer import CHROMIUM, ROOT
 from twinreg.cli import app
 
 
+def _layout(page) -> dict:
+    """tests/js/report_layout.mjs on a report at 1280 x 900 in headless Chromium: no console error, nothing
+    blocked; what it measured."""
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "report_layout.mjs"), page.as_uri(), "1280", "900"],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["errors"] == [] and got["blocked"] == [], got
+    return got
+
+
 def test_report_leads_with_the_map_and_keeps_cells_short(catalogue16, tmp_path):
     if not CHROMIUM.exists():
         pytest.fail("chromium is missing: run `make install`")
@@ -26,12 +37,7 @@ def test_report_leads_with_the_map_and_keeps_cells_short(catalogue16, tmp_path):
     twin = json.loads((tmp_path / "ahn" / "twin.json").read_text())
     unmatched = [o for o in twin["objects"] if not o["match"]]
     assert len(unmatched) >= 3 and max(len(o["reason"]) for o in unmatched) > 80  # long reasons to keep short
-    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "report_layout.mjs"),
-                           (tmp_path / "ahn" / "report.html").as_uri(), "1280", "900"],
-                          capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    got = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert got["errors"] == [] and got["blocked"] == [], got
+    got = _layout(tmp_path / "ahn" / "report.html")
     assert len(got["images"]) >= 3 and all(i["loaded"] for i in got["images"]), got["images"]
     assert got["images"][0]["src"] == "topview.png" and got["lead"]["top"] < 200 and got["lead"]["bottom"] <= 900
     assert got["cells"] > 10 * len(twin["objects"]) and got["tall"] == [], got["tall"]
@@ -50,11 +56,6 @@ def test_city_report_leads_with_the_map(city_twin, small_city):
     if not CHROMIUM.exists():
         pytest.fail("chromium is missing: run `make install`")
     root, _ = small_city
-    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "report_layout.mjs"),
-                           (root / "out" / "report.html").as_uri(), "1280", "900"],
-                          capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    got = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert got["errors"] == [] and got["blocked"] == [], got
+    got = _layout(root / "out" / "report.html")
     assert all(i["loaded"] for i in got["images"]) and got["images"][0]["src"] == "map.png"
     assert got["lead"]["top"] < 200 and got["lead"]["bottom"] <= 900 and got["tall"] == [], got
