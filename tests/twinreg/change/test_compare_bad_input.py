@@ -106,6 +106,16 @@ def test_another_vertical_datum_is_converted(surveys, tmp_path):
             assert abs(c["after"]["centroid"][2] - p["after"]["centroid"][2]) < 0.05
 
 
+def test_a_vertical_crs_that_is_not_one(surveys, tmp_path):
+    def stated(vertical):
+        return lambda doc: doc["georef"].update(vertical_crs=vertical, vertical_source="--vertical-crs")
+
+    good = _copy(surveys.twins["before"], tmp_path / "good", stated("EPSG:5773"))
+    for k, bad in enumerate(("EPSG:28992", "<script>x</script>")):
+        other = _copy(surveys.twins["after150"], tmp_path / f"bad{k}", stated(bad))
+        _refused([good, other], tmp_path / "out", str(other), "rerun build-twin")
+
+
 def test_no_overlap(surveys, tmp_path):
     far = _copy(surveys.twins["after150"], tmp_path / "far")
     with np.load(far / "observed.npz") as z:
