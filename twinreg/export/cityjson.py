@@ -78,11 +78,9 @@ def _placed(instances, meshes, docs, headings, georef) -> _Placed:
 
 def _explicit(p: _Placed, k: int, base: int) -> tuple[np.ndarray, dict]:
     """Object ``k``'s vertices (millimetre integers) and its MultiSurface, its indices from ``base``."""
-    v, f = p.meshes[p.keys[k]]
-    world = v @ p.matrices[k][:3, :3].T + p.ref[k]
-    ints = np.rint((world - p.translate) / SCALE).astype(np.int64)
+    f = p.meshes[p.keys[k]][1]
     geometry = {"type": "MultiSurface", "lod": "2", "boundaries": (f + base).reshape(-1, 1, 3).tolist()}
-    return ints, geometry
+    return _placed_ints(p, k), geometry
 
 
 def _header(p: _Placed, title: str, georef) -> dict:
@@ -135,13 +133,28 @@ def write_cityjson(path, instances: list, meshes: dict, docs: list[dict], headin
 
 def write_cityjson_seq(path, p: _Placed, title: str, georef) -> Path:
     """CityJSONSeq: the header line, then one CityJSONFeature a line with explicit geometry."""
+    boundaries: dict = {}  # a model's faces are the same text in every feature that draws it (indices from 0)
     with open(path, "w", encoding="utf-8") as fh:
         fh.write(json.dumps(_header(p, title, georef), separators=(",", ":")) + "\n")
         for k, oid in enumerate(p.ids):
-            ints, geometry = _explicit(p, k, 0)
+            key = p.keys[k]
+            if key not in boundaries:
+                boundaries[key] = json.dumps(p.meshes[key][1].reshape(-1, 1, 3).tolist(), separators=(",", ":"))
             feature = {"type": "CityJSONFeature", "id": oid,
                        "CityObjects": {oid: {"type": "CityFurniture", "attributes": p.attributes[k],
-                                             "geometry": [geometry]}},
-                       "vertices": ints.tolist()}
-            fh.write(json.dumps(feature, separators=(",", ":")) + "\n")
+                                             "geometry": [{"type": "MultiSurface", "lod": "2", "boundaries": 0}]}},
+                       "vertices": 0}
+            text = json.dumps(feature, separators=(",", ":"))
+            # the two placeholders, last in their objects, take the faces and the placed vertices
+            head, tail = text.rsplit('"vertices":0', 1)
+            head, mid = head.rsplit('"boundaries":0', 1)
+            vertices = json.dumps(_placed_ints(p, k).tolist(), separators=(",", ":"))
+            fh.write(f'{head}"boundaries":{boundaries[key]}{mid}"vertices":{vertices}{tail}\n')
     return Path(path)
+
+
+def _placed_ints(p: _Placed, k: int) -> np.ndarray:
+    """Object ``k``'s vertices placed, in the file's integers."""
+    v = p.meshes[p.keys[k]][0]
+    return np.rint((v @ p.matrices[k][:3, :3].T + p.ref[k] - p.translate) / SCALE).astype(np.int64)
+
