@@ -30,11 +30,17 @@ class DistanceField:
     def nearest_shifted(self, base: np.ndarray, shifts: np.ndarray) -> np.ndarray:
         """Distances at ``base + shift`` for (n, 2) base points and (s, 2) shifts, from the nearest grid node:
         integer index arithmetic on the flattened grid, shape (s, n); about half a cell of error."""
+        nx, ny = self.values.shape
         g = np.rint((base - self.origin) / self.cell).astype(np.int64)
         o = np.rint(shifts / self.cell).astype(np.int64)
-        i = np.clip(g[None, :, 0] + o[:, None, 0], 0, self.values.shape[0] - 1)
-        j = np.clip(g[None, :, 1] + o[:, None, 1], 0, self.values.shape[1] - 1)
-        return self.values.ravel()[i * self.values.shape[1] + j]
+        # (s, n) row and column, clamped to the grid (in place: these are most of a registration's work)
+        i = np.add.outer(o[:, 0], g[:, 0])
+        np.minimum(np.maximum(i, 0, out=i), nx - 1, out=i)
+        j = np.add.outer(o[:, 1], g[:, 1])
+        np.minimum(np.maximum(j, 0, out=j), ny - 1, out=j)
+        i *= ny
+        i += j
+        return self.values.ravel().take(i)
 
 
 def distance_field(points2d: np.ndarray, cell: float, pad: float) -> DistanceField:
@@ -125,7 +131,8 @@ def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndar
                 d = d.reshape(pts.shape[:2])
             else:
                 d = dst.fields[key].nearest_shifted(base, shifts)
-            total += (np.minimum(d, cap).astype(np.float64) ** 2).sum(1)
+            d = np.minimum(d, cap).astype(np.float64)
+            total += np.multiply(d, d, out=d).sum(1)
     return total
 
 

@@ -59,6 +59,25 @@ def check_object(points, min_points: int = 10, min_extent: float = 0.01) -> np.n
     return arr
 
 
+def column_min(a: np.ndarray) -> np.ndarray:
+    """The smallest value of each column of an (n, d) array (n >= 1): ``a.min(0)``, column by column (numpy reduces
+    an (n, 3) array over its rows many times slower than each column: these bounds are taken on every cell's
+    millions of points).
+
+    >>> column_min(np.array([[3, 1], [2, 5]])).tolist(), column_max(np.array([[3, 1], [2, 5]])).tolist()
+    ([2, 1], [3, 5])
+    """
+    a = np.asarray(a)
+    return np.array([a[:, k].min() for k in range(a.shape[1])], dtype=a.dtype)
+
+
+def column_max(a: np.ndarray) -> np.ndarray:
+    """The largest value of each column of an (n, d) array: ``a.max(0)``, column by column (see
+    :func:`column_min`)."""
+    a = np.asarray(a)
+    return np.array([a[:, k].max() for k in range(a.shape[1])], dtype=a.dtype)
+
+
 def cell_keys(cells: np.ndarray) -> np.ndarray:
     """One int64 per row of (n, d) integer cell indices, ordered like the rows (lexicographically); 1-D
     ``np.unique`` on these is many times faster than ``np.unique(axis=0)``.
@@ -69,8 +88,8 @@ def cell_keys(cells: np.ndarray) -> np.ndarray:
     c = np.asarray(cells, dtype=np.int64)
     if len(c) == 0:
         return np.zeros(0, dtype=np.int64)
-    c = c - c.min(0)
-    dims = c.max(0) + 1
+    c = c - column_min(c)
+    dims = column_max(c) + 1
     key = np.zeros(len(c), dtype=np.int64)
     for k in range(c.shape[1]):
         key = key * dims[k] + c[:, k]

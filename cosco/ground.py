@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points
+from .footprint import as_points, column_max, column_min
 from .params import DEFAULT, CoscoParams
 from .sorting import group_by_key, group_medians
 
@@ -239,10 +239,10 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     pts = as_points(points)
     cell, b, h = params.ground_cell, params.ground_block, params.ground_halo
     # blocks on a lattice anchored at the frame's origin: a tile of a larger scene (same frame) gets the same blocks
-    origin = (np.floor(pts[:, :2].min(0) / (cell * b)) * (cell * b)).astype(np.float64)
+    origin = (np.floor(column_min(pts[:, :2]) / (cell * b)) * (cell * b)).astype(np.float64)
     # cell indices: truncation is floor (the offsets are non-negative) and monotonic, so the largest index is the
     # largest coordinate's
-    extent = ((pts[:, :2].max(0) - origin) / cell).astype(np.int64) + 1
+    extent = ((column_max(pts[:, :2]) - origin) / cell).astype(np.int64) + 1
     n_cols = int(extent[1] // b + 1)
     if (extent <= b).all():  # one block (a scene or a city cell of up to 512 m): no grouping of the points
         keys, order, starts, ends = np.zeros(1, dtype=np.int64), None, None, None

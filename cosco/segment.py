@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points, cell_keys, min_area_rectangle
+from .footprint import as_points, cell_keys, column_max, column_min, min_area_rectangle
 from .params import DEFAULT, CoscoParams
 from .sorting import stable_argsort
 
@@ -66,7 +66,7 @@ def _group_runs(key: np.ndarray, value: np.ndarray, gap: float) -> np.ndarray:
 def lowest_runs(points: np.ndarray, hag: np.ndarray, params: CoscoParams = DEFAULT) -> np.ndarray:
     """Mask of the points that belong to the lowest run of their column (no overhangs)."""
     ij = np.floor(points[:, :2] / params.seg_column).astype(np.int64)
-    ij -= ij.min(0)
+    ij -= column_min(ij)
     key = ij[:, 0] * (ij[:, 1].max() + 1) + ij[:, 1]
     return _group_runs(key, hag, params.seg_gap)
 
@@ -80,8 +80,8 @@ def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int,
     from scipy.sparse.csgraph import connected_components
 
     ijk = np.floor(points / voxel).astype(np.int64)
-    ijk -= ijk.min(0) - 1  # a margin of one voxel so neighbour keys stay positive
-    dims = ijk.max(0) + 2
+    ijk -= column_min(ijk) - 1  # a margin of one voxel so neighbour keys stay positive
+    dims = column_max(ijk) + 2
     keys = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
     uniq, inverse = np.unique(keys, return_inverse=True)
     inverse = inverse.reshape(-1)
@@ -112,9 +112,9 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
     ([500], [500])
     """
     pts = as_points(points)
-    lo, v = pts.min(0), params.outlier_voxel
+    lo, v = column_min(pts), params.outlier_voxel
     # voxel indices are non-negative (truncation is floor) and monotonic: the largest is the largest coordinate's
-    dims = ((pts.max(0) - lo) / v).astype(np.int64) + 1
+    dims = ((column_max(pts) - lo) / v).astype(np.int64) + 1
     if np.prod(dims.astype(np.float64)) > dense_limit:
         # a huge extent (a stray point kilometres away): sparse voxel keys, memory by points
         comp, _, _ = voxel_components(pts - lo, v)

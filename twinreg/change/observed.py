@@ -56,10 +56,17 @@ def raster(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, lo, hi) -
     lo = np.floor(np.asarray(lo, dtype=np.float64)[:2] / PIXEL) * PIXEL
     hi = np.asarray(hi, dtype=np.float64)[:2]
     shape = np.maximum(np.ceil((hi - lo) / PIXEL).astype(np.int64), 1)
-    ij = np.floor((points[:, :2] - lo) / PIXEL).astype(np.int64)
-    inside = np.all((ij >= 0) & (ij < shape), axis=1)
-    ij, h, g, z = ij[inside], hag[inside], is_ground[inside], points[inside, 2]
-    flat = ij[:, 0] * shape[1] + ij[:, 1]
+    # column by column: the same numbers as on (n, 2) arrays, without their slow row-wise passes
+    i = np.floor((points[:, 0] - lo[0]) / PIXEL).astype(np.int64)
+    j = np.floor((points[:, 1] - lo[1]) / PIXEL).astype(np.int64)
+    inside = (i >= 0) & (i < shape[0]) & (j >= 0) & (j < shape[1])
+    if not inside.all():
+        i, j, hag, is_ground, z = i[inside], j[inside], hag[inside], is_ground[inside], points[inside, 2]
+    else:
+        z = points[:, 2]
+    flat = i * shape[1] + j
+    del i, j
+    h, g = hag, np.asarray(is_ground, dtype=bool)
     n = int(shape[0] * shape[1])
     top = np.full(n, -1.0)
     np.maximum.at(top, flat, np.where(g, 0.0, np.clip(h, 0.0, 12.6)))

@@ -14,6 +14,8 @@ import struct
 
 import numpy as np
 
+from cosco.footprint import column_max, column_min
+
 FLOAT, UINT8, UINT16, UINT32 = 5126, 5121, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 _TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
@@ -109,8 +111,8 @@ class Glb:
             acc["normalized"] = True
         if bounds and len(a):
             m = data.reshape(len(a), width)
-            acc["min"] = [float(x) for x in m.min(0)]
-            acc["max"] = [float(x) for x in m.max(0)]
+            acc["min"] = [float(x) for x in column_min(m)]
+            acc["max"] = [float(x) for x in column_max(m)]
         self.doc["accessors"].append(acc)
         return len(self.doc["accessors"]) - 1
 

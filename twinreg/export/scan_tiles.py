@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cosco.footprint import column_max, column_min
+
 from .gltf import Glb
 
 #: points a tile holds (about)
@@ -49,32 +51,40 @@ def levels(n: int, seed: int = 0) -> tuple[np.ndarray, int]:
 def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarray, seed: int = 0) -> dict:
     """Write one cell's quadtree (``folder/<name>/L-I-J.glb`` and ``folder/<name>.json``) of (n, 3) east-north-up
     points (the twin's frame) and their colours; returns its entry for the scan tileset's root."""
-    lo, hi = enu.min(0), enu.max(0)
+    lo, hi = column_min(enu), column_max(enu)
     side = float(max(hi[0] - lo[0], hi[1] - lo[1], 1.0)) * (1 + 1e-9)
     level, depth = levels(len(enu), seed)
     (folder / name).mkdir(parents=True, exist_ok=True)
     area = side * side
+    # points shown down to each level (a tile's error is the spacing of what is drawn down to it)
+    upto = np.cumsum(np.bincount(level, minlength=depth + 1))
+    by_level = np.argsort(level, kind="stable")
+    starts = np.r_[0, upto]
     nodes = {}
     for d in range(depth + 1):
-        sel = np.flatnonzero(level == d)
+        sel = by_level[starts[d]:starts[d + 1]]
         n_cells = 2 ** d
-        ij = np.clip(np.floor((enu[sel, :2] - lo[:2]) / (side / n_cells)).astype(np.int64), 0, n_cells - 1)
-        order = np.lexsort((ij[:, 1], ij[:, 0]))
-        sel, ij = sel[order], ij[order]
-        cuts = np.flatnonzero(np.any(np.diff(ij, axis=0) != 0, axis=1)) + 1
-        shown = max(np.sum(level <= d), 1)
+        size = side / n_cells
+        i = np.clip(np.floor((enu[sel, 0] - lo[0]) / size).astype(np.int64), 0, n_cells - 1)
+        j = np.clip(np.floor((enu[sel, 1] - lo[1]) / size).astype(np.int64), 0, n_cells - 1)
+        order = np.lexsort((j, i))
+        sel, i, j = sel[order], i[order], j[order]
+        cuts = np.flatnonzero((np.diff(i) != 0) | (np.diff(j) != 0)) + 1
+        ij = np.column_stack([i, j])
+        shown = max(int(upto[d]), 1)
         error = 0.0 if d == depth else float(np.sqrt(area / shown))
         for rows, key in zip(np.split(sel, cuts), ij[np.r_[0, cuts]] if len(ij) else []):
             p = enu[rows]
-            c = (p.min(0) + p.max(0)) / 2
+            p_lo, p_hi = column_min(p), column_max(p)
+            c = (p_lo + p_hi) / 2
             uri = f"{name}/{d}-{key[0]}-{key[1]}.glb"
             g = Glb()
             g.node(g.points(p - c, rgb[rows], f"scan {name} {d}"), f"scan {name} {d}")
             (folder / uri).write_bytes(g.to_bytes())
             nodes[(d, int(key[0]), int(key[1]))] = {"transform": translation(c),
-                                                    "boundingVolume": {"box": box_volume(p.min(0) - c, p.max(0) - c)},
+                                                    "boundingVolume": {"box": box_volume(p_lo - c, p_hi - c)},
                                                     "geometricError": error, "content": {"uri": uri},
-                                                    "children": [], "_lo": p.min(0), "_hi": p.max(0), "_c": c}
+                                                    "children": [], "_lo": p_lo, "_hi": p_hi, "_c": c}
     # every tile under its parent (a tile whose level drew no points there gets an empty parent)
     for (d, i, j) in sorted(nodes, reverse=True):
         if d == 0:
@@ -82,13 +92,13 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
         parent = (d - 1, i // 2, j // 2)
         if parent not in nodes:
             nodes[parent] = {"boundingVolume": None, "geometricError": float(np.sqrt(area / max(
-                np.sum(level <= d - 1), 1))), "children": [], "_lo": nodes[(d, i, j)]["_lo"],
+                int(upto[d - 1]), 1))), "children": [], "_lo": nodes[(d, i, j)]["_lo"],
                 "_hi": nodes[(d, i, j)]["_hi"], "_c": np.zeros(3)}
         par, child = nodes[parent], nodes[(d, i, j)]
         par["_lo"], par["_hi"] = np.minimum(par["_lo"], child["_lo"]), np.maximum(par["_hi"], child["_hi"])
         par["children"].append(child)
     root = nodes[(0, 0, 0)]
-    cell_error = float(np.sqrt(area / max(np.sum(level == 0), 1))) if depth else 0.0
+    cell_error = float(np.sqrt(area / max(int(upto[0]), 1))) if depth else 0.0
 
     def finish(node, parent_c):
         """Child transforms are relative to the parent's; boxes in the tile's own frame."""
@@ -154,7 +164,7 @@ def write_cell_scan(scan_dir: Path, name: str, key: str, points: np.ndarray, rgb
     tmp = final.with_name(final.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
-    centre = (points.min(0) + points.max(0)) / 2
+    centre = (column_min(points) + column_max(points)) / 2
     entry = write_cell_quadtree(tmp, name, np.asarray(points - centre, dtype=np.float64), rgb)
     shutil.rmtree(final, ignore_errors=True)
     os.replace(tmp, final)

@@ -109,10 +109,13 @@ def instances_glb(instances: list[Instance], positions: np.ndarray, angles: np.n
 
 def scan_colours(hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
     """(n, 3) uint8: ground grey, the rest from blue (low) to yellow (4 m and more) by height above ground."""
-    t = np.clip(np.asarray(hag, dtype=np.float64) / 4.0, 0.0, 1.0)[:, None]
-    rgb = (1 - t) * np.array([40, 90, 200]) + t * np.array([250, 210, 40])
-    rgb[np.asarray(is_ground, dtype=bool)] = (150, 150, 150)
-    return rgb.astype(np.uint8)
+    t = np.clip(np.asarray(hag, dtype=np.float64) / 4.0, 0.0, 1.0)
+    low = 1 - t
+    rgb = np.empty((len(t), 3), dtype=np.uint8)
+    ground = np.asarray(is_ground, dtype=bool)
+    for c, (a, b) in enumerate(((40, 250), (90, 210), (200, 40))):  # a channel at a time (no (n, 3) floats)
+        rgb[:, c] = np.where(ground, 150.0, low * a + t * b)
+    return rgb
 
 
 def scan_sample(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, rows=None) -> tuple:

@@ -18,8 +18,10 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     import laspy
     import pyproj
 
+    from cosco.footprint import column_max, column_min
+
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    lo, hi = pts.min(0), pts.max(0)
+    lo, hi = column_min(pts), column_max(pts)
     offset = np.floor(lo / 1000.0) * 1000.0
     las_header = laspy.LasHeader(point_format=6, version="1.4")
     las_header.scales, las_header.offsets = [0.001] * 3, offset
@@ -31,7 +33,7 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
         rec.point_source_id = np.asarray(source_ids, dtype=np.uint16)
     # the nodes hold the points as stored (millimetre integers), so each lies inside its node's bounds
     pts = np.column_stack([np.asarray(rec.x), np.asarray(rec.y), np.asarray(rec.z)])
-    lo, hi = pts.min(0), pts.max(0)
+    lo, hi = column_min(pts), column_max(pts)
     cfg = copc.CopcConfigWriter(6, copc.Vector3(0.001, 0.001, 0.001), copc.Vector3(*offset))
     header = cfg.las_header
     header.min, header.max = copc.Vector3(*lo), copc.Vector3(*hi)
