@@ -25,15 +25,15 @@ def box_mesh(length: float, width: float, height: float):
 
 @dataclass
 class ObjectOutput:
-    """``doc`` (twin.json), ``kmz`` (placemark fields), ``placed`` (n, 3) vertices (object's local frame) with
-    ``faces``, ``mesh_key`` and ``mesh`` (vertices, faces, rgb in model coordinates), ``footprint`` and
-    ``sections`` (report items); ``origin`` (3,) where the mesh's origin is placed (object's local frame),
-    ``bearing`` (degrees clockwise from true north) of the mesh's +X, ``scale`` (L, W, H) of a unit box (an object
-    with no model) or None."""
+    """``doc`` (twin.json), ``kmz`` (placemark fields), ``faces`` of the mesh, ``mesh_key`` and ``mesh``
+    (vertices, faces, rgb in model coordinates), ``footprint`` and ``sections`` (report items); ``origin`` (3,) where
+    the mesh's origin is placed (object's local frame), ``bearing`` (degrees clockwise from true north) of the mesh's
+    +X, ``scale`` (L, W, H) of a unit box (an object with no model) or None; ``pose`` (4, 4) takes the mesh into the
+    object's local frame (:attr:`placed`: the placed vertices, computed when asked: a city's objects would hold
+    hundreds of kilobytes each)."""
 
     doc: dict
     kmz: dict
-    placed: np.ndarray
     faces: np.ndarray
     mesh_key: str
     mesh: tuple
@@ -42,6 +42,12 @@ class ObjectOutput:
     origin: np.ndarray = None
     bearing: float = 0.0
     scale: tuple | None = None
+    pose: np.ndarray = None
+
+    @property
+    def placed(self) -> np.ndarray:
+        """(n, 3) the mesh's vertices placed (object's local frame)."""
+        return np.asarray(self.mesh[0]) @ self.pose[:3, :3].T + self.pose[:3, 3]
 
 
 def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration) -> dict:
@@ -89,8 +95,10 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
     rgb = cluster_color(label)
     if m is not None:
         row, (mv, mf) = models.row(m.model_id), models.mesh(m.model_id)
-        placed = mv @ m.transform[:3, :3].T + m.transform[:3, 3]
-        origin = m.transform[:3, 3]
+        transform = np.asarray(m.transform, dtype=np.float64)
+        outline = models.outline(m.model_id)  # the mesh's plan hull: its footprint placed, not every vertex
+        placed_outline = outline @ transform[:3, :3].T + transform[:3, 3]
+        origin = transform[:3, 3]
         faces, heading, centre_local = mf, m.heading, m.centre
         size = {"length": row.length, "width": row.width, "height": row.height}
         mesh_key, mesh = f"model{m.model_id}", (mv, mf, tuple(rgb / 255.0))
@@ -112,7 +120,9 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
         c, sn = np.cos(shape.heading), np.sin(shape.heading)
         rot = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1.0]])
         origin = shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]
-        placed = bv @ rot.T + origin
+        transform = np.eye(4)
+        transform[:3, :3], transform[:3, 3] = rot, origin
+        placed_outline = bv @ rot.T + origin
         heading, centre_local, size = shape.heading, shape.centroid, s.as_dict()
         mesh_key, mesh = f"box_{oid}", (bv, faces, (0.9, 0.2, 0.2))
         match_doc = None
@@ -148,10 +158,10 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
                     else f"{match_doc['confidence']:.2f}",
                     "ambiguous_with": ", ".join(match_doc["ambiguous_with"]) if match_doc else "",
                     "outside_tolerance": str(bool(match_doc and match_doc["outside_tolerance"])).lower()}}
-    rect = min_area_rectangle(placed[:, :2])
+    rect = min_area_rectangle(placed_outline[:, :2])
     ctr = np.asarray(centre_local)[:2]
     footprint = {"corners": rect.corners(), "color": rgb / 255.0, "centre": ctr,
                  "front": ctr + 1.5 * np.array([np.cos(heading), np.sin(heading)]),
                  "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1]) + ("" if m else "?")}
-    return ObjectOutput(doc, kmz, placed, faces, mesh_key, mesh, footprint, sections, np.asarray(origin, float),
-                        float(bearing), None if m is not None else (s.length, s.width, s.height))
+    return ObjectOutput(doc, kmz, faces, mesh_key, mesh, footprint, sections, np.asarray(origin, float),
+                        float(bearing), None if m is not None else (s.length, s.width, s.height), transform)

@@ -26,6 +26,7 @@ class ModelCache:
         self._surfaces: dict[int, object] = {}
         self._tops: dict[int, np.ndarray] = {}
         self._trees: dict[int, object] = {}
+        self._outlines: dict[int, np.ndarray] = {}
         self._index = None
 
     def row(self, model_id):
@@ -78,6 +79,19 @@ class ModelCache:
         if model_id not in self._meshes:
             self._meshes[model_id] = self.catalogue.ge_mesh(self._rows[model_id])
         return self._meshes[model_id]
+
+    def outline(self, model_id: int) -> np.ndarray:
+        """(k, 3) the vertices of the model's mesh on its plan's convex hull (model frame): a placed model's
+        footprint rectangle is that of these placed (a rectangle of least area lies on the hull)."""
+        if model_id not in self._outlines:
+            from scipy.spatial import ConvexHull, QhullError
+
+            v = np.asarray(self.mesh(model_id)[0], dtype=np.float64)
+            try:
+                self._outlines[model_id] = v[ConvexHull(v[:, :2]).vertices]
+            except (QhullError, ValueError):  # a degenerate plan: every vertex
+                self._outlines[model_id] = v
+        return self._outlines[model_id]
 
     def light_mesh(self, model_id: int, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
         """The model's mesh decimated to ``max_faces`` triangles (a city's tiles), cached in the catalogue."""

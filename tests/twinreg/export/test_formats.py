@@ -237,6 +237,12 @@ def test_city_cityjson_seq_reads_a_feature_a_line(city_twin, small_city):
         mine = np.array(f["vertices"]) * head["transform"]["scale"] + head["transform"]["translate"]
         d, _ = cKDTree(_template_vertices(whole, f["id"])).query(mine)
         assert d.max() < 0.001
+        # its faces are its model's (the template's, indices from the feature's own first vertex)
+        gi = whole["CityObjects"][f["id"]]["geometry"][0]
+        faces = np.array(whole["geometry-templates"]["templates"][gi["template"]]["boundaries"])
+        mine_faces = np.array(f["CityObjects"][f["id"]]["geometry"][0]["boundaries"])
+        assert mine_faces.shape == faces.shape and len(np.unique(faces - mine_faces)) == 1
+        assert mine_faces.min() >= 0 and mine_faces.max() < len(f["vertices"])
     version, n, _ = _cjio(root / "out" / "twin.city.jsonl", stdin=True)
     assert version == "2.0" and n == len(features)
 
