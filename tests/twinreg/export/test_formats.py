@@ -262,3 +262,26 @@ def test_geojson_footprints_surround_each_car(twin):  # noqa: F811
         assert abs(c[0] - o["lon"]) * 111_320 * np.cos(np.radians(o["lat"])) < 0.2
         assert abs(c[1] - o["lat"]) * 111_320 < 0.2
         assert feat["properties"]["model"] == (o["match"]["name"] if o["match"] else None)
+
+
+def test_a_placed_models_footprint_is_that_of_its_placed_mesh(catalogue16):
+    """The footprint rectangle comes from the model's plan hull placed (a city's objects keep no placed vertices):
+    the same rectangle as from every vertex of the placed mesh, for each shared car in several poses."""
+    from cosco.footprint import min_area_rectangle
+    from twinreg.matching.cache import ModelCache
+
+    models = ModelCache(catalogue16)
+    rows = catalogue16.list()
+    models.add_rows(rows)
+    rng = np.random.default_rng(3)
+    for r in rows:
+        v = np.asarray(models.mesh(r.id)[0], dtype=np.float64)
+        outline = models.outline(r.id)
+        assert 3 <= len(outline) < len(v)
+        for a in rng.uniform(0, 2 * np.pi, 3):
+            m = np.eye(4)
+            m[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
+            m[:3, 3] = rng.uniform(-500, 500, 3)
+            whole = min_area_rectangle((v @ m[:3, :3].T + m[:3, 3])[:, :2])
+            hull = min_area_rectangle((outline @ m[:3, :3].T + m[:3, 3])[:, :2])
+            assert np.allclose(hull.corners(), whole.corners(), atol=1e-9)
