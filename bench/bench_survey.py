@@ -29,9 +29,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import machine  # noqa: E402
 
-#: LAS header: x, y, z offsets (3 doubles) at byte 131 + 24; max x, min x, max y, min y, max z, min z after them
+#: LAS header: x, y, z offsets (3 doubles) at byte 131 + 24; max x, min x, max y, min y, max z, min z right after
 _OFFSETS_AT = 155
-_BOUNDS_AT = 179
 
 
 def copy_shifted(src: Path, dst: Path, dx: float, dy: float) -> None:

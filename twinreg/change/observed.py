@@ -60,13 +60,11 @@ def raster(points: np.ndarray, hag: np.ndarray, is_ground: np.ndarray, lo, hi) -
     i = np.floor((points[:, 0] - lo[0]) / PIXEL).astype(np.int64)
     j = np.floor((points[:, 1] - lo[1]) / PIXEL).astype(np.int64)
     inside = (i >= 0) & (i < shape[0]) & (j >= 0) & (j < shape[1])
+    h, g, z = hag, np.asarray(is_ground, dtype=bool), points[:, 2]
     if not inside.all():
-        i, j, hag, is_ground, z = i[inside], j[inside], hag[inside], is_ground[inside], points[inside, 2]
-    else:
-        z = points[:, 2]
+        i, j, h, g, z = i[inside], j[inside], h[inside], g[inside], z[inside]
     flat = i * shape[1] + j
     del i, j
-    h, g = hag, np.asarray(is_ground, dtype=bool)
     n = int(shape[0] * shape[1])
     top = np.full(n, -1.0)
     np.maximum.at(top, flat, np.where(g, 0.0, np.clip(h, 0.0, 12.6)))

@@ -25,29 +25,39 @@ def box_mesh(length: float, width: float, height: float):
 
 @dataclass
 class ObjectOutput:
-    """``doc`` (twin.json), ``kmz`` (placemark fields), ``faces`` of the mesh, ``mesh_key`` and ``mesh``
-    (vertices, faces, rgb in model coordinates), ``footprint`` and ``sections`` (report items); ``origin`` (3,) where
-    the mesh's origin is placed (object's local frame), ``bearing`` (degrees clockwise from true north) of the mesh's
-    +X, ``scale`` (L, W, H) of a unit box (an object with no model) or None; ``pose`` (4, 4) takes the mesh into the
-    object's local frame (:attr:`placed`: the placed vertices, computed when asked: a city's objects would hold
-    hundreds of kilobytes each)."""
+    """``doc`` (twin.json), ``kmz`` (placemark fields), ``mesh_key`` and ``mesh`` (vertices, faces, rgb in model
+    coordinates), ``footprint`` and ``sections`` (report items), ``bearing`` (degrees clockwise from true north) of
+    the mesh's +X, ``scale`` (L, W, H) of a unit box (an object with no model) or None, and ``pose`` (4, 4), which
+    takes the mesh into the object's local frame: :attr:`origin` and :attr:`placed` follow from it (the placed
+    vertices are computed when asked: a city's objects would hold hundreds of kilobytes each)."""
 
     doc: dict
     kmz: dict
-    faces: np.ndarray
     mesh_key: str
     mesh: tuple
     footprint: dict
     sections: dict
-    origin: np.ndarray = None
+    pose: np.ndarray
     bearing: float = 0.0
     scale: tuple | None = None
-    pose: np.ndarray = None
+
+    @property
+    def origin(self) -> np.ndarray:
+        """(3,) where the mesh's origin is placed (object's local frame)."""
+        return self.pose[:3, 3]
+
+    @property
+    def faces(self) -> np.ndarray:
+        return self.mesh[1]
 
     @property
     def placed(self) -> np.ndarray:
         """(n, 3) the mesh's vertices placed (object's local frame)."""
-        return np.asarray(self.mesh[0]) @ self.pose[:3, :3].T + self.pose[:3, 3]
+        return _place(self.mesh[0], self.pose)
+
+
+def _place(vertices, pose: np.ndarray) -> np.ndarray:
+    return np.asarray(vertices, dtype=np.float64) @ pose[:3, :3].T + pose[:3, 3]
 
 
 def _registered_sections(model_sections: cosco.Sections, reg: cosco.Registration) -> dict:
@@ -95,11 +105,9 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
     rgb = cluster_color(label)
     if m is not None:
         row, (mv, mf) = models.row(m.model_id), models.mesh(m.model_id)
-        transform = np.asarray(m.transform, dtype=np.float64)
+        pose = np.asarray(m.transform, dtype=np.float64)
         outline = models.outline(m.model_id)  # the mesh's plan hull: its footprint placed, not every vertex
-        placed_outline = outline @ transform[:3, :3].T + transform[:3, 3]
-        origin = transform[:3, 3]
-        faces, heading, centre_local = mf, m.heading, m.centre
+        heading, centre_local = m.heading, m.centre
         size = {"length": row.length, "width": row.width, "height": row.height}
         mesh_key, mesh = f"model{m.model_id}", (mv, mf, tuple(rgb / 255.0))
         match_doc = {"model_id": m.model_id, "name": m.name, "make": row.make, "model": row.model,
@@ -118,11 +126,10 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
         s = shape.size
         bv, faces = box_mesh(s.length, s.width, s.height)
         c, sn = np.cos(shape.heading), np.sin(shape.heading)
-        rot = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1.0]])
-        origin = shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]
-        transform = np.eye(4)
-        transform[:3, :3], transform[:3, 3] = rot, origin
-        placed_outline = bv @ rot.T + origin
+        pose = np.eye(4)
+        pose[:3, :3] = [[c, -sn, 0], [sn, c, 0], [0, 0, 1.0]]
+        pose[:3, 3] = shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]
+        outline = bv
         heading, centre_local, size = shape.heading, shape.centroid, s.as_dict()
         mesh_key, mesh = f"box_{oid}", (bv, faces, (0.9, 0.2, 0.2))
         match_doc = None
@@ -158,10 +165,10 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
                     else f"{match_doc['confidence']:.2f}",
                     "ambiguous_with": ", ".join(match_doc["ambiguous_with"]) if match_doc else "",
                     "outside_tolerance": str(bool(match_doc and match_doc["outside_tolerance"])).lower()}}
-    rect = min_area_rectangle(placed_outline[:, :2])
+    rect = min_area_rectangle(_place(outline, pose)[:, :2])
     ctr = np.asarray(centre_local)[:2]
     footprint = {"corners": rect.corners(), "color": rgb / 255.0, "centre": ctr,
                  "front": ctr + 1.5 * np.array([np.cos(heading), np.sin(heading)]),
                  "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1]) + ("" if m else "?")}
-    return ObjectOutput(doc, kmz, faces, mesh_key, mesh, footprint, sections, np.asarray(origin, float),
-                        float(bearing), None if m is not None else (s.length, s.width, s.height), transform)
+    return ObjectOutput(doc, kmz, mesh_key, mesh, footprint, sections, pose, float(bearing),
+                        None if m is not None else (s.length, s.width, s.height))

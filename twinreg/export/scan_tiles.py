@@ -70,21 +70,21 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
         order = np.lexsort((j, i))
         sel, i, j = sel[order], i[order], j[order]
         cuts = np.flatnonzero((np.diff(i) != 0) | (np.diff(j) != 0)) + 1
-        ij = np.column_stack([i, j])
         shown = max(int(upto[d]), 1)
         error = 0.0 if d == depth else float(np.sqrt(area / shown))
-        for rows, key in zip(np.split(sel, cuts), ij[np.r_[0, cuts]] if len(ij) else []):
+        firsts = np.r_[0, cuts] if len(sel) else np.zeros(0, dtype=np.int64)  # each tile's first point
+        for rows, ti, tj in zip(np.split(sel, cuts), i[firsts].tolist(), j[firsts].tolist()):
             p = enu[rows]
             p_lo, p_hi = column_min(p), column_max(p)
             c = (p_lo + p_hi) / 2
-            uri = f"{name}/{d}-{key[0]}-{key[1]}.glb"
+            uri = f"{name}/{d}-{ti}-{tj}.glb"
             g = Glb()
             g.node(g.points(p - c, rgb[rows], f"scan {name} {d}"), f"scan {name} {d}")
             (folder / uri).write_bytes(g.to_bytes())
-            nodes[(d, int(key[0]), int(key[1]))] = {"transform": translation(c),
-                                                    "boundingVolume": {"box": box_volume(p_lo - c, p_hi - c)},
-                                                    "geometricError": error, "content": {"uri": uri},
-                                                    "children": [], "_lo": p_lo, "_hi": p_hi, "_c": c}
+            nodes[(d, ti, tj)] = {"transform": translation(c),
+                                  "boundingVolume": {"box": box_volume(p_lo - c, p_hi - c)},
+                                  "geometricError": error, "content": {"uri": uri},
+                                  "children": [], "_lo": p_lo, "_hi": p_hi, "_c": c}
     # every tile under its parent (a tile whose level drew no points there gets an empty parent)
     for (d, i, j) in sorted(nodes, reverse=True):
         if d == 0:
