@@ -161,6 +161,11 @@ class Ground:
         return self.tiles[k, ii, jj]
 
 
+#: up to this many blocks, each block's points are found by one pass over all of them (a few cheap comparisons);
+#: beyond, by grouping the points by block once (a sort)
+FEW_BLOCKS = 8
+
+
 def _fill_nearest(values: np.ndarray, known: np.ndarray) -> np.ndarray:
     from scipy import ndimage
 
@@ -245,29 +250,40 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     extent = ((column_max(pts[:, :2]) - origin) / cell).astype(np.int64) + 1
     n_cols = int(extent[1] // b + 1)
     if (extent <= b).all():  # one block (a scene or a city cell of up to 512 m): no grouping of the points
-        keys, order, starts, ends = np.zeros(1, dtype=np.int64), None, None, None
+        keys, ci, cj = np.zeros(1, dtype=np.int64), None, None
     else:
-        bkey = ((pts[:, 0] - origin[0]) / cell).astype(np.int64) // b * n_cols
-        bkey += ((pts[:, 1] - origin[1]) / cell).astype(np.int64) // b
-        order, keys, starts = group_by_key(bkey)
+        # every point's cell, once (32-bit: a grid of 2^31 cells is a million kilometres wide)
+        ci = ((pts[:, 0] - origin[0]) / cell).astype(np.int32)
+        cj = ((pts[:, 1] - origin[1]) / cell).astype(np.int32)
+        bkey = (ci // b).astype(np.int64) * n_cols
+        bkey += cj // b
+        keys = np.flatnonzero(np.bincount(bkey))
+        if len(keys) > FEW_BLOCKS:  # many blocks: each takes its points from its neighbours' groups
+            order, _, starts = group_by_key(bkey)
+            ends = np.r_[starts[1:], len(order)]
         del bkey
-        ends = np.r_[starts[1:], len(order)]
     tiles = np.empty((len(keys), b, b))
     for k, key in enumerate(keys):
         bi, bj = divmod(int(key), n_cols)
         lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
         hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
-        if order is None:
+        if ci is None:
             window = pts
         else:
-            wanted = np.array([(bi + di) * n_cols + bj + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)
-                               if 0 <= bi + di and 0 <= bj + dj < n_cols])
-            pos = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
-            idx = np.concatenate([order[starts[n]:ends[n]] for n in pos[keys[pos] == wanted]])
-            i = ((pts[idx, 0] - origin[0]) / cell).astype(np.int64)
-            j = ((pts[idx, 1] - origin[1]) / cell).astype(np.int64)
-            idx = idx[(i >= lo[0]) & (i < hi[0]) & (j >= lo[1]) & (j < hi[1])]
-            del i, j
+            if len(keys) > FEW_BLOCKS:
+                wanted = np.array([(bi + di) * n_cols + bj + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)
+                                   if 0 <= bi + di and 0 <= bj + dj < n_cols])
+                pos = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
+                idx = np.concatenate([order[starts[n]:ends[n]] for n in pos[keys[pos] == wanted]])
+                inside = (ci[idx] >= lo[0]) & (ci[idx] < hi[0]) & (cj[idx] >= lo[1]) & (cj[idx] < hi[1])
+                idx = idx[inside]
+            else:  # a few blocks (a city cell across the lattice's lines): one pass over the points each
+                inside = ci >= lo[0]
+                inside &= ci < hi[0]
+                inside &= cj >= lo[1]
+                inside &= cj < hi[1]
+                idx = np.flatnonzero(inside)
+            del inside
             window = pts[idx]
             del idx
         z = _window_ground(window, origin + lo * cell, tuple(hi - lo), params)

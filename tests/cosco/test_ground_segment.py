@@ -86,6 +86,22 @@ def test_ground_by_blocks_agrees_with_one_window():
     assert (blocks & truth).sum() / truth.sum() > 0.99 and (blocks & (park.labels >= 0)).mean() < 0.02
 
 
+def test_a_few_blocks_found_by_passes_equal_blocks_found_by_grouping(monkeypatch):
+    """A scene over a few blocks (a city cell across the blocks' lattice) finds each block's points by a pass over
+    all of them, a scene over many by grouping them once: both give the same surface, value for value."""
+    import cosco.ground as ground
+    from cosco.params import DEFAULT
+
+    park = _parametric_park()
+    params = DEFAULT.with_(ground_block=24, ground_halo=40)
+    monkeypatch.setattr(ground, "FEW_BLOCKS", 0)
+    grouped = ground.estimate_ground(park.points, params)
+    monkeypatch.setattr(ground, "FEW_BLOCKS", 10**6)
+    passes = ground.estimate_ground(park.points, params)
+    assert (grouped.keys == passes.keys).all() and len(passes.keys) > 1
+    assert np.array_equal(grouped.tiles, passes.tiles, equal_nan=True)
+
+
 def test_memory_goes_by_occupied_cells_not_the_bounding_box():
     """Two car parks 30 km apart in one scan (a 60,000 x 180 cell bounding box at 0.5 m): the ground takes tens of
     MB, as for one, and classifies both as it does each alone. The dense grid needed 26.9 GiB."""
