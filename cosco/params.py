@@ -148,7 +148,8 @@ class CoscoParams:
     score are ambiguous with it; ``decision_confidence_sigma`` scales the margin into a 0-1 confidence, which is
     multiplied by ``decision_outside_factor`` for a model outside the size window. Before it is scored, each
     candidate's pose is refined on at most ``refine_max_points`` of the points (twinreg/refine.py; pairs within
-    ``refine_reach`` m). Objects with more than
+    ``refine_reach`` m), unless its score on those points, as the registration placed it, lies more than
+    ``decision_refine_sigma`` noise units behind the best candidate's (it cannot win then). Objects with more than
     ``accept_max_points`` points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
     points is a proportion: 1,500 points give it to about one percentage point).
 
@@ -254,6 +255,7 @@ class CoscoParams:
     decision_ambiguous_sigma: float = 0.3
     decision_outside_factor: float = 0.5
     refine_reach: float = 0.3
+    decision_refine_sigma: float = 6.0
     refine_max_points: int = 500
     accept_max_points: int = 1500
     accept_sink_sigmas: float = 2.0

@@ -188,7 +188,13 @@ def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, l
 
 def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
     """Score the best ``accept_candidates`` registrations on all of the object's evidence
-    (:mod:`twinreg.matching.decision`)."""
+    (:mod:`twinreg.matching.decision`).
+
+    Each candidate is first screened as the section registration placed it, on the ``refine_max_points`` points
+    the refinement would use; only the candidates whose screened score lies within ``decision_refine_sigma``
+    noise units of the best one's are refined and scored on every point. Refining lowers a score by about one
+    noise unit at most, so a candidate further behind can neither win nor come close enough to change the
+    confidence: it keeps its screened score (docs/METHOD.md, "Deciding between candidates")."""
     from scipy.spatial import cKDTree
 
     from .acceptance import sample_cloud
@@ -199,31 +205,45 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
     sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
     tree = cKDTree(sample)
     measured = shape.size.as_array()
-    def scored_pose(reg, mid):
-        m = placement(shape.frame, cache.frame(mid), reg)
-        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
-        in_model = (sample - m[:3, 3]) @ m[:3, :3]
-        # the pose sharpened on the points (a turn about the vertical and a shift: twinreg/matching/refine.py)
-        c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
-        in_model = in_model @ c[:3, :3].T + c[:3, 3]
-        m = m @ np.linalg.inv(c)
+
+    def scored(reg, mid, m, points_in_model):
         top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
         row = cache.row(mid)
         # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
-        e = evidence(mid, reg.rmse, cache.surface(mid).distances(in_model), top, tree,
+        e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top, tree,
                      np.array([row.length, row.width, row.height]), measured, noise, spacing, params,
                      sink=float(shape.frame.ground_z - m[2, 3]))
         e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)))
         return e
 
-    scored = [scored_pose(reg, mid) for reg, mid in regs[:params.accept_candidates]]
-    if scored:  # the favourite end for end too: a box-like van's sections hardly tell its front from its back
-        k = int(np.argmin([e.score for e in scored]))
-        reg, mid = regs[k]
-        turned = scored_pose(cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du), mid)
-        if turned.score < scored[k].score:
-            scored[k] = turned
-    return decide(scored, noise, params)
+    def screened(reg, mid):
+        m = placement(shape.frame, cache.frame(mid), reg)
+        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
+        in_model = (sample - m[:3, 3]) @ m[:3, :3]
+        return scored(reg, mid, m, sample_cloud(in_model, params.refine_max_points)), in_model
+
+    def refined(reg, mid, in_model):
+        m = placement(shape.frame, cache.frame(mid), reg)
+        # the pose sharpened on the points (a turn about the vertical and a shift: twinreg/matching/refine.py)
+        c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
+        return scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
+
+    reach = params.decision_refine_sigma * noise
+    candidates = regs[:params.accept_candidates]
+    screens = [screened(reg, mid) for reg, mid in candidates]
+    best = min((e.score for e, _ in screens), default=np.inf)
+    found = [refined(reg, mid, in_model) if e.score <= best + reach else e
+             for (reg, mid), (e, in_model) in zip(candidates, screens)]
+    if found:  # the favourite end for end too: a box-like van's sections hardly tell its front from its back
+        k = int(np.argmin([e.score for e in found]))
+        reg, mid = candidates[k]
+        turned_reg = cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
+        turned, in_model = screened(turned_reg, mid)
+        if turned.score <= found[k].score + reach:
+            turned = refined(turned_reg, mid, in_model)
+        if turned.score < found[k].score:
+            found[k] = turned
+    return decide(found, noise, params)
 
 
 def _size_gap_text(gap: np.ndarray) -> str:
