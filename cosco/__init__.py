@@ -4,7 +4,8 @@ Numpy in, numpy out: no database, no CLI. Lengths in metres, angles in radians c
 """
 
 from .cluster import Clustering, cluster
-from .dissimilarity import Registration, SectionPair, dissimilarity, dissimilarity_matrix, register_sections
+from .dissimilarity import (Registration, SectionPair, dissimilarity, dissimilarity_matrix, polished,
+                            register_sections)
 from .footprint import Rectangle, axis_difference, min_area_rectangle, voxel_downsample
 from .params import DEFAULT, CoscoParams
 from .sections import Frame, ObjectShape, Sections, Size, describe_object
@@ -13,5 +14,5 @@ from .symmetry import Symmetry, detect_symmetry
 __all__ = [
     "DEFAULT", "Clustering", "CoscoParams", "Frame", "ObjectShape", "Rectangle", "Registration", "SectionPair",
     "Sections", "Size", "Symmetry", "axis_difference", "cluster", "describe_object", "detect_symmetry",
-    "dissimilarity", "dissimilarity_matrix", "min_area_rectangle", "register_sections", "voxel_downsample",
+    "dissimilarity", "dissimilarity_matrix", "min_area_rectangle", "polished", "register_sections", "voxel_downsample",
 ]

@@ -8,7 +8,7 @@ the axis; the score is the symmetric RMSE over both sections, in both directions
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -89,12 +89,15 @@ class SectionPair:
 @dataclass(frozen=True)
 class Registration:
     """Best alignment of B's sections to A's: B's frame point (u, v, z) maps to ``Rz(rz) (u, v) + (du, 0)``,
-    ``z + tz`` in A's frame. ``rmse`` in metres."""
+    ``z + tz`` in A's frame. ``rmse`` in metres. ``starts``: the (rotation index, tz, du) of the one or two
+    rotations the search refined to the field's cell, from which :func:`polished` goes on (empty when not from
+    :func:`register_sections`)."""
 
     rmse: float
     rz: float
     tz: float
     du: float
+    starts: tuple = field(default=(), compare=False, repr=False)
 
 
 def _moves(src: SectionPair, r: int, du: np.ndarray, tz: np.ndarray, inverse: bool):
@@ -175,7 +178,7 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
     ``one_way`` scores only A's sections against B's (an object's partial scan against a complete model, as the
     paper's Eq. 1 writes it); the default is symmetric (object against object).
     """
-    n_total = a.n if one_way else a.n + b.n
+    starts = []
     dus0 = _grid(0.0, params.du_max, params.du_step * 2) if params.du_max > 0 else np.array([0.0])
     tzs0 = _grid(0.0, params.tz_max, params.tz_step * 2)
     T, D = np.meshgrid(tzs0, dus0, indexing="ij")
@@ -185,7 +188,6 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
         k = int(np.argmin(sq))
         coarse.append((float(sq[k]), r, float(T.ravel()[k]), float(D.ravel()[k])))
     coarse.sort()
-    best = (np.inf, 0, 0.0, 0.0)
     # refine the best rotation, and the runner-up when its coarse score is close, at one field cell
     cell = params.field_cell
     for score, r, tz_c, du_c in [c for c in coarse[:2] if c[0] <= 1.25 * coarse[0][0]]:
@@ -194,7 +196,25 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
         T2, D2 = np.meshgrid(tzs, dus, indexing="ij")
         sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.dist_cap, one_way=one_way)
         k = int(np.argmin(sq))
-        tz_c, du_c = float(T2.ravel()[k]), float(D2.ravel()[k])
+        starts.append((r, float(T2.ravel()[k]), float(D2.ravel()[k])))
+    return _finish(a, b, tuple(starts), params, polish, one_way)
+
+
+def polished(a: SectionPair, b: SectionPair, reg: Registration, params: CoscoParams = DEFAULT,
+             one_way: bool = False) -> Registration:
+    """``register_sections(a, b, params, polish=True, one_way=one_way)`` for a ``reg`` that the same call without
+    the polish returned: the search is not run again, only the polish from its ``starts``."""
+    if not reg.starts:
+        return register_sections(a, b, params, polish=True, one_way=one_way)
+    return _finish(a, b, reg.starts, params, True, one_way)
+
+
+def _finish(a: SectionPair, b: SectionPair, starts: tuple, params: CoscoParams, polish: bool,
+            one_way: bool) -> Registration:
+    """The exact score (KD-trees) at each start, polished below the field's cell with ``polish``; the best one."""
+    n_total = a.n if one_way else a.n + b.n
+    best = (np.inf, 0, 0.0, 0.0)
+    for r, tz_c, du_c in starts:
         if polish:
             exact, tz_c, du_c = _polish(a, b, r, tz_c, du_c, params, one_way)
         else:
@@ -204,7 +224,7 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
             best = (exact, r, tz_c, du_c)
     val, r, tz, du = best
     excess = max(val - a.floor_sq - (0.0 if one_way else b.floor_sq), 0.0)
-    return Registration(rmse=float(np.sqrt(excess / max(n_total, 1))), rz=ROTATIONS[r], tz=tz, du=du)
+    return Registration(rmse=float(np.sqrt(excess / max(n_total, 1))), rz=ROTATIONS[r], tz=tz, du=du, starts=starts)
 
 
 def dissimilarity(a: Sections, b: Sections, params: CoscoParams = DEFAULT) -> float:

@@ -67,3 +67,22 @@ def test_registration_recovers_a_flip_and_a_shift(scanned_cars):
     assert reg.tz == pytest.approx(0.21, abs=0.006)
     assert reg.du == pytest.approx(0.08, abs=0.015)  # a long flat roof pins the axial shift less than tz
     assert reg.rmse < 0.005
+
+
+def test_polishing_a_registration_equals_registering_with_the_polish():
+    """``polished`` goes on from a registration's starts: the same result as the search run again with the polish,
+    on two car-like sections (one turned end for end and shifted), in both directions."""
+    from cosco.dissimilarity import SectionPair, polished, register_sections
+    from cosco.sections import Sections
+
+    rng = np.random.default_rng(5)
+    lon = np.array([[u, 1.2 + 0.1 * np.sin(u)] for u in np.linspace(-2.2, 2.2, 60)] + [[-2.2, 0.5], [2.2, 0.6]])
+    tra = np.array([[v, 1.3 - 0.2 * v * v] for v in np.linspace(-0.9, 0.9, 25)])
+    a = SectionPair(Sections(lon + rng.normal(0, 0.01, lon.shape), tra + rng.normal(0, 0.01, tra.shape), 0.1))
+    b = SectionPair(Sections(lon * [-1, 1] + [0.05, 0.11], tra + [0.0, 0.11], 0.1))
+    for x, y in ((a, b), (b, a)):
+        plain = register_sections(x, y)
+        assert plain.starts
+        again = register_sections(x, y, polish=True)
+        assert polished(x, y, plain) == again
+        assert (again.tz, again.du) != (plain.tz, plain.du) or again.rmse <= plain.rmse

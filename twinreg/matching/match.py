@@ -84,8 +84,8 @@ def placement(obj_frame: cosco.Frame, model_frame: cosco.Frame, reg: cosco.Regis
     return to_scene @ registered @ to_model_frame
 
 
-def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams, polish: bool = False):
-    return cosco.register_sections(obj_pair, cache.pair(model_id), params, polish=polish)
+def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams):
+    return cosco.register_sections(obj_pair, cache.pair(model_id), params)
 
 
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
@@ -182,7 +182,7 @@ def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, l
             stats["n_trials"] += 1
         regs.sort(key=lambda r: r[0].rmse)
     if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
-        regs[0] = (_trial(pair, cache, regs[0][1], params, polish=True), regs[0][1])
+        regs[0] = (cosco.polished(pair, cache.pair(regs[0][1]), regs[0][0], params), regs[0][1])
     return regs
 
 
@@ -284,7 +284,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
                                          **best.as_dict()})
         k = next(j for j, (_, mid) in enumerate(regs) if mid == decision.best.model_id)
         if k > 0:  # the winner's pose polished (the first by RMSE already was)
-            regs[k] = (_trial(obj_pair, cache, regs[k][1], params, polish=True), regs[k][1])
+            regs[k] = (cosco.polished(obj_pair, cache.pair(regs[k][1]), regs[k][0], params), regs[k][1])
         regs.insert(0, regs.pop(k))
     reg, mid = regs[0]
     row = cache.row(mid)
