@@ -43,8 +43,10 @@ def pair_batches(sections: list, pairs: np.ndarray, params: CoscoParams, size: i
 
 @dataclass(frozen=True)
 class MatchBatch:
-    """Objects to match against the catalogue in ``folder``: shapes, cluster labels, point samples (float32),
-    each object's scan noise and point spacing (m)."""
+    """Objects to match against the catalogue in ``folder``: shapes, cluster labels, point samples, each object's
+    scan noise and point spacing (m). A sample left in its cell file is None in ``clouds``, and ``samples`` says
+    where it is: ``(cell file, index of the object in it)`` (the worker reads it: the run's main process does not
+    hold every object's sample)."""
 
     folder: str
     shapes: list
@@ -54,6 +56,25 @@ class MatchBatch:
     spacings: list
     params: CoscoParams = DEFAULT
     leaders: dict | None = None
+    samples: list | None = None
+
+
+def batch_clouds(batch: MatchBatch) -> list:
+    """The batch's point samples, those left in the cell files read from there (each file opened once)."""
+    from .cellfile import load_clouds
+
+    clouds = list(batch.clouds)
+    wanted: dict = {}
+    for k, c in enumerate(clouds):
+        if c is None:
+            if batch.samples is None or batch.samples[k] is None:
+                raise ValueError("an object of the batch has no point sample")
+            path, index = batch.samples[k]
+            wanted.setdefault(str(path), []).append((k, int(index)))
+    for path, items in wanted.items():
+        for (k, _), cloud in zip(items, load_clouds(path, [i for _, i in items])):
+            clouds[k] = cloud
+    return clouds
 
 
 _CACHES: dict = {}
@@ -80,7 +101,7 @@ def match_batch(batch: MatchBatch):
     from ..matching.match import match_objects
 
     cat, cache = _models(batch.folder, batch.params)
-    return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params, clouds=batch.clouds,
+    return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params, clouds=batch_clouds(batch),
                          noise=batch.noise, cache=cache, spacings=batch.spacings, leaders=batch.leaders)
 
 
@@ -91,11 +112,12 @@ def leader_indices(labels: np.ndarray) -> np.ndarray:
 
 
 def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: str, params: CoscoParams,
-                  indices: np.ndarray, size: int = 200, leaders: dict | None = None
+                  indices: np.ndarray, size: int = 200, leaders: dict | None = None, samples: list | None = None
                   ) -> tuple[list[MatchBatch], list[np.ndarray]]:
     """The objects ``indices`` cut into batches of about ``size`` (in label order, so that a batch holds few
-    clusters); ``leaders``: the leaders' rankings when ``indices`` are members. Returns the batches and, for
-    each, the indices of its objects."""
+    clusters); ``leaders``: the leaders' rankings when ``indices`` are members; ``samples``: where each object's
+    point sample is when the objects do not hold it (see :class:`MatchBatch`). Returns the batches and, for each,
+    the indices of its objects."""
     labels = np.asarray(labels)
     idx = np.asarray(indices, dtype=np.int64)
     idx = idx[np.lexsort((idx, labels[idx]))]
@@ -106,5 +128,6 @@ def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: 
         batches.append(MatchBatch(folder, [objects[i].shape for i in m], labels[m], [objects[i].cloud for i in m],
                                   noise[m], [objects[i].spacing for i in m], params,
                                   None if leaders is None else {int(k): leaders[int(k)]
-                                                                for k in np.unique(labels[m])}))
+                                                                for k in np.unique(labels[m])},
+                                  None if samples is None else [samples[i] for i in m]))
     return batches, [np.sort(m) for m in members]

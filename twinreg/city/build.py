@@ -195,15 +195,18 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
         timing["plan"] = time.perf_counter() - t_start
         with Engine(workers=workers, scheduler=scheduler) as eng:
             _run_cells(eng, p, todo, keys, store, params, progress, timing, classified)
-            results = [store.load(n, keys[n]) for n in p.cells]
+            # the objects' point samples stay in the cell files until a worker matching them reads them: this
+            # process holds about 9 kB an object instead of 45 (the samples of a 1.4-billion-point survey are 3 GB)
+            results = [store.load(n, keys[n], clouds=False) for n in p.cells]
             objects = [o for r in results for o in r.objects]
+            samples = [(str(store.path(r.name, r.key)), k) for r in results for k in range(len(r.objects))]
             if not objects:
                 raise SceneReadError(f"{sources[0].path}: no car-sized objects were found in the tiles; check "
                                      "--unit and that the scan covers parked cars")
             from .gather import classify_and_match
 
             tax, outcomes, stats, models = classify_and_match(eng, results, objects, catalogue, params, progress,
-                                                              timing)
+                                                              timing, samples)
             copc = None
             if classified:
                 t = time.perf_counter()

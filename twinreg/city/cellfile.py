@@ -118,13 +118,35 @@ def identity(path: Path) -> tuple[str, str]:
         raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
 
 
-def load(path: Path):
-    """The :class:`CellResult` in ``path``; :class:`CellFileError` if the file is not one this program wrote."""
+def _cloud_slots(doc: dict) -> list:
+    """Each object's ``cloud`` entry in a cell file's document (a mutable dict; None where it holds no array)."""
+    objects = doc["result"].get("fields", {}).get("objects", [])
+    if not isinstance(objects, list):
+        raise CellFileError("its objects are not a list")
+    slots = []
+    for o in objects:
+        fields = o.get("fields") if isinstance(o, dict) else None
+        if not isinstance(fields, dict) or o.get("$class") != "CellObject":
+            raise CellFileError("it holds an object that is not a cell object")
+        slots.append(fields if isinstance(fields.get("cloud"), dict) and "$array" in fields["cloud"] else None)
+    return slots
+
+
+def load(path: Path, clouds: bool = True):
+    """The :class:`CellResult` in ``path``; :class:`CellFileError` if the file is not one this program wrote.
+    ``clouds=False`` leaves the objects' point samples in the file (``cloud`` None: read them with
+    :func:`load_clouds` where they are needed)."""
     path = Path(path)
     try:
         doc, z = _document(path)
+        skip = set()
+        if not clouds:
+            for fields in _cloud_slots(doc):
+                if fields is not None:
+                    skip.add(str(fields["cloud"]["$array"]))
+                    fields["cloud"] = None
         with z:
-            arrays = {k: z[k] for k in z.files if k != "__doc__"}
+            arrays = {k: z[k] for k in z.files if k != "__doc__" and k not in skip}
         result = _decode(doc["result"], arrays)
     except CellFileError:
         raise
@@ -134,3 +156,41 @@ def load(path: Path):
     if not isinstance(result, CellResult):
         raise CellFileError("it does not hold a cell result")
     return result
+
+
+#: per cell file (path, size, modification time): the array names of its objects' point samples (a worker reads
+#: the samples of one file for many batches; its document is parsed once)
+_SAMPLE_KEYS: dict = {}
+
+
+def _sample_keys(path: Path) -> list:
+    st = path.stat()
+    stamp = (str(path), st.st_size, st.st_mtime_ns)
+    if stamp not in _SAMPLE_KEYS:
+        doc, z = _document(path)
+        z.close()
+        if len(_SAMPLE_KEYS) >= 256:
+            _SAMPLE_KEYS.clear()
+        _SAMPLE_KEYS[stamp] = [None if f is None else str(f["cloud"]["$array"]) for f in _cloud_slots(doc)]
+    return _SAMPLE_KEYS[stamp]
+
+
+def load_clouds(path: Path, indices) -> list:
+    """The point samples (``cloud``) of the objects ``indices`` of the cell file ``path``, read alone;
+    :class:`CellFileError` if the file is not one this program wrote or has no such objects."""
+    path = Path(path)
+    try:
+        keys = _sample_keys(path)
+        with np.load(path, allow_pickle=False) as z:
+            out = []
+            for i in indices:
+                key = keys[int(i)] if 0 <= int(i) < len(keys) else None
+                if key is None or key == "__doc__" or key not in z.files:
+                    raise CellFileError(f"it has no point sample for object {int(i)}")
+                out.append(z[key])
+        return out
+    except CellFileError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
+            zipfile.BadZipFile) as exc:
+        raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc

@@ -15,8 +15,10 @@ PAIRS_PER_BATCH = 2_000
 OBJECTS_PER_BATCH = 250
 
 
-def classify_and_match(eng, results, objects, catalogue, params, progress, timing):
-    """(taxonomy, outcomes in object order, matching statistics, the client's ModelCache)."""
+def classify_and_match(eng, results, objects, catalogue, params, progress, timing, samples=None):
+    """(taxonomy, outcomes in object order, matching statistics, the client's ModelCache). ``samples``: where each
+    object's point sample is, ``(cell file, index in it)``, for objects that do not hold it (the workers read
+    them)."""
     from ..matching.match import ModelCache
     from ..pipeline import classify
 
@@ -65,14 +67,13 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
             continue
         size = min(OBJECTS_PER_BATCH, max(10, -(-len(indices) // (4 * n_workers))))
         batches, members = match_batches(objects, tax.labels, noise, folder, params, indices, size=size,
-                                         leaders=known)
+                                         leaders=known, samples=samples)
 
         def batch_done(name, result, members=members):
             k = int(name[5:])
             res, st = result
             for i, r in zip(members[k], res):
                 outcomes[i] = r
-                objects[i].cloud = None  # matched: its point sample is not needed again (memory flat in the city)
             for key in stats:
                 stats[key] += st.get(key, 0)
             leaders.update(st.get("leaders", {}))

@@ -56,8 +56,9 @@ class CellStore:
     def save(self, result) -> Path:
         return cellfile.save(result, self.path(result.name, result.key))
 
-    def load(self, name: str, key: str):
-        return cellfile.load(self.path(name, key))
+    def load(self, name: str, key: str, clouds: bool = True):
+        """The cell's result (``clouds=False``: its objects' point samples left in the file)."""
+        return cellfile.load(self.path(name, key), clouds=clouds)
 
     def split_folder(self, key: str) -> Path:
         return self.folder / "split" / key

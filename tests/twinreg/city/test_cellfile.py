@@ -8,11 +8,12 @@ import json
 import pickle
 
 import numpy as np
+import pytest
 
 from cosco import describe_object
 from tests.conftest import toy_car
 from twinreg.change.observed import raster
-from twinreg.city.cellfile import FORMAT, load, save
+from twinreg.city.cellfile import FORMAT, load, load_clouds, save
 from twinreg.city.cells import CellObject, CellResult
 from twinreg.city.resume import CellStore
 from twinreg.errors import CellFileError
@@ -42,6 +43,29 @@ def test_a_cell_result_comes_back_equal(tmp_path):
     assert back.scan_tiles == r.scan_tiles
     assert np.array_equal(back.observed.code, r.observed.code) and back.observed.z0 == r.observed.z0
     assert (back.observed.code != 255).sum() > 10
+
+
+def test_point_samples_stay_in_the_file_until_asked_for(tmp_path):
+    """The run's main process loads the cells without their objects' point samples; a worker reads the samples
+    it matches, and they are the ones saved. An index the file does not hold is refused."""
+    from dataclasses import replace
+
+    r = _result()
+    second = replace(r.objects[0], id="c0_0-2", cloud=r.objects[0].cloud[:20] + 1.0)
+    r.objects.append(second)
+    path = save(r, tmp_path / "c0_0-k123.npz")
+    light = load(path, clouds=False)
+    assert [o.cloud for o in light.objects] == [None, None]
+    assert np.array_equal(light.objects[1].shape.sections.longitudinal, r.objects[1].shape.sections.longitudinal)
+    got = load_clouds(path, [1, 0, 1])
+    assert np.array_equal(got[0], second.cloud) and np.array_equal(got[1], r.objects[0].cloud)
+    assert np.array_equal(got[2], second.cloud)
+    for bad in ([2], [-1]):
+        with pytest.raises(CellFileError):
+            load_clouds(path, bad)
+    (tmp_path / "other.npz").write_bytes(pickle.dumps({"x": 1}))
+    with pytest.raises(CellFileError):
+        load_clouds(tmp_path / "other.npz", [0])
 
 
 def test_planted_files_are_refused_and_never_run(tmp_path):
