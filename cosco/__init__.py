@@ -5,12 +5,12 @@ Numpy in, numpy out: no database, no CLI. Lengths in metres, angles in radians c
 
 from .cluster import Clustering, cluster
 from .dissimilarity import (
-                            Registration,
-                            SectionPair,
-                            dissimilarity,
-                            dissimilarity_matrix,
-                            polished,
-                            register_sections,
+    Registration,
+    SectionPair,
+    dissimilarity,
+    dissimilarity_matrix,
+    polished,
+    register_sections,
 )
 from .footprint import Rectangle, axis_difference, min_area_rectangle, voxel_downsample
 from .params import DEFAULT, CoscoParams
