@@ -231,11 +231,21 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
     reach = params.decision_refine_sigma * noise
     candidates = regs[:params.accept_candidates]
     screens = [screened(reg, mid) for reg, mid in candidates]
-    best = min((e.score for e, _ in screens), default=np.inf)
-    found = [refined(reg, mid, in_model) if e.score <= best + reach else e
-             for (reg, mid), (e, in_model) in zip(candidates, screens)]
+    found = [e for e, _ in screens]
+    done: set = set()  # the candidates refined
+
+    def refine_at(j):
+        found[j] = refined(*candidates[j], screens[j][1])
+        done.add(j)
+
+    best = min((e.score for e in found), default=np.inf)
+    for j, e in enumerate(list(found)):
+        if e.score <= best + reach:
+            refine_at(j)
     if found:  # the favourite end for end too: a box-like van's sections hardly tell its front from its back
         k = int(np.argmin([e.score for e in found]))
+        if k not in done:
+            refine_at(k)
         reg, mid = candidates[k]
         turned_reg = cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
         turned, in_model = screened(turned_reg, mid)
@@ -243,7 +253,13 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
             turned = refined(turned_reg, mid, in_model)
         if turned.score < found[k].score:
             found[k] = turned
-    return decide(found, noise, params)
+    while True:  # the winner (or, with none acceptable, the best refused) is always one refined
+        decision = decide(found, noise, params)
+        top = decision.best if decision.best is not None else (decision.scored[0] if decision.scored else None)
+        j = next((i for i, e in enumerate(found) if e is top), None)
+        if j is None or j in done:
+            return decision
+        refine_at(j)
 
 
 def _size_gap_text(gap: np.ndarray) -> str:

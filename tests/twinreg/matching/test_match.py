@@ -3,6 +3,7 @@ fewer models than its leader, and without clouds the lowest section RMSE wins un
 
 import numpy as np
 
+from cosco.params import DEFAULT
 from tests.conftest import catalogue_models
 
 
@@ -34,3 +35,44 @@ def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_
     assert len(results[1].candidates) <= len(results[0].candidates)
     unverified, _ = match_objects(shapes, parametric_catalogue)
     assert [r.match.name for r in unverified] == names and all(r.match.verdict is None for r in unverified)
+
+
+def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, monkeypatch):
+    """Candidates screened far behind the best (more than decision_refine_sigma noise units) are not refined: fewer
+    refinements, and the decision of refining every candidate (the same models, poses and ambiguity; the
+    confidences within 0.002)."""
+    import twinreg.matching.refine as refine_module
+    from twinreg.detect import describe_detected, detect_points, object_points
+    from twinreg.io.points import PointSet
+    from twinreg.matching import match_objects
+    from twinreg.matching.acceptance import scene_noise
+    from twinreg.sim.scan import _ground_mesh, ground_height, pose_matrix, scan_meshes, transform
+
+    names = ["demo_sedan", "demo_suv", "demo_sedan", "demo_suv"]
+    meshes = []
+    for x, (v, f, g) in zip([0.0, 6.0, 12.0, 18.0], catalogue_models(parametric_catalogue, names)):
+        meshes.append((transform(v, pose_matrix(x, 0.0, 0.3 + x / 40, float(ground_height(x, 0.0)))), f, g))
+    meshes.append(_ground_mesh(-5, 23, -6, 6))
+    scan = scan_meshes(meshes, seed=4)
+    det = detect_points(PointSet(path=None, points=scan.points, offset=np.zeros(3), unit="m"))
+    shapes = describe_detected(det)
+    clouds = [object_points(det, o) for o in det.objects]
+    noise = scene_noise(det.hag, det.is_ground)
+    calls = [0]
+    original = refine_module.refine
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(refine_module, "refine", counted)
+    all_refined, _ = match_objects(shapes, parametric_catalogue, clouds=clouds, noise=noise,
+                                   params=DEFAULT.with_(decision_refine_sigma=1e9))
+    n_all, calls[0] = calls[0], 0
+    screened, _ = match_objects(shapes, parametric_catalogue, clouds=clouds, noise=noise)
+    assert calls[0] < n_all
+    for a, b in zip(all_refined, screened):
+        assert a.match.name == b.match.name and a.match.ambiguous_with == b.match.ambiguous_with
+        assert np.allclose(a.match.transform, b.match.transform)
+        assert abs(a.match.confidence - b.match.confidence) <= 0.002
+    assert sorted(r.match.name for r in screened) == sorted(names)
