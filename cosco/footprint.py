@@ -134,6 +134,19 @@ class Rectangle:
         return np.array([self.centre + su * hl * u + sv * hw * v for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
 
 
+def hull_rows(xy: np.ndarray) -> np.ndarray:
+    """The rows of (n, 2) points on their convex hull, in order around it; every row for a degenerate (collinear)
+    input, whose every point is on the "hull".
+
+    >>> hull_rows(np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 0.5], [1.0, 2.0]])).tolist()
+    [0, 1, 3]
+    """
+    try:
+        return ConvexHull(xy).vertices
+    except (QhullError, ValueError):
+        return np.arange(len(xy))
+
+
 def min_area_rectangle(xy: np.ndarray) -> Rectangle:
     """Minimum-area enclosing rectangle of 2D points (rotating calipers over hull edges, vectorised).
 
@@ -144,10 +157,7 @@ def min_area_rectangle(xy: np.ndarray) -> Rectangle:
     (4.0, 2.0, True)
     """
     xy = as_points(xy, dim=2)
-    try:
-        hull = xy[ConvexHull(xy).vertices]
-    except (QhullError, ValueError):
-        hull = xy  # degenerate (collinear) input: every point is on the "hull"
+    hull = xy[hull_rows(xy)]
     edges = np.roll(hull, -1, axis=0) - hull
     angles = np.unique(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2))
     if len(angles) == 0:

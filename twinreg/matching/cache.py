@@ -84,13 +84,10 @@ class ModelCache:
         """(k, 3) the vertices of the model's mesh on its plan's convex hull (model frame): a placed model's
         footprint rectangle is that of these placed (a rectangle of least area lies on the hull)."""
         if model_id not in self._outlines:
-            from scipy.spatial import ConvexHull, QhullError
+            from cosco.footprint import hull_rows
 
             v = np.asarray(self.mesh(model_id)[0], dtype=np.float64)
-            try:
-                self._outlines[model_id] = v[ConvexHull(v[:, :2]).vertices]
-            except (QhullError, ValueError):  # a degenerate plan: every vertex
-                self._outlines[model_id] = v
+            self._outlines[model_id] = v[hull_rows(v[:, :2])]
         return self._outlines[model_id]
 
     def light_mesh(self, model_id: int, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
