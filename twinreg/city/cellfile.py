@@ -29,6 +29,9 @@ CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry
 #: the largest cell file read back (bytes)
 MAX_BYTES = 4 * 1024 ** 3
 FORMAT = "twinreg-cell/2"
+#: what reading a damaged or foreign file can raise (each becomes a CellFileError)
+_UNREADABLE = (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
+               zipfile.BadZipFile)
 
 
 
@@ -113,8 +116,7 @@ def identity(path: Path) -> tuple[str, str]:
         return str(fields.get("name")), str(fields.get("key"))
     except CellFileError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
-            zipfile.BadZipFile) as exc:
+    except _UNREADABLE as exc:
         raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
 
 
@@ -150,8 +152,7 @@ def load(path: Path, clouds: bool = True):
         result = _decode(doc["result"], arrays)
     except CellFileError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
-            zipfile.BadZipFile) as exc:
+    except _UNREADABLE as exc:
         raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
     if not isinstance(result, CellResult):
         raise CellFileError("it does not hold a cell result")
@@ -191,6 +192,5 @@ def load_clouds(path: Path, indices) -> list:
         return out
     except CellFileError:
         raise
-    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
-            zipfile.BadZipFile) as exc:
+    except _UNREADABLE as exc:
         raise CellFileError(f"it cannot be read ({type(exc).__name__})") from exc
