@@ -222,9 +222,11 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         in_model = (sample - m[:3, 3]) @ m[:3, :3]
         return scored(reg, mid, m, sample_cloud(in_model, params.refine_max_points)), in_model
 
-    def refined(reg, mid, in_model):
-        m = placement(shape.frame, cache.frame(mid), reg)
-        # the pose sharpened on the points (a turn about the vertical and a shift: twinreg/matching/refine.py)
+    def refined(reg, mid, screen):
+        # the screened pose (its transform, the points in the model's frame) sharpened on the points: a turn about
+        # the vertical and a shift (twinreg/matching/refine.py)
+        e, in_model = screen
+        m = e.extra["transform"]
         c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
         return scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
 
@@ -235,7 +237,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
     done: set = set()  # the candidates refined
 
     def refine_at(j):
-        found[j] = refined(*candidates[j], screens[j][1])
+        found[j] = refined(*candidates[j], screens[j])
         done.add(j)
 
     best = min((e.score for e in found), default=np.inf)
@@ -248,9 +250,8 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
             refine_at(k)
         reg, mid = candidates[k]
         turned_reg = cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
-        turned, in_model = screened(turned_reg, mid)
-        if turned.score <= found[k].score + reach:
-            turned = refined(turned_reg, mid, in_model)
+        screen = screened(turned_reg, mid)
+        turned = refined(turned_reg, mid, screen) if screen[0].score <= found[k].score + reach else screen[0]
         if turned.score < found[k].score:
             found[k] = turned
     while True:  # the winner (or, with none acceptable, the best refused) is always one refined
