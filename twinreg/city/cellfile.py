@@ -148,6 +148,8 @@ def load(path: Path, clouds: bool = True):
                     skip.add(str(fields["cloud"]["$array"]))
                     fields["cloud"] = None
         with z:
+            if not skip <= set(z.files) - {"__doc__"}:  # the samples left in the file are there to be read
+                raise CellFileError("it names point samples it does not hold")
             arrays = {k: z[k] for k in z.files if k != "__doc__" and k not in skip}
         result = _decode(doc["result"], arrays)
     except CellFileError:

@@ -66,6 +66,18 @@ def test_point_samples_stay_in_the_file_until_asked_for(tmp_path):
     (tmp_path / "other.npz").write_bytes(pickle.dumps({"x": 1}))
     with pytest.raises(CellFileError):
         load_clouds(tmp_path / "other.npz", [0])
+    # a file whose document names a sample it does not hold is refused when loaded, as a full load refuses it
+    z = np.load(path, allow_pickle=False)
+    doc = json.loads(z["__doc__"].tobytes().decode("utf-8"))
+    key = doc["result"]["fields"]["objects"][1]["fields"]["cloud"]["$array"]
+    kept = {k: z[k] for k in z.files if k != key}
+    z.close()
+    broken = tmp_path / "broken.npz"
+    with open(broken, "wb") as fh:
+        np.savez(fh, **kept)
+    for clouds in (True, False):
+        with pytest.raises(CellFileError):
+            load(broken, clouds=clouds)
 
 
 def test_planted_files_are_refused_and_never_run(tmp_path):
