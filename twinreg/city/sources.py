@@ -156,14 +156,19 @@ def _xyz(points, source: Source) -> np.ndarray:
                             np.asarray(points.z, dtype=np.float64) * source.z_scale])
 
 
-def _chunks(source: Source):
-    """The (n, 3) float64 metre points of a plain LAS/LAZ file, ``CHUNK_POINTS`` at a time."""
+def _chunks(source: Source, raw: bool = False):
+    """The (n, 3) float64 metre points of a plain LAS/LAZ file, ``CHUNK_POINTS`` at a time; with ``raw``, each
+    with the file's integer coordinates ((n, 3) int32 X, Y, Z) and the header's scales and offsets."""
     import laspy
 
     try:
         with laspy.open(source.path) as reader:
+            h = reader.header
             for chunk in reader.chunk_iterator(CHUNK_POINTS):
-                yield _xyz(chunk, source)
+                if raw:
+                    yield _xyz(chunk, source), np.column_stack([chunk.X, chunk.Y, chunk.Z]), h.scales, h.offsets
+                else:
+                    yield _xyz(chunk, source)
     except Exception as exc:
         raise SceneReadError(f"{source.path}: reading failed ({type(exc).__name__}: {exc}); is the file complete?") \
             from exc
@@ -193,16 +198,23 @@ def read_box(source: Source, lo, hi) -> np.ndarray:
     return np.vstack(parts) if parts else np.zeros((0, 3))
 
 
+#: how a split keeps its points: the file's own integer coordinates, ``(n, 3)`` int32 X, Y, Z in ``<cell>.i32`` (half
+#: the bytes of float64 metres); ``split.json`` holds the header's scales and offsets and the unit's scales
+SPLIT_FORMAT = "i32"
+
+
 def split_key(source: Source, grid: Grid) -> str:
-    """The hash naming a tile's split for one grid (changes when the file or the grid changes)."""
-    text = json.dumps([source.key(), grid.size, grid.buffer, grid.margin])
+    """The hash naming a tile's split for one grid (changes when the file, the grid or the split's format
+    changes)."""
+    text = json.dumps([source.key(), grid.size, grid.buffer, grid.margin, SPLIT_FORMAT])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def split_tile(source: Source, grid: Grid, folder) -> dict:
     """Stream a plain LAS/LAZ tile once and write, for every cell its points feed (core and buffer), those points
-    as raw float64 ``(n, 3)`` metres to ``folder/<cell>.f64``; returns ``{cell name: n}``. The folder appears
-    complete (written under a temporary name, then renamed) or not at all, so a killed split is redone."""
+    as the file's integer coordinates (:data:`SPLIT_FORMAT`) to ``folder/<cell>.i32``; returns ``{cell name: n}``.
+    The folder appears complete (written under a temporary name, then renamed) or not at all, so a killed split is
+    redone."""
     import shutil
     import tempfile
 
@@ -214,20 +226,24 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     counts: dict[str, int] = {}
     handles: dict[str, object] = {}
     cells = grid.cells_over(np.asarray(source.lo[:2]) - grid.reach, np.asarray(source.hi[:2]) + grid.reach)
+    scaling = None
     try:
-        for pts in _chunks(source):
+        for pts, ints, scales, offsets in _chunks(source, raw=True):
+            scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
+                       "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
             xy = np.ascontiguousarray(pts[:, :2])
             for c in cells:  # a few cells per tile: one vectorised bounds test each, no sort
                 inside = np.flatnonzero(in_box(xy, c.read_lo, c.read_hi))
                 if not len(inside):
                     continue
                 if c.name not in handles:
-                    handles[c.name] = open(tmp / f"{c.name}.f64", "wb")
-                handles[c.name].write(np.ascontiguousarray(pts[inside]).tobytes())
+                    handles[c.name] = open(tmp / f"{c.name}.{SPLIT_FORMAT}", "wb")
+                handles[c.name].write(np.ascontiguousarray(ints[inside], dtype=np.int32).tobytes())
                 counts[c.name] = counts.get(c.name, 0) + len(inside)
         for h in handles.values():
             h.close()
-        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts}), encoding="utf-8")
+        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts, "format": SPLIT_FORMAT,
+                                                    **(scaling or {})}), encoding="utf-8")
         os.replace(tmp, folder)
     except BaseException:
         for h in handles.values():
@@ -238,16 +254,25 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
 
 
 def read_splits(folders, cell_name: str, extra=()) -> np.ndarray:
-    """The points split tiles gave one cell, followed by the ``extra`` (n, 3) arrays: (n, 3) float64 metres, read
-    straight into one array (no second copy of a cell's points)."""
-    files = [Path(f) / f"{cell_name}.f64" for f in folders]
-    files = [f for f in files if f.is_file()]
-    sizes = [f.stat().st_size // 24 for f in files]
-    out = np.empty((sum(sizes) + sum(len(e) for e in extra), 3))
+    """The points split tiles gave one cell, followed by the ``extra`` (n, 3) arrays: (n, 3) float64 metres, each
+    file's integers scaled into one array (laspy's arithmetic, ``(X * scale + offset) * unit``: the same metres as
+    reading the tile, bit for bit)."""
+    parts = []
+    for folder in folders:
+        f = Path(folder) / f"{cell_name}.{SPLIT_FORMAT}"
+        if f.is_file():
+            parts.append((f, f.stat().st_size // 12, json.loads((Path(folder) / "split.json").read_text())))
+    out = np.empty((sum(n for _, n, _ in parts) + sum(len(e) for e in extra), 3))
     at = 0
-    for f, n in zip(files, sizes):
-        with open(f, "rb") as fh:
-            fh.readinto(memoryview(out[at:at + n]).cast("B"))
+    for f, n, doc in parts:
+        ints = np.fromfile(f, dtype=np.int32, count=3 * n).reshape(n, 3)
+        for k in range(3):  # a column at a time (a row of three is too short a loop); times 1.0 changes nothing
+            col = out[at:at + n, k]
+            np.multiply(ints[:, k], doc["scales"][k], out=col)
+            col += doc["offsets"][k]
+            if doc["units"][k] != 1.0:
+                col *= doc["units"][k]
+        del ints
         at += n
     for e in extra:
         out[at:at + len(e)] = e

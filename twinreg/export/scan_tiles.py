@@ -48,6 +48,26 @@ def levels(n: int, seed: int = 0) -> tuple[np.ndarray, int]:
     return np.random.default_rng(seed).choice(depth + 1, n, p=share / share.sum()), depth
 
 
+def _tile_order(enu: np.ndarray, lo: np.ndarray, side: float, level: np.ndarray, depth: int):
+    """Each tile's rows (ascending) and its (level, i, j), tiles by level then i then j: one stable sort of a key
+    made of the level and the tile's indices, which at level d are the deepest level's indices shifted right by
+    ``depth - d`` bits (``floor(x / (size * 2^k)) == floor(x / size) >> k``: the sizes differ by powers of two)."""
+    n_cells = 2 ** depth
+    size = side / n_cells
+    i = np.clip(np.floor((enu[:, 0] - lo[0]) / size).astype(np.int64), 0, n_cells - 1)
+    j = np.clip(np.floor((enu[:, 1] - lo[1]) / size).astype(np.int64), 0, n_cells - 1)
+    shift = depth - np.asarray(level, dtype=np.int64)
+    key = (np.asarray(level, dtype=np.int64) << (2 * depth)) | ((i >> shift) << depth) | (j >> shift)
+    # a key of up to 16 bits sorts by radix (linear time)
+    order = np.argsort(key.astype(np.uint16) if (depth + 1) << (2 * depth) <= 1 << 16 else key, kind="stable")
+    key = key[order]
+    cuts = np.flatnonzero(key[1:] != key[:-1]) + 1
+    firsts = key[np.r_[0, cuts]] if len(key) else key
+    mask = (1 << depth) - 1
+    tiles = zip((firsts >> (2 * depth)).tolist(), ((firsts >> depth) & mask).tolist(), (firsts & mask).tolist())
+    return np.split(order, cuts), list(tiles)
+
+
 def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarray, seed: int = 0) -> dict:
     """Write one cell's quadtree (``folder/<name>/L-I-J.glb`` and ``folder/<name>.json``) of (n, 3) east-north-up
     points (the twin's frame) and their colours; returns its entry for the scan tileset's root."""
@@ -58,33 +78,21 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
     area = side * side
     # points shown down to each level (a tile's error is the spacing of what is drawn down to it)
     upto = np.cumsum(np.bincount(level, minlength=depth + 1))
-    by_level = np.argsort(level, kind="stable")
-    starts = np.r_[0, upto]
+    rows_of, tiles = _tile_order(enu, lo, side, level, depth)
     nodes = {}
-    for d in range(depth + 1):
-        sel = by_level[starts[d]:starts[d + 1]]
-        n_cells = 2 ** d
-        size = side / n_cells
-        i = np.clip(np.floor((enu[sel, 0] - lo[0]) / size).astype(np.int64), 0, n_cells - 1)
-        j = np.clip(np.floor((enu[sel, 1] - lo[1]) / size).astype(np.int64), 0, n_cells - 1)
-        order = np.lexsort((j, i))
-        sel, i, j = sel[order], i[order], j[order]
-        cuts = np.flatnonzero((np.diff(i) != 0) | (np.diff(j) != 0)) + 1
-        shown = max(int(upto[d]), 1)
-        error = 0.0 if d == depth else float(np.sqrt(area / shown))
-        firsts = np.r_[0, cuts] if len(sel) else np.zeros(0, dtype=np.int64)  # each tile's first point
-        for rows, ti, tj in zip(np.split(sel, cuts), i[firsts].tolist(), j[firsts].tolist()):
-            p = enu[rows]
-            p_lo, p_hi = column_min(p), column_max(p)
-            c = (p_lo + p_hi) / 2
-            uri = f"{name}/{d}-{ti}-{tj}.glb"
-            g = Glb()
-            g.node(g.points(p - c, rgb[rows], f"scan {name} {d}"), f"scan {name} {d}")
-            (folder / uri).write_bytes(g.to_bytes())
-            nodes[(d, ti, tj)] = {"transform": translation(c),
-                                  "boundingVolume": {"box": box_volume(p_lo - c, p_hi - c)},
-                                  "geometricError": error, "content": {"uri": uri},
-                                  "children": [], "_lo": p_lo, "_hi": p_hi, "_c": c}
+    for rows, (d, ti, tj) in zip(rows_of, tiles):
+        error = 0.0 if d == depth else float(np.sqrt(area / max(int(upto[d]), 1)))
+        p = enu[rows]
+        p_lo, p_hi = column_min(p), column_max(p)
+        c = (p_lo + p_hi) / 2
+        uri = f"{name}/{d}-{ti}-{tj}.glb"
+        g = Glb()
+        g.node(g.points(p - c, rgb[rows], f"scan {name} {d}"), f"scan {name} {d}")
+        (folder / uri).write_bytes(g.to_bytes())
+        nodes[(d, ti, tj)] = {"transform": translation(c),
+                              "boundingVolume": {"box": box_volume(p_lo - c, p_hi - c)},
+                              "geometricError": error, "content": {"uri": uri},
+                              "children": [], "_lo": p_lo, "_hi": p_hi, "_c": c}
     # every tile under its parent (a tile whose level drew no points there gets an empty parent)
     for (d, i, j) in sorted(nodes, reverse=True):
         if d == 0:

@@ -81,3 +81,23 @@ def test_reading_by_chunks_and_splitting_keep_every_point_once(tmp_path, monkeyp
     assert np.array_equal(np.unique(owned, axis=0), np.unique(every, axis=0))
     # a second split of the same tile reuses the finished folder
     assert split_tile(srcs[0], grid, tmp_path / "split" / "0") == split_tile(srcs[0], grid, tmp_path / "split" / "0")
+
+
+def test_a_split_gives_the_metres_of_the_tile_bit_for_bit_in_feet_too(tmp_path):
+    # the split keeps the file's integers; the cell scales them back with the header's scale and offset and the
+    # unit (international feet here): the same float64 metres as reading the tile
+    rng = np.random.default_rng(3)
+    tile = write_las(tmp_path / "feet.laz", rng.uniform([4_000_000, 800_000, 300], [4_000_150, 800_150, 330],
+                                                       (4000, 3)), crs="EPSG:2994")
+    (src,) = open_sources([tile])
+    assert src.scale != 1.0
+    direct = read_box(src, [-1e12, -1e12], [1e12, 1e12])
+    grid = Grid(20.0, 2.0, 5.0)
+    counts = split_tile(src, grid, tmp_path / "split")
+    assert sorted(p.suffix for p in (tmp_path / "split").iterdir()) == [".i32"] * len(counts) + [".json"]
+    for name, n in counts.items():
+        ix, iy = map(int, name[1:].split("_"))
+        c = grid.cell(ix, iy)
+        got = read_splits([tmp_path / "split"], name)
+        want = direct[((direct[:, :2] >= c.read_lo) & (direct[:, :2] <= c.read_hi)).all(1)]
+        assert len(got) == n and np.array_equal(got, want)  # the same points in the same order, bit for bit
