@@ -126,45 +126,60 @@ class Registration:
 
 def _moves(src: SectionPair, r: int, du: np.ndarray, tz: np.ndarray, inverse: bool):
     """Where ``src``'s section probes land for each candidate shift, as (base (n, 2), shifts (s, 2), key of the
-    target section): the probes of candidate k are ``base + shifts[k]``. Forward: B into A's frame (rotate by rz,
-    then shift by (du, tz)). Inverse: A into B's frame."""
+    target section, whether the shifts leave out du): the probes of candidate k are ``base + shifts[k]``. Forward:
+    B into A's frame (rotate by rz, then shift by (du, tz)). Inverse: A into B's frame. A shift along the axis
+    moves only the section that lies along it: of each direction's two look-ups, one does not depend on du."""
     cr, sr = [(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)][r]
     lon, tra = src.probes["lon"], src.probes["tra"]
     zero = np.zeros_like(tz)
     if not inverse:
         if sr == 0.0:
-            return [(lon * [cr, 1.0], np.stack([du, tz], -1), "lon"), (tra * [cr, 1.0], np.stack([zero, tz], -1), "tra")]
-        return [(lon * [sr, 1.0], np.stack([zero, tz], -1), "tra"), (tra * [-sr, 1.0], np.stack([du, tz], -1), "lon")]
+            return [(lon * [cr, 1.0], np.stack([du, tz], -1), "lon", False),
+                    (tra * [cr, 1.0], np.stack([zero, tz], -1), "tra", True)]
+        return [(lon * [sr, 1.0], np.stack([zero, tz], -1), "tra", True),
+                (tra * [-sr, 1.0], np.stack([du, tz], -1), "lon", False)]
     if sr == 0.0:
-        return [(lon * [cr, 1.0], np.stack([-cr * du, -tz], -1), "lon"),
-                (tra * [cr, 1.0], np.stack([zero, -tz], -1), "tra")]
-    return [(lon * [-sr, 1.0], np.stack([sr * du, -tz], -1), "tra"), (tra * [sr, 1.0], np.stack([zero, -tz], -1), "lon")]
+        return [(lon * [cr, 1.0], np.stack([-cr * du, -tz], -1), "lon", False),
+                (tra * [cr, 1.0], np.stack([zero, -tz], -1), "tra", True)]
+    return [(lon * [-sr, 1.0], np.stack([sr * du, -tz], -1), "tra", False),
+            (tra * [sr, 1.0], np.stack([zero, -tz], -1), "lon", True)]
 
 
 def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndarray, cap: float,
-             exact: bool = False, one_way: bool = False) -> np.ndarray:
+             exact: bool = False, one_way: bool = False, n_du: int = 1) -> np.ndarray:
     """Sum of squared distances, capped at ``cap`` (m), for each candidate (du, tz): shape (s,). Both directions,
     or with ``one_way`` only A's probes against B's sections.
 
     Distance fields (nearest node, integer index arithmetic) by default, KD-trees with ``exact``. The cap keeps
-    a part one scan saw and the other did not (a bumper, a low sill) from swamping the score."""
+    a part one scan saw and the other did not (a bumper, a low sill) from swamping the score.
+
+    ``n_du`` > 1: the candidates are a grid, each tz repeated for ``n_du`` consecutive values of du (a meshgrid of
+    tz by du, raveled): the look-ups that do not depend on du are made once per tz."""
     total = np.zeros(len(tz))
     directions = ((a, b, True),) if one_way else ((b, a, False), (a, b, True))
     for src, dst, inverse in directions:
-        for base, shifts, key in _moves(src, r, du, tz, inverse):
+        for base, shifts, key, du_free in _moves(src, r, du, tz, inverse):
+            if du_free and n_du > 1 and not exact:
+                total += np.repeat(_field_sums(dst.fields[key], base, shifts[::n_du], cap), n_du)
+                continue
             if exact:
                 pts = base[None, :, :] + shifts[:, None, :]
                 d, _ = dst.trees[key].query(pts.reshape(-1, 2))
                 d = d.reshape(pts.shape[:2])
+                d = np.minimum(d, cap).astype(np.float64)
+                total += np.multiply(d, d, out=d).sum(1)
             else:
-                f = dst.fields[key]
-                if f.cap is not None and cap > f.cap:
-                    raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: "
-                                     "prepare them with the same parameters")
-                d = f.nearest_shifted(base, shifts)
-            d = np.minimum(d, cap).astype(np.float64)
-            total += np.multiply(d, d, out=d).sum(1)
+                total += _field_sums(dst.fields[key], base, shifts, cap)
     return total
+
+
+def _field_sums(f: DistanceField, base: np.ndarray, shifts: np.ndarray, cap: float) -> np.ndarray:
+    """For each shift, the sum of the squared field distances at ``base + shift``, each capped at ``cap``."""
+    if f.cap is not None and cap > f.cap:
+        raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare them "
+                         "with the same parameters")
+    d = np.minimum(f.nearest_shifted(base, shifts), cap).astype(np.float64)
+    return np.multiply(d, d, out=d).sum(1)
 
 
 def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params: CoscoParams,
@@ -221,7 +236,7 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
     T, D = np.meshgrid(tzs0, dus0, indexing="ij")
     coarse = []
     for r in rotations:
-        sq = _sq_sums(a, b, r, D.ravel(), T.ravel(), params.dist_cap, one_way=one_way)
+        sq = _sq_sums(a, b, r, D.ravel(), T.ravel(), params.dist_cap, one_way=one_way, n_du=len(dus0))
         k = int(np.argmin(sq))
         coarse.append((float(sq[k]), r, float(T.ravel()[k]), float(D.ravel()[k])))
     coarse.sort()
@@ -231,7 +246,7 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
         tzs = _grid(tz_c, params.tz_step * 2, cell)
         dus = _grid(du_c, params.du_step * 2, cell) if params.du_max > 0 else np.array([0.0])
         T2, D2 = np.meshgrid(tzs, dus, indexing="ij")
-        sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.dist_cap, one_way=one_way)
+        sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.dist_cap, one_way=one_way, n_du=len(dus))
         k = int(np.argmin(sq))
         starts.append((r, float(T2.ravel()[k]), float(D2.ravel()[k])))
     return _finish(a, b, tuple(starts), params, polish, one_way)

@@ -113,3 +113,29 @@ def test_fields_cut_at_the_distance_cap_register_as_the_whole_fields():
         p.fields = whole
     assert [[register_sections(a, b, polish=True) for b in pairs] for a in pairs] == cut
     assert len({round(r.rmse, 6) for row in cut for r in row}) > 6  # different pairs, different fits
+
+
+def test_a_grid_scores_the_lookups_that_ignore_du_once_per_tz():
+    # of each direction's two look-ups one does not move with du: on a tz-by-du grid it is made once per tz, and
+    # every candidate's sum is the same, bit for bit, as scoring each candidate on its own
+    from cosco.dissimilarity import _grid, _sq_sums
+    from cosco.sections import Sections
+
+    rng = np.random.default_rng(5)
+
+    def pair(length):
+        u = rng.uniform(-length / 2, length / 2, 240)
+        lon = np.column_stack([u, 1.4 - 0.2 * (u / length) ** 2 + rng.normal(0, 0.01, 240)])
+        tra = np.column_stack([rng.uniform(-0.9, 0.9, 120), 1.4 + rng.normal(0, 0.01, 120)])
+        return SectionPair(Sections(lon[::3], tra[::3], 0.1, longitudinal_fine=lon, transverse_fine=tra))
+
+    a, b = pair(4.2), pair(4.6)
+    tzs, dus = _grid(0.03, 0.4, 0.04), _grid(-0.02, 0.2, 0.1)
+    T, D = np.meshgrid(tzs, dus, indexing="ij")
+    for r in range(4):
+        for one_way in (False, True):
+            grid = _sq_sums(a, b, r, D.ravel(), T.ravel(), 0.1, one_way=one_way, n_du=len(dus))
+            alone = np.array([_sq_sums(a, b, r, D.ravel()[k:k + 1], T.ravel()[k:k + 1], 0.1, one_way=one_way)[0]
+                              for k in range(T.size)])
+            assert np.array_equal(grid, alone)
+            assert np.ptp(grid) > 0
