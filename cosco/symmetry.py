@@ -117,9 +117,10 @@ class _Objective:
         return pcr, rmse
 
 
-def _start_angles(xy: np.ndarray, params: CoscoParams) -> np.ndarray:
-    """Candidate normal angles: rectangle sides, principal axes and a sweep every ``params.sym_sweep_step``."""
-    rect = min_area_rectangle(xy)
+def _start_angles(xy: np.ndarray, params: CoscoParams, rect=None) -> np.ndarray:
+    """Candidate normal angles: rectangle sides, principal axes and a sweep every ``params.sym_sweep_step``
+    (``rect``: the points' minimum-area rectangle, when already known)."""
+    rect = min_area_rectangle(xy) if rect is None else rect
     centred = xy - xy.mean(0)
     _, vecs = np.linalg.eigh(centred.T @ centred)
     pca = np.arctan2(vecs[1, -1], vecs[0, -1])
@@ -196,7 +197,7 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
 
     rect = min_area_rectangle(down[:, :2])
     scored = []
-    for phi in _start_angles(down[:, :2], params):
+    for phi in _start_angles(down[:, :2], params, rect):
         rho = float(rect.centre @ np.array([np.cos(phi), np.sin(phi)]))
         scored.append((obj.soft(phi, rho), phi, rho))
     scored.sort(key=lambda t: -t[0])
