@@ -213,7 +213,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top, tree,
                      np.array([row.length, row.width, row.height]), measured, noise, spacing, params,
                      sink=float(shape.frame.ground_z - m[2, 3]))
-        e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)))
+        e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)), refined=False)
         return e
 
     def screened(reg, mid):
@@ -228,7 +228,9 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         e, in_model = screen
         m = e.extra["transform"]
         c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
-        return scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
+        e = scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
+        e.extra["refined"] = True
+        return e
 
     reach = params.decision_refine_sigma * noise
     candidates = regs[:params.accept_candidates]
@@ -313,8 +315,11 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
     if decision is not None:
         others = [e for e in decision.scored if e.model_id != mid]
         if others:
+            # refined: False when the runner-up was only screened (scored as its registration placed it, on the
+            # refinement's points: it lay far behind, docs/METHOD.md "Deciding between candidates")
             runner = {"model_id": others[0].model_id, "name": cache.row(others[0].model_id).name,
-                      "rmse_m": round(others[0].rmse, 4), "score_m": round(others[0].score, 4)}
+                      "rmse_m": round(others[0].rmse, 4), "score_m": round(others[0].score, 4),
+                      "refined": bool(others[0].extra.get("refined", True))}
     elif len(regs) > 1:
         r2, m2 = regs[1]
         runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}

@@ -75,4 +75,11 @@ def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, m
         assert a.match.name == b.match.name and a.match.ambiguous_with == b.match.ambiguous_with
         assert np.allclose(a.match.transform, b.match.transform)
         assert abs(a.match.confidence - b.match.confidence) <= 0.002
+        # the runner-up says whether its score is a refined one or its screening's
+        assert a.match.runner_up["refined"] is True
+        if b.match.runner_up["refined"]:
+            assert b.match.runner_up["score_m"] == a.match.runner_up["score_m"]
+        else:
+            assert b.match.runner_up["score_m"] > b.match.evidence["score_m"]
     assert sorted(r.match.name for r in screened) == sorted(names)
+    assert not all(r.match.runner_up["refined"] for r in screened)  # some runners-up were only screened
