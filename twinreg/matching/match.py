@@ -7,11 +7,11 @@
    3pi/2}, a continuous tz and a small axial shift du, and ranked by RMSE. Objects of one cluster share work: the
    cluster's first object (its leader) tries every candidate, the others first the leader's favourites and their
    own nearest, and all of their candidates only when those fit clearly worse (by ``share_margin``).
-3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best ``accept_candidates`` are
-   placed, their pose refined on the points (:mod:`twinreg.matching.refine`), checked (:mod:`twinreg.matching.acceptance`) and
-   scored on all the evidence; the lowest acceptable score wins, with a confidence, the models it cannot be told
-   from, and whether it lies outside the size window. An object no candidate explains gets no model (a box, a
-   skip or a kiosk of car size), with the reason.
+3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best ``accept_candidates``
+   are placed, their pose refined on the points (:mod:`twinreg.matching.refine`), checked
+   (:mod:`twinreg.matching.acceptance`) and scored on all the evidence; the lowest acceptable score wins, with a
+   confidence, the models it cannot be told from, and whether it lies outside the size window. An object no
+   candidate explains gets no model (a box, a skip or a kiosk of car size), with the reason.
 """
 
 from __future__ import annotations
