@@ -236,11 +236,9 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
     candidates = regs[:params.accept_candidates]
     screens = [screened(reg, mid) for reg, mid in candidates]
     found = [e for e, _ in screens]
-    done: set = set()  # the candidates refined
 
     def refine_at(j):
         found[j] = refined(*candidates[j], screens[j])
-        done.add(j)
 
     best = min((e.score for e in found), default=np.inf)
     for j, e in enumerate(list(found)):
@@ -248,7 +246,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
             refine_at(j)
     if found:  # the favourite end for end too: a box-like van's sections hardly tell its front from its back
         k = int(np.argmin([e.score for e in found]))
-        if k not in done:
+        if not found[k].extra["refined"]:
             refine_at(k)
         reg, mid = candidates[k]
         turned_reg = cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
@@ -260,7 +258,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         decision = decide(found, noise, params)
         top = decision.best if decision.best is not None else (decision.scored[0] if decision.scored else None)
         j = next((i for i, e in enumerate(found) if e is top), None)
-        if j is None or j in done:
+        if j is None or found[j].extra["refined"]:
             return decision
         refine_at(j)
 
@@ -319,7 +317,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
             # refinement's points: it lay far behind, docs/METHOD.md "Deciding between candidates")
             runner = {"model_id": others[0].model_id, "name": cache.row(others[0].model_id).name,
                       "rmse_m": round(others[0].rmse, 4), "score_m": round(others[0].score, 4),
-                      "refined": bool(others[0].extra.get("refined", True))}
+                      "refined": bool(others[0].extra["refined"])}
     elif len(regs) > 1:
         r2, m2 = regs[1]
         runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}
