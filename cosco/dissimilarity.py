@@ -165,12 +165,16 @@ def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndar
             if exact:
                 pts = base[None, :, :] + shifts[:, None, :]
                 d, _ = dst.trees[key].query(pts.reshape(-1, 2))
-                d = d.reshape(pts.shape[:2])
-                d = np.minimum(d, cap).astype(np.float64)
-                total += np.multiply(d, d, out=d).sum(1)
+                total += _capped_square_sums(d.reshape(pts.shape[:2]), cap)
             else:
                 total += _field_sums(dst.fields[key], base, shifts, cap)
     return total
+
+
+def _capped_square_sums(d: np.ndarray, cap: float) -> np.ndarray:
+    """Row sums of the squares of (s, n) distances, each capped at ``cap`` (float64)."""
+    d = np.minimum(d, cap).astype(np.float64)
+    return np.multiply(d, d, out=d).sum(1)
 
 
 def _field_sums(f: DistanceField, base: np.ndarray, shifts: np.ndarray, cap: float) -> np.ndarray:
@@ -178,8 +182,7 @@ def _field_sums(f: DistanceField, base: np.ndarray, shifts: np.ndarray, cap: flo
     if f.cap is not None and cap > f.cap:
         raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare them "
                          "with the same parameters")
-    d = np.minimum(f.nearest_shifted(base, shifts), cap).astype(np.float64)
-    return np.multiply(d, d, out=d).sum(1)
+    return _capped_square_sums(f.nearest_shifted(base, shifts), cap)
 
 
 def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params: CoscoParams,

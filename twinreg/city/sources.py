@@ -229,8 +229,9 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     scaling = None
     try:
         for pts, ints, scales, offsets in _chunks(source, raw=True):
-            scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
-                       "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
+            if scaling is None:  # one header: the same for every chunk
+                scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
+                           "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
             xy = np.ascontiguousarray(pts[:, :2])
             for c in cells:  # a few cells per tile: one vectorised bounds test each, no sort
                 inside = np.flatnonzero(in_box(xy, c.read_lo, c.read_hi))
