@@ -21,6 +21,7 @@ from cosco.symmetry import Symmetry
 
 from ..change.observed import Raster
 from ..errors import CellFileError
+from ..io.npz import read_arrays
 from ..io.outdir import atomic_path
 from .cells import CellObject, CellResult
 
@@ -150,7 +151,7 @@ def load(path: Path, clouds: bool = True):
         with z:
             if not skip <= set(z.files) - {"__doc__"}:  # the samples left in the file are there to be read
                 raise CellFileError("it names point samples it does not hold")
-            arrays = {k: z[k] for k in z.files if k != "__doc__" and k not in skip}
+            arrays = read_arrays(z.zip, [k for k in z.files if k != "__doc__" and k not in skip])
         result = _decode(doc["result"], arrays)
     except CellFileError:
         raise
@@ -185,13 +186,15 @@ def load_clouds(path: Path, indices) -> list:
     try:
         keys = _sample_keys(path)
         with np.load(path, allow_pickle=False) as z:
-            out = []
+            wanted = []
             for i in indices:
                 key = keys[int(i)] if 0 <= int(i) < len(keys) else None
                 if key is None or key == "__doc__" or key not in z.files:
                     raise CellFileError(f"it has no point sample for object {int(i)}")
-                out.append(z[key])
-        return out
+                wanted.append(key)
+            arrays = read_arrays(z.zip, set(wanted))
+        # an index asked for twice gets two arrays, as numpy's reader gives
+        return [arrays[k] if wanted.index(k) == n else arrays[k].copy() for n, k in enumerate(wanted)]
     except CellFileError:
         raise
     except _UNREADABLE as exc:
