@@ -29,13 +29,38 @@ def compare_pairs(batch: PairBatch) -> np.ndarray:
     return pair_distances(list(batch.sections.values()), local, batch.params)
 
 
-def pair_batches(sections: list, pairs: np.ndarray, params: CoscoParams, size: int = 400) -> list[PairBatch]:
-    """Consecutive batches of about ``size`` of the pairs, as given (order them so that an object's pairs are
-    together: each object is prepared once per batch that holds it)."""
+def guided_sizes(n: int, workers: int, largest: int, smallest: int = 1) -> list[int]:
+    """Sizes of consecutive batches of ``n`` items for ``workers`` workers that take the next batch as they free
+    up: each batch a quarter of what is left per worker (``remaining / (4 workers)``, within ``smallest`` and
+    ``largest``), so that the batches shrink towards the end and the workers finish together.
+
+    >>> guided_sizes(100, 2, 20, 5)
+    [13, 11, 10, 9, 8, 7, 6, 5, 5, 5, 5, 5, 5, 5, 1]
+    """
+    sizes, left = [], int(n)
+    while left > 0:
+        k = min(left, max(smallest, min(largest, -(-left // (4 * max(workers, 1))))))
+        sizes.append(k)
+        left -= k
+    return sizes
+
+
+def _cuts(n: int, size) -> list[tuple[int, int]]:
+    """``(start, end)`` of consecutive batches: ``size`` an int (every batch that size, the last what is left) or
+    a list of sizes (e.g. :func:`guided_sizes`)."""
+    sizes = [size] * -(-n // size) if isinstance(size, int) else list(size)
+    ends = np.minimum(np.cumsum(sizes), n) if sizes else np.zeros(0, dtype=np.int64)
+    return [(int(a), int(b)) for a, b in zip(np.r_[0, ends[:-1]], ends) if b > a]
+
+
+def pair_batches(sections: list, pairs: np.ndarray, params: CoscoParams, size=400) -> list[PairBatch]:
+    """Consecutive batches of the pairs, as given, of ``size`` pairs (an int, or a list of sizes: see
+    :func:`_cuts`); order them so that an object's pairs are together: each object is prepared once per batch
+    that holds it."""
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     out = []
-    for a in range(0, len(pairs), size):
-        p = pairs[a:a + size]
+    for a, b in _cuts(len(pairs), size):
+        p = pairs[a:b]
         ids = sorted(set(p.ravel().tolist()))
         out.append(PairBatch(p, {i: sections[i] for i in ids}, params))
     return out
@@ -112,16 +137,17 @@ def leader_indices(labels: np.ndarray) -> np.ndarray:
 
 
 def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: str, params: CoscoParams,
-                  indices: np.ndarray, size: int = 200, leaders: dict | None = None, samples: list | None = None
+                  indices: np.ndarray, size=200, leaders: dict | None = None, samples: list | None = None
                   ) -> tuple[list[MatchBatch], list[np.ndarray]]:
-    """The objects ``indices`` cut into batches of about ``size`` (in label order, so that a batch holds few
+    """The objects ``indices`` cut into batches of ``size`` (an int, or a list of sizes: see :func:`_cuts`; in
+    label order, so that a batch holds few
     clusters); ``leaders``: the leaders' rankings when ``indices`` are members; ``samples``: where each object's
     point sample is when the objects do not hold it (see :class:`MatchBatch`). Returns the batches and, for each,
     the indices of its objects."""
     labels = np.asarray(labels)
     idx = np.asarray(indices, dtype=np.int64)
     idx = idx[np.lexsort((idx, labels[idx]))]
-    members = [idx[a:a + size] for a in range(0, len(idx), size)]
+    members = [idx[a:b] for a, b in _cuts(len(idx), size)]
     batches = []
     for m in members:
         m = np.sort(m)

@@ -21,7 +21,7 @@ from cosco.symmetry import Symmetry
 
 from ..change.observed import Raster
 from ..errors import CellFileError
-from ..io.npz import read_arrays
+from ..io.npz import read_arrays, read_member
 from ..io.outdir import atomic_path
 from .cells import CellObject, CellResult
 
@@ -162,20 +162,23 @@ def load(path: Path, clouds: bool = True):
     return result
 
 
-#: per cell file (path, size, modification time): the array names of its objects' point samples (a worker reads
-#: the samples of one file for many batches; its document is parsed once)
+#: per cell file (path, size, modification time): the array names of its objects' point samples and the zip's
+#: entries of those arrays (a worker reads the samples of one file for many batches; its document and directory
+#: are parsed once)
 _SAMPLE_KEYS: dict = {}
 
 
-def _sample_keys(path: Path) -> list:
+def _sample_keys(path: Path) -> tuple[list, dict]:
     st = path.stat()
     stamp = (str(path), st.st_size, st.st_mtime_ns)
     if stamp not in _SAMPLE_KEYS:
         doc, z = _document(path)
-        z.close()
+        with z:
+            keys = [None if f is None else str(f["cloud"]["$array"]) for f in _cloud_slots(doc)]
+            entries = {k: z.zip.getinfo(f"{k}.npy") for k in keys if k is not None and k in z.files and k != "__doc__"}
         if len(_SAMPLE_KEYS) >= 256:
             _SAMPLE_KEYS.clear()
-        _SAMPLE_KEYS[stamp] = [None if f is None else str(f["cloud"]["$array"]) for f in _cloud_slots(doc)]
+        _SAMPLE_KEYS[stamp] = (keys, entries)
     return _SAMPLE_KEYS[stamp]
 
 
@@ -184,17 +187,20 @@ def load_clouds(path: Path, indices) -> list:
     :class:`CellFileError` if the file is not one this program wrote or has no such objects."""
     path = Path(path)
     try:
-        keys = _sample_keys(path)
-        with np.load(path, allow_pickle=False) as z:
-            wanted = []
-            for i in indices:
-                key = keys[int(i)] if 0 <= int(i) < len(keys) else None
-                if key is None or key == "__doc__" or key not in z.files:
-                    raise CellFileError(f"it has no point sample for object {int(i)}")
-                wanted.append(key)
-            arrays = read_arrays(z.zip, set(wanted))
-        # an index asked for twice gets two arrays, as numpy's reader gives
-        return [arrays[k] if wanted.index(k) == n else arrays[k].copy() for n, k in enumerate(wanted)]
+        keys, entries = _sample_keys(path)
+        wanted = []
+        for i in indices:
+            key = keys[int(i)] if 0 <= int(i) < len(keys) else None
+            if key is None or key not in entries:
+                raise CellFileError(f"it has no point sample for object {int(i)}")
+            wanted.append(key)
+        with open(path, "rb") as fh:
+            out = [read_member(fh, entries[k]) for k in wanted]
+        if any(a is None for a in out):  # a member this reader leaves to numpy's
+            with np.load(path, allow_pickle=False) as z:
+                arrays = read_arrays(z.zip, set(wanted))
+            out = [a if a is not None else arrays[k].copy() for a, k in zip(out, wanted)]
+        return out
     except CellFileError:
         raise
     except _UNREADABLE as exc:

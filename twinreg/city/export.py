@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..change import observed
-from ..export.formats import write_formats
+from ..export.formats import start_text_formats, write_tile_formats
 from ..export.kmz import write_kmz
 from ..export.objects import object_output, pose
 from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
@@ -22,6 +22,11 @@ from ..export.twin_ply import write_twin_ply
 from ..io.outdir import staged_folder
 from .classified import FOLDER as CLASSIFIED
 from .resume import WORK
+
+#: how long the JSON formats may take in their child before this process writes them itself (s, and s an object:
+#: about 2 ms an object is usual)
+TEXT_FORMATS_S = 60.0
+TEXT_FORMATS_S_PER_OBJECT = 0.02
 
 
 def _cell_bounds(georef, cell) -> dict:
@@ -118,23 +123,31 @@ def export_city(run: CityRun) -> dict:
     folders = [{"name": r.name, "bounds": _cell_bounds(georef, plan.cells[r.name]),
                 "ids": [d["id"] for d in by_cell.get(r.name, [])]} for r in results if by_cell.get(r.name)]
     with staged_folder(out, protect=protect) as stage:
-        write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", kmz_objects, meshes, folders=folders)
-        if ply:
-            for name, parts in per_cell_ply.items():
-                write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset),
-                               georef.to_json(), f"{twin['scene']}, cell {name}")
-        write_city_report(stage, twin, results, objects, outcomes, plan)
         t3 = time.perf_counter()
-        rows: dict = {}
-        for k, o in enumerate(objects):
-            rows.setdefault(o.cell, []).append(k)
-        for r in results:  # a kept cell's tiles are where this run's store keeps them, whatever its file says
-            if r.scan_tiles:
-                r.scan_tiles = dict(r.scan_tiles, folder=str(store.scan_folder() / f"{r.name}-{keys[r.name]}"))
-        scans = [(r.name, r.scan_tiles) for r in results if r.scan_tiles]
-        twin["tiles"] = write_formats(stage, outs, [o.offset for o in objects], georef,
-                                      [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
-                                      f"twinreg: {twin['scene']}", models, templates=True, seq=True)
+        # the JSON formats (twin.city.json and .jsonl, GeoJSON, sections.json: a third of the export at 100M
+        # points) in a forked child while this process writes the KMZ, the report and the tiles
+        texts = start_text_formats(stage, outs, [o.offset for o in objects], georef, f"twinreg: {twin['scene']}",
+                                   models, templates=True, seq=True, fork=True)
+        try:
+            write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", kmz_objects, meshes, folders=folders)
+            if ply:
+                for name, parts in per_cell_ply.items():
+                    write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset),
+                                   georef.to_json(), f"{twin['scene']}, cell {name}")
+            write_city_report(stage, twin, results, objects, outcomes, plan)
+            rows: dict = {}
+            for k, o in enumerate(objects):
+                rows.setdefault(o.cell, []).append(k)
+            for r in results:  # a kept cell's tiles are where this run's store keeps them, whatever its file says
+                if r.scan_tiles:
+                    r.scan_tiles = dict(r.scan_tiles, folder=str(store.scan_folder() / f"{r.name}-{keys[r.name]}"))
+            scans = [(r.name, r.scan_tiles) for r in results if r.scan_tiles]
+            twin["tiles"] = write_tile_formats(stage, outs, [o.offset for o in objects], georef,
+                                               [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
+                                               models)
+            texts.wait(timeout=TEXT_FORMATS_S + TEXT_FORMATS_S_PER_OBJECT * len(objects))
+        finally:
+            texts.stop()
         timing["formats"] = time.perf_counter() - t3
         if run.classified is not None:  # the cells' classified COPC files, written on the workers
             os.replace(store.folder / CLASSIFIED, stage / CLASSIFIED)

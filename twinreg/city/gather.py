@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from .batches import compare_pairs, leader_indices, match_batch, match_batches, pair_batches
+from .batches import compare_pairs, guided_sizes, leader_indices, match_batch, match_batches, pair_batches
 
 #: the most a batch holds: a batch of a 500M-point survey's objects cut in eight was 120 MB of point samples in
 #: flight on the client, the scheduler and a worker at once; a bounded batch keeps the memory flat in the city's size
@@ -30,12 +30,12 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     rank = np.argsort(np.argsort([s.size.length for s in shapes], kind="stable"), kind="stable")
 
     def distances_of(pairs):
-        # about four batches per worker (even finishing times, each object's sections sent a few times only), at
-        # most PAIRS_PER_BATCH pairs each: what one batch carries does not grow with the city
+        # batches shrinking towards the end, so that the workers finish together (each object's sections sent a
+        # few times only), at most PAIRS_PER_BATCH pairs each: what one batch carries does not grow with the city
         r = rank[np.asarray(pairs, dtype=np.int64).reshape(-1, 2)]
         perm = np.lexsort((r.max(1), r.min(1))) if len(r) else np.zeros(0, dtype=np.int64)
         batches = pair_batches(sections, np.asarray(pairs)[perm], params,
-                               size=min(PAIRS_PER_BATCH, max(50, -(-len(pairs) // (4 * n_workers)))))
+                               size=guided_sizes(len(pairs), n_workers, PAIRS_PER_BATCH, 50))
         if progress:
             progress("taxonomy", 0, len(batches))
         out = eng.map(compare_pairs, batches, [f"pairs{k}" for k in range(len(batches))])
@@ -65,7 +65,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     for indices, known in phases:
         if not len(indices):
             continue
-        size = min(OBJECTS_PER_BATCH, max(10, -(-len(indices) // (4 * n_workers))))
+        size = guided_sizes(len(indices), n_workers, OBJECTS_PER_BATCH, 10)
         batches, members = match_batches(objects, tax.labels, noise, folder, params, indices, size=size,
                                          leaders=known, samples=samples)
 

@@ -20,26 +20,75 @@ def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: lis
     (n, 3) scene points, (n, 3) uint8 colours), or None; ``models``: the matcher's
     :class:`~twinreg.matching.match.ModelCache` (the tiles' lighter meshes); ``templates``: CityJSON with geometry
     templates; ``seq``: also twin.city.jsonl (CityJSONSeq). Returns the tiles' summary."""
-    stage = Path(stage)
-    instances = [instance_of(o, np.asarray(off)) for o, off in zip(outputs, offsets)]
-    meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
-    light = {key: (*models.light_mesh(int(key[len("model"):]), TILE_MAX_TRIANGLES), rgb)
-             for key, (_, _, rgb) in meshes.items()}
+    texts = start_text_formats(stage, outputs, offsets, georef, title, models, templates, seq)
+    try:
+        summary = write_tile_formats(stage, outputs, offsets, georef, groups, scans, models)
+        texts.wait()
+    finally:
+        texts.stop()
+    return summary
 
+
+def _instances(outputs: list, offsets: list) -> list:
+    return [instance_of(o, np.asarray(off)) for o, off in zip(outputs, offsets)]
+
+
+def _light(outputs: list, models) -> dict:
+    """The tiles' (and CityJSON's) lighter mesh of every model the objects show, by mesh key."""
+    meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
+    return {key: (*models.light_mesh(int(key[len("model"):]), TILE_MAX_TRIANGLES), rgb)
+            for key, (_, _, rgb) in meshes.items()}
+
+
+def write_tile_formats(stage: Path, outputs: list, offsets: list, georef, groups: list, scans: list | None,
+                       models) -> dict:
+    """3D Tiles and twin.glb (:func:`write_formats`' arguments); returns the tiles' summary."""
+    meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
+    return write_tiles(Path(stage), _instances(outputs, offsets), meshes, georef, groups, scans,
+                       tile_meshes=_light(outputs, models))
+
+
+def write_text_formats(stage: Path, instances: list, light: dict, docs: list, lonlat: list, georef, title: str,
+                       templates: bool, seq: bool, outputs: list) -> None:
+    """The formats that are JSON text: twin.city.json (and twin.city.jsonl with ``seq``), twin.geojson (the
+    footprints' ``lonlat``) and sections.json."""
+    stage = Path(stage)
+    write_cityjson(stage / "twin.city.json", instances, light, docs, [d["heading_rad"] for d in docs], georef,
+                   title, templates, stage / "twin.city.jsonl" if seq else None)
+    write_geojson(stage / "twin.geojson", docs, lonlat)
+    write_sections(stage / "sections.json", outputs)
+
+
+class _Threaded:
+    """The JSON formats written on a thread beside the tiles' numpy work (a scene's few objects)."""
+
+    def __init__(self, *args):
+        self._pool = ThreadPoolExecutor(1)
+        self._future = self._pool.submit(write_text_formats, *args)
+
+    def wait(self, timeout=None):
+        return self._future.result()
+
+    def stop(self):
+        self._pool.shutdown(wait=True)
+
+
+def start_text_formats(stage: Path, outputs: list, offsets: list, georef, title: str, models, templates: bool,
+                       seq: bool, fork: bool = False):
+    """Start :func:`write_text_formats` on a thread, or with ``fork`` in a forked child (a city's thousands of
+    objects: JSON encoding holds Python's lock, so a thread shares one core with the caller); returns what to
+    ``wait()`` for, and to ``stop()`` on every path (:class:`~twinreg.report.painter.Forked`)."""
     docs = [o.doc for o in outputs]
-    # pyproj's transformations stay in this thread (its objects are not shared between threads)
+    # pyproj's transformations and the catalogue's connection stay in this process and thread
     ll = footprints_lonlat([np.asarray(o.footprint["corners"]) + np.asarray(off)[:2]
                             for o, off in zip(outputs, offsets)], georef)
-    with ThreadPoolExecutor(2) as pool:  # JSON encoding beside the tiles' numpy work
-        side = [pool.submit(write_cityjson, stage / "twin.city.json", instances, light, docs,
-                            [d["heading_rad"] for d in docs], georef, title, templates,
-                            stage / "twin.city.jsonl" if seq else None),
-                pool.submit(write_geojson, stage / "twin.geojson", docs, ll)]
-        summary = write_tiles(stage, instances, meshes, georef, groups, scans, tile_meshes=light)
-        write_sections(stage / "sections.json", outputs)
-        for f in side:
-            f.result()
-    return summary
+    args = (Path(stage), _instances(outputs, offsets), _light(outputs, models), docs, ll, georef, title, templates,
+            seq, outputs)
+    if not fork:
+        return _Threaded(*args)
+    from ..report.painter import Forked
+
+    return Forked(write_text_formats, *args)
 
 
 def _polyline(a, n: int = 80) -> list:

@@ -30,7 +30,7 @@ def read_arrays(zf: zipfile.ZipFile, names) -> dict:
     infos = {name: zf.getinfo(f"{name}.npy") for name in names}
     out = {}
     for name, info in infos.items():
-        a = _stored(zf.fp, info)
+        a = read_member(zf.fp, info)
         out[name] = a if a is not None else _numpy_read(zf, info)
     return out
 
@@ -40,9 +40,10 @@ def _numpy_read(zf: zipfile.ZipFile, info: zipfile.ZipInfo) -> np.ndarray:
         return np.lib.format.read_array(fh, allow_pickle=False)
 
 
-def _stored(fh, info: zipfile.ZipInfo) -> np.ndarray | None:
-    """The member's array read from the file ``fh`` into its own buffer, or None where numpy's reader should read
-    it (its CRC checked as zipfile checks it: a damaged member is numpy's to refuse)."""
+def read_member(fh, info: zipfile.ZipInfo) -> np.ndarray | None:
+    """The array of the npz member ``info`` (from the zip's directory) read from the open file ``fh`` into its own
+    buffer, or None where numpy's reader should read it (its CRC checked as zipfile checks it: a damaged member is
+    numpy's to refuse)."""
     if info.compress_type != zipfile.ZIP_STORED or info.flag_bits & 0x1 or info.compress_size != info.file_size:
         return None
     try:

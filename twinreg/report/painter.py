@@ -148,3 +148,73 @@ class Pending:
             except HelperError:
                 self.helper.stop()
         return self.fn(*self.args)
+
+
+def _run_once(conn, fn, args) -> None:
+    _die_with_parent()
+    try:
+        value = fn(*args)
+    except BaseException as exc:  # reported to the caller, who runs the call itself instead
+        try:
+            conn.send((False, f"{type(exc).__name__}: {exc}"))
+        except Exception:
+            pass
+        return
+    conn.send((True, value))
+
+
+class Forked:
+    """``fn(*args)`` run in a child forked now, its arguments inherited rather than sent (a city's records are
+    tens of megabytes), beside this process's own work. :meth:`wait` gives its value; when the child is missing,
+    failed, died or has not finished within the time given, it is stopped first (only one process writes a file)
+    and the call runs here. Fork only after the run's Dask client and cluster are closed, and pass no open
+    database connection: the child uses what it is given, nothing else.
+
+    >>> f = Forked(sum, [1, 2, 3])
+    >>> f.wait(10)
+    6
+    """
+
+    def __init__(self, fn, *args):
+        self.fn, self.args = fn, args
+        self._proc = self._conn = None
+        if os.environ.get("TWINREG_NO_HELPER"):
+            return
+        try:
+            import multiprocessing
+
+            ctx = multiprocessing.get_context("fork")
+            self._conn, child = ctx.Pipe(duplex=False)
+            self._proc = ctx.Process(target=_run_once, args=(child, fn, args), daemon=True, name="twinreg-writer")
+            self._proc.start()
+            child.close()
+        except (OSError, ValueError):  # pragma: no cover - no fork on this platform
+            self._proc = None
+
+    def wait(self, timeout: float = HELPER_TIMEOUT_S):
+        if self._proc is not None:
+            try:
+                if self._conn.poll(timeout):
+                    ok, value = self._conn.recv()
+                    if ok:
+                        self.stop()
+                        return value
+            except (EOFError, OSError):  # the child died without a word
+                pass
+            self.stop()
+        return self.fn(*self.args)
+
+    def stop(self, grace: float = 1.0) -> None:
+        """Stop the child (if still running): terminate, then kill; each wait at most ``grace`` seconds."""
+        if self._proc is None:
+            return
+        self._proc.join(0 if not self._proc.is_alive() else 0.05)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(grace)
+        if self._proc.is_alive():
+            self._proc.kill()
+            self._proc.join(grace)
+        self._conn.close()
+        self._proc = None
+

@@ -1,0 +1,48 @@
+"""A call run in a forked child (twinreg/report/painter.py ``Forked``: a city's JSON formats beside its KMZ,
+report and tiles) gives its value; a child that fails, dies or overruns its time is stopped and the call runs in
+this process, once, with the same result; no child is left behind."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import psutil
+
+from twinreg.report.painter import Forked
+
+
+def _write(path: str, text: str, pause: float = 0.0, parent: int = 0) -> int:
+    if os.getpid() != parent:  # only the child is slow
+        time.sleep(pause)
+    Path(path).write_text(f"{text} by {os.getpid()}")
+    return os.getpid()
+
+
+def _fail(path: str) -> int:
+    if os.getpid() != int(Path(path).read_text()):
+        raise RuntimeError("not in this process")
+    return os.getpid()
+
+
+def test_the_child_writes_and_its_value_comes_back(tmp_path):
+    f = Forked(_write, str(tmp_path / "a.txt"), "hello")
+    pid = f.wait(30)
+    assert pid != os.getpid() and (tmp_path / "a.txt").read_text() == f"hello by {pid}"
+    assert not psutil.Process().children()
+
+
+def test_a_failing_dead_or_late_child_is_replaced_by_this_process(tmp_path):
+    (tmp_path / "me").write_text(str(os.getpid()))
+    assert Forked(_fail, str(tmp_path / "me")).wait(30) == os.getpid()  # failed in the child: run here
+    late = Forked(_write, str(tmp_path / "b.txt"), "late", 30.0, os.getpid())
+    t = time.monotonic()
+    assert late.wait(0.5) == os.getpid() and time.monotonic() - t < 10
+    assert (tmp_path / "b.txt").read_text() == f"late by {os.getpid()}"
+    dead = Forked(_write, str(tmp_path / "c.txt"), "dead", 30.0, os.getpid())
+    child = psutil.Process().children()[0]
+    child.kill()
+    child.wait(10)
+    assert dead.wait(30) == os.getpid() and (tmp_path / "c.txt").read_text() == f"dead by {os.getpid()}"
+    assert not psutil.Process().children()
