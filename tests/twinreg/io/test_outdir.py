@@ -137,3 +137,21 @@ def test_a_failed_run_leaves_the_old_folder(tmp_path):
             raise RuntimeError("export failed")
     assert (out / "twin.json").read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_the_listing_is_every_file_as_rglob_lists_it(tmp_path):
+    """The marker's listing (os.walk) names what ``Path.rglob`` names: files, hidden ones, links to files and
+    broken links; a link to a folder is not followed."""
+    import os
+
+    from twinreg.io.outdir import _listing
+
+    (tmp_path / "a" / "b").mkdir(parents=True)
+    (tmp_path / "a" / "b" / "f.txt").write_text("x")
+    (tmp_path / ".hidden").write_text("y")
+    (tmp_path / "c").mkdir()
+    os.symlink(tmp_path / "a", tmp_path / "c" / "to_folder")
+    os.symlink(tmp_path / "a" / "b" / "f.txt", tmp_path / "c" / "to_file")
+    os.symlink(tmp_path / "missing", tmp_path / "broken")
+    want = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if not p.is_dir())
+    assert _listing(tmp_path) == want == [".hidden", "a/b/f.txt", "broken", "c/to_file"]
