@@ -31,15 +31,15 @@ def compare_pairs(batch: PairBatch) -> np.ndarray:
 
 def guided_sizes(n: int, workers: int, largest: int, smallest: int = 1) -> list[int]:
     """Sizes of consecutive batches of ``n`` items for ``workers`` workers that take the next batch as they free
-    up: each batch a quarter of what is left per worker (``remaining / (4 workers)``, within ``smallest`` and
+    up: each batch half of what is left per worker (``remaining / (2 workers)``, within ``smallest`` and
     ``largest``), so that the batches shrink towards the end and the workers finish together.
 
     >>> guided_sizes(100, 2, 20, 5)
-    [13, 11, 10, 9, 8, 7, 6, 5, 5, 5, 5, 5, 5, 5, 1]
+    [20, 20, 15, 12, 9, 6, 5, 5, 5, 3]
     """
     sizes, left = [], int(n)
     while left > 0:
-        k = min(left, max(smallest, min(largest, -(-left // (4 * max(workers, 1))))))
+        k = min(left, max(smallest, min(largest, -(-left // (2 * max(workers, 1))))))
         sizes.append(k)
         left -= k
     return sizes

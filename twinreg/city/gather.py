@@ -35,7 +35,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
         r = rank[np.asarray(pairs, dtype=np.int64).reshape(-1, 2)]
         perm = np.lexsort((r.max(1), r.min(1))) if len(r) else np.zeros(0, dtype=np.int64)
         batches = pair_batches(sections, np.asarray(pairs)[perm], params,
-                               size=guided_sizes(len(pairs), n_workers, PAIRS_PER_BATCH, 50))
+                               size=guided_sizes(len(pairs), n_workers, PAIRS_PER_BATCH, 250))
         if progress:
             progress("taxonomy", 0, len(batches))
         out = eng.map(compare_pairs, batches, [f"pairs{k}" for k in range(len(batches))])
@@ -65,7 +65,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     for indices, known in phases:
         if not len(indices):
             continue
-        size = guided_sizes(len(indices), n_workers, OBJECTS_PER_BATCH, 10)
+        size = guided_sizes(len(indices), n_workers, OBJECTS_PER_BATCH, 20)
         batches, members = match_batches(objects, tax.labels, noise, folder, params, indices, size=size,
                                          leaders=known, samples=samples)
 
