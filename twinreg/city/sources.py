@@ -9,13 +9,15 @@ from __future__ import annotations
 import glob
 import hashlib
 import json
+import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import SceneReadError
+from ..errors import CityError, SceneReadError
 from .grid import Grid, in_box
 
 TILE_SUFFIXES = (".las", ".laz")
@@ -210,17 +212,54 @@ def split_key(source: Source, grid: Grid) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+#: a cell's name in a split document (grid.Cell.name)
+_CELL_NAME = re.compile(r"c-?\d+_-?\d+")
+
+
+def split_doc(folder) -> dict | None:
+    """A split folder's ``split.json``, checked as data: its format, every cell named as cells are, each count a
+    non-negative integer whose file holds exactly that many points, three finite scales, offsets and units. None
+    when the folder is missing, damaged or foreign (an OUT from someone else): the tile is then split again."""
+    folder = Path(folder)
+    p = folder / "split.json"
+    try:
+        if folder.is_symlink() or p.is_symlink() or not p.is_file() or p.stat().st_size > 2 ** 20:
+            return None
+        doc = json.loads(p.read_text(encoding="utf-8"))
+        cells = doc.get("cells") if isinstance(doc, dict) else None
+        if doc.get("format") != SPLIT_FORMAT or not isinstance(cells, dict):
+            return None
+        for name, n in cells.items():
+            f = folder / f"{name}.{SPLIT_FORMAT}"
+            if (not _CELL_NAME.fullmatch(str(name)) or type(n) is not int or n < 0 or f.is_symlink()
+                    or not f.is_file() or f.stat().st_size != 12 * n):
+                return None
+        for key in ("scales", "offsets", "units") if cells else ():
+            v = doc.get(key)
+            if not (isinstance(v, list) and len(v) == 3
+                    and all(type(x) in (int, float) and math.isfinite(x) for x in v)):
+                return None
+    except (OSError, ValueError, AttributeError):
+        return None
+    return doc
+
+
 def split_tile(source: Source, grid: Grid, folder) -> dict:
     """Stream a plain LAS/LAZ tile once and write, for every cell its points feed (core and buffer), those points
     as the file's integer coordinates (:data:`SPLIT_FORMAT`) to ``folder/<cell>.i32``; returns ``{cell name: n}``.
     The folder appears complete (written under a temporary name, then renamed) or not at all, so a killed split is
-    redone."""
+    redone; a folder whose document does not check (:func:`split_doc`) is removed and the tile split again."""
     import shutil
     import tempfile
 
     folder = Path(folder)
-    if (folder / "split.json").is_file():
-        return json.loads((folder / "split.json").read_text())["cells"]
+    doc = split_doc(folder)
+    if doc is not None:
+        return doc["cells"]
+    if folder.is_symlink():
+        folder.unlink()
+    elif folder.exists():
+        shutil.rmtree(folder)
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".tmp-{folder.name}-"))
     counts: dict[str, int] = {}
@@ -260,9 +299,12 @@ def read_splits(folders, cell_name: str, extra=()) -> np.ndarray:
     reading the tile, bit for bit)."""
     parts = []
     for folder in folders:
-        f = Path(folder) / f"{cell_name}.{SPLIT_FORMAT}"
-        if f.is_file():
-            parts.append((f, f.stat().st_size // 12, json.loads((Path(folder) / "split.json").read_text())))
+        doc = split_doc(folder)
+        if doc is None:
+            raise CityError(f"{folder}: a tile's split is damaged or missing; rerun the same command (the tile is "
+                            "split again)")
+        if cell_name in doc["cells"]:
+            parts.append((Path(folder) / f"{cell_name}.{SPLIT_FORMAT}", doc["cells"][cell_name], doc))
     out = np.empty((sum(n for _, n, _ in parts) + sum(len(e) for e in extra), 3))
     at = 0
     for f, n, doc in parts:

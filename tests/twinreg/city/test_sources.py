@@ -10,7 +10,7 @@ from tests.conftest import write_las
 from twinreg.city import sources
 from twinreg.city.grid import Grid
 from twinreg.city.sources import expand_paths, open_sources, read_box, read_splits, split_tile
-from twinreg.errors import SceneReadError
+from twinreg.errors import CityError, SceneReadError
 
 
 def _tiles(folder, crs="EPSG:28992", n=3000, seed=0):
@@ -101,3 +101,32 @@ def test_a_split_gives_the_metres_of_the_tile_bit_for_bit_in_feet_too(tmp_path):
         got = read_splits([tmp_path / "split"], name)
         want = direct[((direct[:, :2] >= c.read_lo) & (direct[:, :2] <= c.read_hi)).all(1)]
         assert len(got) == n and np.array_equal(got, want)  # the same points in the same order, bit for bit
+
+
+def test_a_damaged_or_planted_split_is_made_again_and_names_no_path(tmp_path):
+    """A split folder in OUT may come from a killed run or from someone else: a document that does not check
+    (another format, a count its file does not hold, a cell name that is a path, a scale that is not a number) is
+    removed with its folder and the tile split again; a cell never reads what it names."""
+    import json
+
+    rng = np.random.default_rng(5)
+    tile = write_las(tmp_path / "t.laz", rng.uniform([1000, 2000, 10], [1060, 2060, 12], (3000, 3)), crs="EPSG:2157")
+    (src,) = open_sources([tile])
+    grid = Grid(20.0, 2.0, 5.0)
+    folder = tmp_path / "split"
+    counts = split_tile(src, grid, folder)
+    want = {name: read_splits([folder], name) for name in counts}
+    outside = tmp_path / "elsewhere.i32"
+    outside.write_bytes(b"\0" * 12)
+    good = json.loads((folder / "split.json").read_text())
+    name = sorted(counts)[0]
+    for bad in ({**good, "format": "f64"}, {**good, "cells": {**counts, name: counts[name] + 1}},
+                {**good, "cells": {**counts, "../elsewhere": 1}}, {**good, "scales": ["1e-3", 1, 1]}, [1, 2]):
+        (folder / "split.json").write_text(json.dumps(bad))
+        with pytest.raises(CityError):
+            read_splits([folder], name)
+        assert split_tile(src, grid, folder) == counts  # split again, whole
+        assert json.loads((folder / "split.json").read_text()) == good
+        for n in counts:
+            assert np.array_equal(read_splits([folder], n), want[n])
+    assert outside.read_bytes() == b"\0" * 12
