@@ -28,6 +28,17 @@ def _die_with_parent() -> None:
         pass
 
 
+def _end(proc, first: float, grace: float) -> None:
+    """Wait ``first`` seconds for a helper process to leave, then terminate it, then kill it (``grace`` each)."""
+    proc.join(first)
+    if proc.is_alive():
+        proc.terminate()
+        proc.join(grace)
+    if proc.is_alive():
+        proc.kill()
+        proc.join(grace)
+
+
 def _serve(conn) -> None:
     _die_with_parent()
     while True:
@@ -119,13 +130,7 @@ class Painter:
             self._conn.send(None)
         except (OSError, ValueError):
             pass
-        self._proc.join(grace)
-        if self._proc.is_alive():
-            self._proc.terminate()
-            self._proc.join(grace)
-        if self._proc.is_alive():
-            self._proc.kill()
-            self._proc.join(grace)
+        _end(self._proc, grace, grace)
         self._conn.close()
 
     @property
@@ -208,13 +213,7 @@ class Forked:
         """Stop the child (if still running): terminate, then kill; each wait at most ``grace`` seconds."""
         if self._proc is None:
             return
-        self._proc.join(0 if not self._proc.is_alive() else 0.05)
-        if self._proc.is_alive():
-            self._proc.terminate()
-            self._proc.join(grace)
-        if self._proc.is_alive():
-            self._proc.kill()
-            self._proc.join(grace)
+        _end(self._proc, 0.05, grace)
         self._conn.close()
         self._proc = None
 
