@@ -26,23 +26,28 @@ def _fail(path: str) -> int:
     return os.getpid()
 
 
+def _gone(pid: int) -> bool:
+    return pid not in {c.pid for c in psutil.Process().children(recursive=True)}
+
+
 def test_the_child_writes_and_its_value_comes_back(tmp_path):
     f = Forked(_write, str(tmp_path / "a.txt"), "hello")
+    child = f.pid
     pid = f.wait(30)
-    assert pid != os.getpid() and (tmp_path / "a.txt").read_text() == f"hello by {pid}"
-    assert not psutil.Process().children()
+    assert pid == child != os.getpid() and (tmp_path / "a.txt").read_text() == f"hello by {pid}"
+    assert _gone(child)
 
 
 def test_a_failing_dead_or_late_child_is_replaced_by_this_process(tmp_path):
     (tmp_path / "me").write_text(str(os.getpid()))
     assert Forked(_fail, str(tmp_path / "me")).wait(30) == os.getpid()  # failed in the child: run here
     late = Forked(_write, str(tmp_path / "b.txt"), "late", 30.0, os.getpid())
+    slow = late.pid
     t = time.monotonic()
     assert late.wait(0.5) == os.getpid() and time.monotonic() - t < 10
-    assert (tmp_path / "b.txt").read_text() == f"late by {os.getpid()}"
+    assert (tmp_path / "b.txt").read_text() == f"late by {os.getpid()}" and _gone(slow)
     dead = Forked(_write, str(tmp_path / "c.txt"), "dead", 30.0, os.getpid())
-    child = psutil.Process().children()[0]
+    child = psutil.Process(dead.pid)
     child.kill()
     child.wait(10)
     assert dead.wait(30) == os.getpid() and (tmp_path / "c.txt").read_text() == f"dead by {os.getpid()}"
-    assert not psutil.Process().children()

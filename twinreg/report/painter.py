@@ -209,6 +209,11 @@ class Forked:
             self.stop()
         return self.fn(*self.args)
 
+    @property
+    def pid(self) -> int | None:
+        """The child's process id (None when the call runs here)."""
+        return self._proc.pid if self._proc is not None else None
+
     def stop(self, grace: float = 1.0) -> None:
         """Stop the child (if still running): terminate, then kill; each wait at most ``grace`` seconds."""
         if self._proc is None:
