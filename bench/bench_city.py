@@ -94,6 +94,13 @@ def _per(twin: dict) -> tuple[float, float]:
             1000 * (t.get("matrix", 0) + t.get("matching", 0)) / max(len(twin["objects"]), 1))
 
 
+def main_alone(twin: dict) -> float:
+    """Seconds of twin.json's ``total`` outside its timed stages: what the main process does alone while the
+    workers wait (loading the finished cells, the output folder's checks, twin.json)."""
+    t = twin["timing_s"]
+    return t["total"] - sum(v for k, v in t.items() if k != "total")
+
+
 def compare_layouts(cat, lib: Path, root: Path, size: int, densities=(150.0, 300.0)) -> list[Row]:
     """Streets and dense car parks (simulate-city --layout parks) of ``size`` million points each: time, memory,
     the cell stage per million points and the matching per object, and the ratios parks / streets."""
@@ -113,7 +120,8 @@ def compare_layouts(cat, lib: Path, root: Path, size: int, densities=(150.0, 300
                         f"{secs:.1f} s, peak {peak / 2**30:.2f} GiB; {found}/{len(truth['cars'])} found once, "
                         f"{right} own model; cells {cells:.2f} s per M points, taxonomy + matching {match:.1f} ms "
                         f"an object; stages " + ", ".join(f"{k} {v:.1f}" for k, v in twin["timing_s"].items()
-                                                          if k in ("cells", "matrix", "matching", "formats"))))
+                                                          if k in ("cells", "matrix", "matching", "formats"))
+                        + f", the main process alone {main_alone(twin):.1f}"))
         stages: dict = {}
         for c in twin["cells"]:
             for k, v in c["timing_s"].items():
