@@ -47,8 +47,17 @@ def guided_sizes(n: int, workers: int, largest: int, smallest: int = 1) -> list[
 
 def _cuts(n: int, size) -> list[tuple[int, int]]:
     """``(start, end)`` of consecutive batches: ``size`` an int (every batch that size, the last what is left) or
-    a list of sizes (e.g. :func:`guided_sizes`)."""
+    a list of sizes (e.g. :func:`guided_sizes`), which must hold every item.
+
+    >>> _cuts(10, 4), _cuts(10, [3, 3, 4])
+    ([(0, 4), (4, 8), (8, 10)], [(0, 3), (3, 6), (6, 10)])
+    >>> _cuts(10, [3, 3])
+    Traceback (most recent call last):
+    ValueError: batch sizes for 6 items, not 10: every item goes in a batch
+    """
     sizes = [size] * -(-n // size) if isinstance(size, int) else list(size)
+    if sum(sizes) < n:
+        raise ValueError(f"batch sizes for {sum(sizes)} items, not {n}: every item goes in a batch")
     ends = np.minimum(np.cumsum(sizes), n) if sizes else np.zeros(0, dtype=np.int64)
     return [(int(a), int(b)) for a, b in zip(np.r_[0, ends[:-1]], ends) if b > a]
 
@@ -140,10 +149,9 @@ def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: 
                   indices: np.ndarray, size=200, leaders: dict | None = None, samples: list | None = None
                   ) -> tuple[list[MatchBatch], list[np.ndarray]]:
     """The objects ``indices`` cut into batches of ``size`` (an int, or a list of sizes: see :func:`_cuts`; in
-    label order, so that a batch holds few
-    clusters); ``leaders``: the leaders' rankings when ``indices`` are members; ``samples``: where each object's
-    point sample is when the objects do not hold it (see :class:`MatchBatch`). Returns the batches and, for each,
-    the indices of its objects."""
+    label order, so that a batch holds few clusters); ``leaders``: the leaders' rankings when ``indices`` are
+    members; ``samples``: where each object's point sample is when the objects do not hold it (see
+    :class:`MatchBatch`). Returns the batches and, for each, the indices of its objects."""
     labels = np.asarray(labels)
     idx = np.asarray(indices, dtype=np.int64)
     idx = idx[np.lexsort((idx, labels[idx]))]

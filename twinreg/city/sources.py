@@ -226,9 +226,9 @@ def split_doc(folder) -> dict | None:
         if folder.is_symlink() or p.is_symlink() or not p.is_file() or p.stat().st_size > 2 ** 20:
             return None
         doc = json.loads(p.read_text(encoding="utf-8"))
-        cells = doc.get("cells") if isinstance(doc, dict) else None
-        if doc.get("format") != SPLIT_FORMAT or not isinstance(cells, dict):
+        if not isinstance(doc, dict) or doc.get("format") != SPLIT_FORMAT or not isinstance(doc.get("cells"), dict):
             return None
+        cells = doc["cells"]
         for name, n in cells.items():
             f = folder / f"{name}.{SPLIT_FORMAT}"
             if (not _CELL_NAME.fullmatch(str(name)) or type(n) is not int or n < 0 or f.is_symlink()
@@ -239,7 +239,7 @@ def split_doc(folder) -> dict | None:
             if not (isinstance(v, list) and len(v) == 3
                     and all(type(x) in (int, float) and math.isfinite(x) for x in v)):
                 return None
-    except (OSError, ValueError, AttributeError):
+    except (OSError, ValueError):
         return None
     return doc
 
