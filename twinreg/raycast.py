@@ -12,7 +12,9 @@ import numpy as np
 
 def raycasting_scene(vertices: np.ndarray, faces: np.ndarray):
     """An open3d RaycastingScene of a triangle mesh (float32 inside: pass local coordinates)."""
-    import open3d as o3d
+    from .o3d import load
+
+    o3d = load()
 
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(
@@ -27,7 +29,9 @@ def cast(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, direction
 
     vertices : (n, 3) metres (local: float32 is used inside, keep coordinates small). origins, directions : (r, 3).
     """
-    import open3d as o3d
+    from .o3d import load
+
+    o3d = load()
 
     scene = raycasting_scene(vertices, faces)
     rays = np.hstack([origins, directions]).astype(np.float32)

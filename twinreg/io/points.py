@@ -185,7 +185,9 @@ def _read_ply(path: Path) -> np.ndarray | None:
 
 
 def _read_o3d(path: Path) -> np.ndarray:
-    import open3d as o3d
+    from ..o3d import load
+
+    o3d = load()
 
     pcd = o3d.io.read_point_cloud(str(path))
     pts = np.asarray(pcd.points, dtype=np.float64)

@@ -88,8 +88,9 @@ class SurfaceIndex:
 
     def distances(self, points: np.ndarray) -> np.ndarray:
         """Unsigned distance (m) of (n, 3) points, in the mesh's frame, to its surface."""
-        import open3d as o3d
+        from ..o3d import load
 
+        o3d = load()
         query = (np.asarray(points, dtype=np.float64) - self.centre).astype(np.float32)
         return self.scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)
 

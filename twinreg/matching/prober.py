@@ -1,6 +1,6 @@
 """The verification's point-to-surface distances in a helper process (the run's second
-:class:`~twinreg.report.painter.Painter`), so that open3d, whose import alone takes about a second, loads on the
-other core while this process detects, describes and registers.
+:class:`~twinreg.report.painter.Painter`), so that open3d, whose import alone takes about half a second
+(:mod:`twinreg.o3d`), loads on the other core while this process detects, describes and registers.
 
 The helper is started with the run and imports open3d at once; each model's mesh is sent with its first query and
 kept there (one :class:`~twinreg.matching.acceptance.SurfaceIndex` per model, as in-process). The answers are the
@@ -20,8 +20,9 @@ _SURFACES: dict = {}
 
 def warm_up() -> bool:
     """Import open3d (the helper's first call)."""
-    import open3d  # noqa: F401
+    from ..o3d import load
 
+    load()
     return True
 
 
