@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .params import DEFAULT, CoscoParams
 from .sections import Sections
@@ -98,6 +97,8 @@ class SectionPair:
     the distance fields (fast search) and KD-trees (exact final score). Build once, compare many times."""
 
     def __init__(self, sections: Sections, params: CoscoParams = DEFAULT):
+        from scipy.spatial import cKDTree
+
         self.probes = {"lon": _nonempty(sections.longitudinal), "tra": _nonempty(sections.transverse)}
         fine_lon, fine_tra = sections.fine
         fine = {"lon": _nonempty(fine_lon), "tra": _nonempty(fine_tra)}

@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 
 def as_points(points, dim: int = 3, min_points: int = 1) -> np.ndarray:
@@ -141,6 +140,8 @@ def hull_rows(xy: np.ndarray) -> np.ndarray:
     >>> hull_rows(np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 0.5], [1.0, 2.0]])).tolist()
     [0, 1, 3]
     """
+    from scipy.spatial import ConvexHull, QhullError
+
     try:
         return ConvexHull(xy).vertices
     except (QhullError, ValueError):

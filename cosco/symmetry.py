@@ -10,13 +10,15 @@ then refines the plane in closed form from full-resolution mirror pairs.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import minimize
-from scipy.spatial import cKDTree
 
 from .footprint import as_points, axis_difference, min_area_rectangle, voxel_downsample, wrap_axis
 from .params import DEFAULT, CoscoParams
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,8 @@ class _Objective:
     """Mirror-correspondence scores of planes against one down-sampled object."""
 
     def __init__(self, pts: np.ndarray, tol: float, tree: cKDTree | None = None, side_share: float = 0.15):
+        from scipy.spatial import cKDTree
+
         self.pts = pts
         self.side_share = side_share
         self.tree = cKDTree(pts) if tree is None else tree
@@ -184,6 +188,9 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     c, s = np.cos(frame_angle), np.sin(frame_angle)
     local = np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1], pts[:, 2] - offset[2]])
     # the reference set: the object at the base voxel size (equalised density); the tolerance follows its spacing
+    from scipy.optimize import minimize
+    from scipy.spatial import cKDTree
+
     ref, _ = voxel_downsample(local, params.sym_voxel)
     ref_tree = cKDTree(ref)
     tol = max(params.sym_tol, params.sym_tol_spacing * _median_spacing(ref_tree, ref))

@@ -175,3 +175,15 @@ def test_library_and_json_before_the_sub_command(tmp_path, parametric_objs, monk
     assert res.exit_code == 0, res.output
     res = run("--library", tmp_path / "lib", "--json", "list-models")
     assert res.exit_code == 0 and [m["name"] for m in json.loads(res.stdout)] == ["demo_van"]
+
+
+def test_the_command_line_imports_no_heavy_library_until_a_command_needs_it():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    heavy = ("scipy", "sqlalchemy", "open3d", "matplotlib", "laspy", "trimesh", "pyproj", "dask")
+    code = f"import sys, twinreg.cli; print([m for m in {heavy!r} if m in sys.modules])"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          cwd=Path(__file__).resolve().parents[2])
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr[-2000:]

@@ -56,6 +56,21 @@ def handled(fn):
     return wrapper
 
 
+def library_folder(library: str | None):
+    """The catalogue folder of ``--library`` (else $TWINREG_LIBRARY, else ./library)."""
+    from ..catalogue.db import library_path
+
+    return library_path(library)
+
+
+def open_catalogue(library: str | None, create: bool = True):
+    """The :class:`~twinreg.catalogue.repository.Catalogue` of ``--library``, imported here: a command that never
+    opens it (``--help``, view, compare) starts without SQLAlchemy, SciPy and the matching code."""
+    from ..catalogue.repository import Catalogue
+
+    return Catalogue(library_folder(library), create=create)
+
+
 def print_json(doc) -> None:
     sys.stdout.write(json.dumps(doc, indent=2) + "\n")
     sys.stdout.flush()

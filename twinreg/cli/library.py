@@ -8,9 +8,7 @@ from typing import Annotated, List, Optional
 
 import typer
 
-from ..catalogue.db import library_path
-from ..catalogue.repository import Catalogue
-from ._common import JsonOpt, LibraryOpt, err_console, handled, info, print_json
+from ._common import JsonOpt, LibraryOpt, err_console, handled, info, library_folder, open_catalogue, print_json
 
 app = typer.Typer()
 
@@ -26,7 +24,7 @@ def export_library(
     """Write the catalogue (models, sampled clouds, sections, meshes, provenance, schema) to one zip."""
     from ..catalogue.bundle import export_library as export
 
-    folder = library_path(library)
+    folder = library_folder(library)
     with err_console.status(f"exporting {folder}"):
         manifest = export(folder, zip_path, force=force)
     size = sum(m["bytes"] for m in manifest["members"].values())
@@ -50,7 +48,7 @@ def import_library(
     """Add a bundle's models, checksums verified; clashing names change nothing without --rename or --skip."""
     from ..catalogue.bundle import import_library as do_import
 
-    cat = Catalogue(library_path(library))
+    cat = open_catalogue(library)
     with err_console.status(f"importing {zip_path.name}"):
         result = do_import(cat, zip_path, rename=rename, skip=skip)
     if json_:
@@ -79,7 +77,7 @@ def coverage(
     from ..catalogue.coverage import read_objects
 
     objects = read_objects(twins)
-    rows = Catalogue(library_path(library), create=False).list()
+    rows = open_catalogue(library, create=False).list()
     models = np.array([[r.length, r.width, r.height] for r in rows]).reshape(-1, 3)
     names = [r.name for r in rows]
     doc = cover(objects, models, names)
@@ -116,7 +114,7 @@ def library_report(
         from ..errors import ParameterError
 
         raise ParameterError("--scans and --workers must be at least 1")
-    cat = Catalogue(library_path(library), create=False)
+    cat = open_catalogue(library, create=False)
     with err_console.status("library report") as status:
         doc = report(cat, out, density=density, scans=scans, seed=seed, workers=workers,
                      progress=lambda msg: status.update(msg))

@@ -10,12 +10,10 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 from rich.text import Text
 
-from ..catalogue.db import library_path
 from ..catalogue.duplicates import near_duplicate_report
 from ..catalogue.folder import import_folder, mesh_files
 from ..catalogue.names import printable
-from ..catalogue.repository import Catalogue
-from ._common import JsonOpt, LibraryOpt, err_console, fail, handled, info, out_console, print_json
+from ._common import JsonOpt, LibraryOpt, err_console, fail, handled, info, open_catalogue, out_console, print_json
 
 app = typer.Typer()
 
@@ -49,7 +47,7 @@ def add_model(
     json_: JsonOpt = False,
 ):
     """Load, normalise, sample the visible surface, detect symmetry, cut cross-sections, measure size, store."""
-    cat = Catalogue(library_path(library))
+    cat = open_catalogue(library)
     with err_console.status(f"measuring {mesh.name}"):
         row = cat.add(mesh, name=name, make=make, model=model, body_class=body_class, tags=tag or (), unit=unit,
                       up=up, front=front)
@@ -73,7 +71,7 @@ def import_models(
 ):
     """Add every mesh in a folder; a bad file is reported and skipped, the rest go in."""
     files = mesh_files(folder)
-    cat = Catalogue(library_path(library))
+    cat = open_catalogue(library)
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                   TimeElapsedColumn(), console=err_console) as bar:
         task = bar.add_task("importing", total=len(files))
@@ -131,7 +129,7 @@ def list_models(
     """List (or size-query) the catalogue."""
     if sort not in SORT_KEYS:
         fail(f"--sort {sort}: not one of {', '.join(SORT_KEYS)}")
-    rows = Catalogue(library_path(library), create=False).list(near=near, tol=tol, body_class=body_class)
+    rows = open_catalogue(library, create=False).list(near=near, tol=tol, body_class=body_class)
     wanted = set(tag or ())
     rows = [r for r in rows if wanted <= set(r.tags)]
     key = {"class": lambda r: (r.body_class or "").lower(), "make": lambda r: (r.make or "").lower(),
@@ -172,7 +170,7 @@ def show_model(
     json_: JsonOpt = False,
 ):
     """Show one model; --plot draws its cross-sections."""
-    cat = Catalogue(library_path(library), create=False)
+    cat = open_catalogue(library, create=False)
     row = cat.get(ref)
     doc = row.to_dict()
     if plot is not None:
@@ -206,7 +204,7 @@ def update_model(
     json_: JsonOpt = False,
 ):
     """Edit a model's name, make, model, body class or tags."""
-    row = Catalogue(library_path(library), create=False).update(
+    row = open_catalogue(library, create=False).update(
         ref, name=name, make=make, model=model, body_class=body_class, tags=tag)
     if json_:
         print_json(row.to_dict())
@@ -223,7 +221,7 @@ def remove_model(
     json_: JsonOpt = False,
 ):
     """Remove a model and its stored files."""
-    cat = Catalogue(library_path(library), create=False)
+    cat = open_catalogue(library, create=False)
     row = cat.get(ref)
     if not yes and not typer.confirm(f"remove model {row.id} '{row.name}'?", err=True):
         raise typer.Exit(1)

@@ -12,7 +12,7 @@ from cosco.params import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
 from ..io.outdir import check_replaceable
-from ._common import JsonOpt, LibraryOpt, RunProgress, err_console, handled, info, print_json
+from ._common import JsonOpt, LibraryOpt, RunProgress, err_console, handled, info, open_catalogue, print_json
 
 app = typer.Typer()
 
@@ -97,7 +97,8 @@ def build_twin_cmd(
     cityjson_templates: Annotated[bool, typer.Option(
         "--cityjson-templates", help="A scene's twin.city.json with one geometry template per model (smaller; for "
                                      "tools that read templates) instead of explicit geometry (opens everywhere). A "
-                                     "city's always has templates, and twin.city.jsonl the explicit geometry.")] = False,
+                                     "city's always has templates, and twin.city.jsonl the explicit geometry.")
+    ] = False,
     classified_scan: Annotated[bool, typer.Option(
         "--classified-scan", help="Tiled runs: also write the scan with each point's class and object as COPC, "
                                   "classified/<cell>.copc.laz (for QGIS, PDAL, Potree; about 3 bytes a point). "
@@ -110,14 +111,12 @@ def build_twin_cmd(
 ):
     """The whole pipeline: detect, sections, cluster, prefilter, register, export PLY/KMZ/JSON/report; on tiles,
     cell by cell on Dask (resumable)."""
-    from ..catalogue.db import library_path
-    from ..catalogue.repository import Catalogue
     from ..geo.georef import georef_from_options
     from ..pipeline import RunSettings, build
 
     georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False,
                                  vertical_crs=vertical_crs)
-    cat = Catalogue(library_path(library), create=False)
+    cat = open_catalogue(library, create=False)
     first = paths[0]
     out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")
     settings = RunSettings(unit=unit, tol=tol, threshold=threshold, cell=cell, buffer=buffer, workers=workers,
@@ -183,8 +182,8 @@ def demo(
     f = summary["files"]
     out_console.print(f"Google Earth: {f['twin_kmz']}\nPLY: {f['twin_ply']}\nJSON: {f['twin_json']}\n"
                       f"report: {f['report']}\nscan: {f['scan']}   catalogue: {f['library']}\n"
-                      f"done in {summary['timing_s']['total']:.1f} s (build-twin {summary['timing_s']['build_twin']:.1f} s)",
-                      highlight=False)
+                      f"done in {summary['timing_s']['total']:.1f} s "
+                      f"(build-twin {summary['timing_s']['build_twin']:.1f} s)", highlight=False)
     out_console.print(f"3D: twinreg view {out / 'twin'}", highlight=False)
 
 
