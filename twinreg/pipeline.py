@@ -72,7 +72,7 @@ class RunSettings:
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
         tiled option given)."""
-        from .city.build import is_tiled
+        from .city.sources import is_tiled  # not city.build: a scene's run never imports the city engine
 
         explicit = any(v is not None for v in (self.cell, self.buffer, self.workers, self.scheduler))
         return is_tiled(paths, explicit=explicit or self.restart or bool(self.ply))

@@ -97,27 +97,6 @@ def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0,
     return Plan(grid, cells, {n: feeds[n] for n in cells}, offset)
 
 
-def is_tiled(paths, explicit: bool = False) -> bool:
-    """Whether build-twin should run cell by cell: several paths, a folder, a glob, one of the tiling options
-    (``explicit``), a COPC file, or one LAS/LAZ file holding more than a cell's worth of points."""
-    from .grid import TARGET_POINTS
-
-    paths = [str(p) for p in paths]
-    if explicit or len(paths) != 1 or Path(paths[0]).is_dir() or any(ch in paths[0] for ch in "*?["):
-        return True
-    if Path(paths[0]).suffix.lower() not in (".las", ".laz") or not Path(paths[0]).is_file():
-        return False
-    try:
-        import laspy
-
-        with laspy.open(paths[0]) as reader:
-            from .sources import _is_copc
-
-            return _is_copc(reader.header) or reader.header.point_count > TARGET_POINTS
-    except Exception:  # the per-scene reader reports a broken file with its own message
-        return False
-
-
 def _say(progress, stage, done=0, total=0):
     if progress:
         progress(stage, done, total)
