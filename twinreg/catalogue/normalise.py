@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import AxisError, UnitError
 from ..io.meshes import LoadedMesh
@@ -97,6 +96,8 @@ def infer_unit(longest: float) -> tuple[str, float] | None:
 
 
 def _mirror_ratio(pts: np.ndarray, axis: int, tol: float) -> float:
+    from scipy.spatial import cKDTree
+
     centre = (pts[:, axis].max() + pts[:, axis].min()) / 2
     mirrored = pts.copy()
     mirrored[:, axis] = 2 * centre - mirrored[:, axis]
