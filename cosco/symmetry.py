@@ -179,6 +179,9 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     >>> s.found, round(float(np.degrees(min(s.heading, np.pi - s.heading))), 0)
     (True, 0.0)
     """
+    from scipy.optimize import minimize
+    from scipy.spatial import cKDTree
+
     pts = as_points(points, min_points=10)
     offset = pts.mean(0)
     # work in the footprint's principal frame, so that voxel grids turn with the object (rotation invariance)
@@ -188,9 +191,6 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     c, s = np.cos(frame_angle), np.sin(frame_angle)
     local = np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1], pts[:, 2] - offset[2]])
     # the reference set: the object at the base voxel size (equalised density); the tolerance follows its spacing
-    from scipy.optimize import minimize
-    from scipy.spatial import cKDTree
-
     ref, _ = voxel_downsample(local, params.sym_voxel)
     ref_tree = cKDTree(ref)
     tol = max(params.sym_tol, params.sym_tol_spacing * _median_spacing(ref_tree, ref))
