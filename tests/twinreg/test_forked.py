@@ -51,3 +51,21 @@ def test_a_failing_dead_or_late_child_is_replaced_by_this_process(tmp_path):
     child.kill()
     child.wait(10)
     assert dead.wait(30) == os.getpid() and (tmp_path / "c.txt").read_text() == f"dead by {os.getpid()}"
+
+
+def _frozen() -> int:
+    import gc
+
+    return gc.get_freeze_count()
+
+
+def test_the_child_leaves_the_inherited_objects_to_the_parent_and_the_parent_unfreezes():
+    # the child's collector skips what it inherited (no copy of the shared pages); the parent collects as before
+    import gc
+
+    before = gc.get_freeze_count()
+    f = Forked(_frozen)
+    child = f.pid
+    inherited = f.wait(30)
+    assert child is not None and inherited > 1000
+    assert gc.get_freeze_count() == before == 0

@@ -248,11 +248,13 @@ class Catalogue:
             v, f = decimate(geo.mesh_vertices, geo.mesh_faces, GE_MAX_TRIANGLES)
         else:  # from the Google Earth mesh: a small target is reached in a fraction of the time
             v, f = decimate(*self.ge_mesh(row), max_faces)
+        # as the cache holds it: the first twin that uses the model and every later one get the same mesh
+        v, f = v.astype(np.float32), f.astype(np.int32)
         try:
-            _atomic_npz(path, vertices=v.astype(np.float32), faces=f.astype(np.int32))
+            _atomic_npz(path, vertices=v, faces=f)
         except OSError:
             pass  # a read-only catalogue still builds twins, only slower
-        return v, f
+        return v.astype(np.float64), f.astype(np.int64)
 
     # ---- writing -------------------------------------------------------------------------------------------
     def _free_name(self, s: Session, wanted: str | None, path: Path) -> str:

@@ -102,12 +102,15 @@ def write_sections(path: Path, outputs: list) -> Path:
     its model's, registered onto them, at most 80 points each (the viewer draws them on a click)."""
     import json
 
-    doc = {}
-    for o in outputs:
-        s = o.sections
-        item = {"lon": _polyline(s["object"]["lon"]), "tra": _polyline(s["object"]["tra"])}
-        if s.get("model"):
-            item.update(model_lon=_polyline(s["model"]["lon"]), model_tra=_polyline(s["model"]["tra"]))
-        doc[o.doc["id"]] = item
-    Path(path).write_text(json.dumps(doc, separators=(",", ":")), encoding="utf-8")
+    # written an object at a time (the bytes ``json.dumps`` of the whole mapping gives; ids are unique), so that
+    # memory does not grow with the objects (each object's polylines are some 600 Python floats)
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("{")
+        for n, o in enumerate(outputs):
+            s = o.sections
+            item = {"lon": _polyline(s["object"]["lon"]), "tra": _polyline(s["object"]["tra"])}
+            if s.get("model"):
+                item.update(model_lon=_polyline(s["model"]["lon"]), model_tra=_polyline(s["model"]["tra"]))
+            fh.write(("," if n else "") + json.dumps(o.doc["id"]) + ":" + json.dumps(item, separators=(",", ":")))
+        fh.write("}")
     return Path(path)

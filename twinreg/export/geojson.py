@@ -42,16 +42,21 @@ def footprints_lonlat(footprints: list[np.ndarray], georef) -> np.ndarray:
 def write_geojson(path, docs: list[dict], ll: np.ndarray) -> Path:
     """``docs``: the objects' twin.json records; ``ll``: their footprints' corners in WGS84, four rows each
     (:func:`footprints_lonlat`)."""
-    feats = []
-    for k, doc in enumerate(docs):
-        ring = ll[4 * k:4 * k + 4]
-        # counter-clockwise exterior ring (signed area > 0 in lon/lat), closed
-        area = np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
-        if area < 0:
-            ring = ring[::-1]
-        coords = [[round(float(x), 9), round(float(y), 9)] for x, y in ring]
-        feats.append({"type": "Feature", "id": doc["id"],
-                      "geometry": {"type": "Polygon", "coordinates": [coords + [coords[0]]]},
-                      "properties": _flat(doc)})
-    Path(path).write_text(json.dumps({"type": "FeatureCollection", "features": feats}), encoding="utf-8")
+    # a feature at a time (the bytes ``json.dumps`` of the whole collection gives): memory stays flat in objects
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write('{"type": "FeatureCollection", "features": [')
+        for k, doc in enumerate(docs):
+            fh.write((", " if k else "") + json.dumps(_feature(doc, ll[4 * k:4 * k + 4])))
+        fh.write("]}")
     return Path(path)
+
+
+def _feature(doc: dict, ring: np.ndarray) -> dict:
+    """One object's Feature: ``ring`` its footprint's four corners (WGS84)."""
+    # counter-clockwise exterior ring (signed area > 0 in lon/lat), closed
+    area = np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
+    if area < 0:
+        ring = ring[::-1]
+    coords = [[round(float(x), 9), round(float(y), 9)] for x, y in ring]
+    geometry = {"type": "Polygon", "coordinates": [coords + [coords[0]]]}
+    return {"type": "Feature", "id": doc["id"], "geometry": geometry, "properties": _flat(doc)}

@@ -9,6 +9,7 @@ stuck or failed, the caller draws in its own process. The helper also dies with 
 
 from __future__ import annotations
 
+import gc
 import os
 import time
 
@@ -191,7 +192,13 @@ class Forked:
             ctx = multiprocessing.get_context("fork")
             self._conn, child = ctx.Pipe(duplex=False)
             self._proc = ctx.Process(target=_run_once, args=(child, fn, args), daemon=True, name="twinreg-writer")
-            self._proc.start()
+            # the collector in the child would write to every inherited object's header, copying the pages the
+            # two processes share; frozen, it leaves them alone
+            gc.freeze()
+            try:
+                self._proc.start()
+            finally:
+                gc.unfreeze()
             child.close()
         except (OSError, ValueError):  # pragma: no cover - no fork on this platform
             self._proc = None
