@@ -107,10 +107,15 @@ def write_sections(path: Path, outputs: list) -> Path:
     with open(path, "w", encoding="utf-8") as fh:
         fh.write("{")
         for n, o in enumerate(outputs):
-            s = o.sections
-            item = {"lon": _polyline(s["object"]["lon"]), "tra": _polyline(s["object"]["tra"])}
-            if s.get("model"):
-                item.update(model_lon=_polyline(s["model"]["lon"]), model_tra=_polyline(s["model"]["tra"]))
-            fh.write(("," if n else "") + json.dumps(o.doc["id"]) + ":" + json.dumps(item, separators=(",", ":")))
+            item = json.dumps(_section_item(o.sections), separators=(",", ":"))
+            fh.write(("," if n else "") + json.dumps(o.doc["id"]) + ":" + item)
         fh.write("}")
     return Path(path)
+
+
+def _section_item(s: dict) -> dict:
+    """One object's entry of sections.json: its polylines and, when matched, its model's."""
+    item = {"lon": _polyline(s["object"]["lon"]), "tra": _polyline(s["object"]["tra"])}
+    if s.get("model"):
+        item.update(model_lon=_polyline(s["model"]["lon"]), model_tra=_polyline(s["model"]["tra"]))
+    return item

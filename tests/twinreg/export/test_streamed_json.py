@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from twinreg.export.formats import _polyline, write_sections
+from twinreg.export.formats import _section_item, write_sections
 from twinreg.export.geojson import _feature, write_geojson
 
 
@@ -40,12 +40,8 @@ def test_sections_written_an_object_at_a_time_are_the_whole_document(tmp_path):
                 sections["model"] = {"lon": rng.normal(size=(90, 2)), "tra": rng.normal(size=(10, 2))}
             outputs.append(SimpleNamespace(doc=doc, sections=sections))
         path = write_sections(tmp_path / f"{n}.json", outputs)
-        whole = {}
-        for o in outputs:
-            s = o.sections
-            item = {"lon": _polyline(s["object"]["lon"]), "tra": _polyline(s["object"]["tra"])}
-            if "model" in s:
-                item.update(model_lon=_polyline(s["model"]["lon"]), model_tra=_polyline(s["model"]["tra"]))
-            whole[o.doc["id"]] = item
+        whole = {o.doc["id"]: _section_item(o.sections) for o in outputs}
         assert path.read_text(encoding="utf-8") == json.dumps(whole, separators=(",", ":"))
-        assert list(json.loads(path.read_text(encoding="utf-8"))) == [o.doc["id"] for o in outputs]
+        back = json.loads(path.read_text(encoding="utf-8"))
+        assert list(back) == [o.doc["id"] for o in outputs]
+        assert [("model_lon" in back[o.doc["id"]]) for o in outputs] == [k % 2 == 1 for k in range(n)]
