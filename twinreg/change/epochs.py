@@ -5,7 +5,6 @@ typed), and put in survey-date order."""
 from __future__ import annotations
 
 import datetime
-import json
 import math
 import re
 from dataclasses import dataclass
@@ -15,10 +14,13 @@ import numpy as np
 
 from ..errors import CompareError
 from ..geo.georef import Georef
+from ..io._files import read_json_doc
 from . import observed
 
-#: the largest twin.json read (bytes)
-MAX_TWIN_BYTES = 1024 ** 3
+#: the largest twin.json read (bytes; a city of 100,000 objects writes about 150 MB)
+MAX_TWIN_BYTES = 256 * 1024 ** 2
+#: the largest object size (m) a twin may state: a building block is still under this
+MAX_SIZE_M = 500.0
 _CODE = re.compile(r"^[A-Za-z]{2,12}:[0-9]{1,7}$")
 _WKT = re.compile(r"^\s*(PROJCRS|PROJCS|COMPOUNDCRS|COMPD_CS|GEOGCRS|GEOGCS|BOUNDCRS|GEODCRS)\s*\[")
 
@@ -118,13 +120,21 @@ def _vec(o: dict, key: str, names, folder: Path) -> list:
     return [_number(x, key, folder) for x in v]
 
 
+def _size(o: dict, key: str, folder: Path) -> list:
+    """An object's length, width and height: not negative and at most :data:`MAX_SIZE_M` metres."""
+    v = _vec(o, key, ("length", "width", "height"), folder)
+    if not all(0.0 <= x <= MAX_SIZE_M for x in v):
+        raise CompareError(f"{folder}: object {o['id'][:40]!r} has a {key} of {v} m in twin.json, not the size of a "
+                           f"city object (0-{MAX_SIZE_M:g} m); rerun build-twin")
+    return v
+
+
 def _objects(doc, folder: Path) -> dict:
     objs = doc.get("objects")
     if not isinstance(objs, list):
         raise CompareError(f"{folder}: twin.json lists no objects; rerun build-twin")
     cols = {"ids": [], "centre": [], "heading": [], "size": [], "measured": [], "models": [], "confidence": [],
             "n_points": [], "lonlat": []}
-    lwh = ("length", "width", "height")
     for o in objs:
         if not isinstance(o, dict) or not isinstance(o.get("id"), str):
             raise CompareError(f"{folder}: an object in twin.json has no id; rerun build-twin")
@@ -134,13 +144,31 @@ def _objects(doc, folder: Path) -> dict:
         cols["ids"].append(o["id"][:200])
         cols["centre"].append(_vec(o, "centroid", "xyz", folder))
         cols["heading"].append(_number(o.get("heading_rad"), "heading_rad", folder))
-        cols["size"].append(_vec(o, "size", lwh, folder))
-        cols["measured"].append(_vec(o, "measured_size", lwh, folder))
+        cols["size"].append(_size(o, "size", folder))
+        cols["measured"].append(_size(o, "measured_size", folder))
         cols["models"].append(name[:200] if isinstance(name, str) else None)
-        cols["confidence"].append(_number(conf, "confidence", folder) if conf is not None else np.nan)
-        cols["n_points"].append(int(_number(o.get("n_points", 0), "n_points", folder)))
+        conf = _number(conf, "confidence", folder) if conf is not None else np.nan
+        n = _number(o.get("n_points", 0), "n_points", folder)
+        if not (np.isnan(conf) or 0.0 <= conf <= 1.0) or n < 0 or n != int(n):
+            raise CompareError(f"{folder}: object {o['id'][:40]!r} in twin.json has a confidence outside 0-1 or a "
+                               "point count that is not a count; rerun build-twin")
+        cols["confidence"].append(conf)
+        cols["n_points"].append(int(n))
         cols["lonlat"].append([_number(o.get("lon"), "lon", folder), _number(o.get("lat"), "lat", folder)])
+    if len(set(cols["ids"])) != len(cols["ids"]):
+        seen = set()
+        twice = next(i for i in cols["ids"] if i in seen or seen.add(i))
+        raise CompareError(f"{folder}: twin.json has two objects with the id {twice!r}; rerun build-twin")
     return cols
+
+
+def _noise(doc, folder: Path) -> float:
+    """The scan's noise (m): positive and under a metre."""
+    v = _number(doc.get("noise_m", 0.02), "noise_m", folder)
+    if not 0.0 < v < 1.0:
+        raise CompareError(f"{folder}: twin.json's noise_m is {v:g} m, not a scanner's noise (0-1 m); rerun "
+                           "build-twin")
+    return v
 
 
 def read_epoch(folder) -> Epoch:
@@ -150,12 +178,7 @@ def read_epoch(folder) -> Epoch:
     if not folder.is_dir() or not path.is_file() or path.is_symlink():
         raise CompareError(f"{folder}: not a twin folder (no twin.json); give folders written by "
                            "`twinreg build-twin`")
-    if path.stat().st_size > MAX_TWIN_BYTES:
-        raise CompareError(f"{path}: larger than {MAX_TWIN_BYTES >> 20} MB; not a twin.json build-twin writes")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise CompareError(f"{path}: not valid JSON ({type(exc).__name__}); rerun build-twin") from exc
+    doc = read_json_doc(path, MAX_TWIN_BYTES, CompareError, "rerun build-twin on its scan")
     if not isinstance(doc, dict) or "objects" not in doc or "georef" not in doc:
         raise CompareError(f"{folder}: its twin.json is not one build-twin writes; rerun build-twin")
     if not isinstance(doc.get("observation"), dict):
@@ -174,7 +197,7 @@ def read_epoch(folder) -> Epoch:
                  np.array(cols["measured"]).reshape(-1, 3), cols["models"],
                  np.array(cols["confidence"], dtype=np.float64), np.array(cols["n_points"], dtype=np.int64),
                  np.array(cols["lonlat"], dtype=np.float64).reshape(-1, 2),
-                 _number(doc.get("noise_m", 0.02), "noise_m", folder), float(np.sqrt(seen / max(n_scan, 1))),
+                 _noise(doc, folder), float(np.sqrt(seen / max(n_scan, 1))),
                  record, n_scan, _vertical(doc, folder))
 
 

@@ -30,9 +30,12 @@ FORMAT = "twinreg-observed/1"
 PIXEL = 0.5
 NONE = 255
 GROUND = 128
-#: the largest record read back (bytes), and the largest raster side (pixels)
+#: the largest record read back (bytes on disk), the largest raster side (pixels), what its arrays may take once
+#: read (bytes: 100M pixels, about 25 km2 at 0.5 m) and the most section points an object may have
 MAX_BYTES = 2 * 1024 ** 3
 MAX_SIDE = 20_000
+MAX_ARRAY_BYTES = 512 * 1024 ** 2
+MAX_SECTION_POINTS = 4096
 
 
 @dataclass
@@ -210,19 +213,59 @@ def _check_array(z, key, dtype, ndim):
     return a
 
 
+def _check_shapes(zf: zipfile.ZipFile, n_objects: int) -> None:
+    """Refuse a record from its members' headers alone, before any array is decompressed: unknown members, wrong
+    types or dimensions, sections longer than :data:`MAX_SECTION_POINTS` an object, or arrays that would take more
+    than :data:`MAX_ARRAY_BYTES`."""
+    from ..io.npz import member_shapes, nbytes
+
+    try:
+        shapes = member_shapes(zf)
+    except ValueError as exc:
+        raise RecordError(str(exc)) from exc
+    fixed = {"format": ("u1", 1), "pixel": ("f8", 0), "lo": ("f8", 2), "z0": ("f8", 1), "sec_lon": ("f4", 2),
+             "sec_tra": ("f4", 2), "sec_lon_n": ("i8", 1), "sec_tra_n": ("i8", 1), "sec_res": ("f8", 1)}
+    missing = [k for k in fixed if k not in shapes]
+    if missing:
+        raise RecordError(f"it has no {missing[0]} array")
+    n_rasters = shapes["lo"][1][0]
+    for k in range(n_rasters):
+        fixed[f"code{k}"], fixed[f"ground{k}"] = ("u1", 2), ("f4", 2)
+    for name, (dtype, shape) in shapes.items():
+        want = fixed.get(name)
+        if want is None:
+            raise RecordError(f"it holds an array it should not ({name[:40]!r})")
+        if dtype != np.dtype(want[0]) or len(shape) != want[1]:
+            raise RecordError(f"its {name} is not a {want[0]} array of {want[1]} dimensions")
+        if name.startswith(("code", "ground")) and max(shape) > MAX_SIDE:
+            raise RecordError(f"its {name} is {shape[0]} x {shape[1]} pixels (at most {MAX_SIDE} a side)")
+    if shapes["lo"][1][1:] != (2,) or len(shapes) != len(fixed):
+        raise RecordError("its rasters are not described consistently")
+    for key in ("sec_lon", "sec_tra"):
+        if shapes[key][1][0] > MAX_SECTION_POINTS * max(n_objects, 1) or shapes[key][1][1:] != (2,):
+            raise RecordError(f"its {key} sections hold more points than {n_objects} objects have")
+    total = nbytes(shapes)
+    if total > MAX_ARRAY_BYTES:
+        raise RecordError(f"its arrays would take {total / 1024 ** 2:,.0f} MB (at most {MAX_ARRAY_BYTES >> 20} MB)")
+
+
 def read(path: Path, n_objects: int) -> Record:
-    """The record at ``path`` for a twin of ``n_objects`` objects; :class:`RecordError` if it is not one."""
+    """The record at ``path`` for a twin of ``n_objects`` objects; :class:`RecordError` if it is not one. Its
+    members' sizes are checked from their headers before any is read (:func:`_check_shapes`)."""
     path = Path(path)
     if path.is_symlink() or not path.is_file():
         raise RecordError("it is missing or a link")
     if path.stat().st_size > MAX_BYTES:
         raise RecordError(f"it is larger than {MAX_BYTES >> 30} GB")
     try:
+        with zipfile.ZipFile(path) as zf:
+            _check_shapes(zf, n_objects)
         with np.load(path, allow_pickle=False) as z:
             if "format" not in z.files or z["format"].tobytes() != FORMAT.encode():
                 raise RecordError("it is not a twinreg observation record")
             lo, z0 = _check_array(z, "lo", np.float64, 2), z["z0"]
-            if float(z["pixel"]) != PIXEL or len(z0) != len(lo) or not np.isfinite(lo).all():
+            if float(z["pixel"]) != PIXEL or len(z0) != len(lo) or not np.isfinite(lo).all() \
+                    or not np.isfinite(z0).all():
                 raise RecordError("its rasters are not described consistently")
             rasters = []
             for k in range(len(lo)):

@@ -19,3 +19,22 @@ def checked_input(path, suffixes, kind: str, formats: str, error) -> tuple[Path,
     if path.stat().st_size == 0:
         raise error(f"{path}: the file is empty")
     return path, suffix
+
+
+def read_json_doc(path, max_bytes: int, error, fix: str):
+    """The JSON document of a file from someone else: its size checked before it is read (more than
+    ``max_bytes`` is refused unread), its nesting bounded by the parser's recursion limit; ``error`` raised with one
+    line naming the file, what was wrong and ``fix`` otherwise."""
+    import json
+
+    path = Path(path)
+    size = path.stat().st_size
+    if size > max_bytes:
+        raise error(f"{path}: {size / 1024 ** 2:,.0f} MB, larger than any such file twinreg writes "
+                    f"({max_bytes >> 20} MB at most); {fix}")
+    try:
+        return json.loads(path.read_bytes().decode("utf-8"))
+    except RecursionError as exc:
+        raise error(f"{path}: nested deeper than any such file twinreg writes; {fix}") from exc
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: not valid JSON ({type(exc).__name__}); {fix}") from exc

@@ -76,3 +76,38 @@ def read_member(fh, info: zipfile.ZipInfo) -> np.ndarray | None:
         return None
     a = np.frombuffer(buf, dtype=dtype, count=count, offset=head + size)
     return a.reshape(shape[::-1]).T if m.group(2) == b"True" else a.reshape(shape)
+
+
+def member_shapes(zf: zipfile.ZipFile, max_members: int = 4096) -> dict:
+    """``{name: (dtype, shape)}`` of every ``.npy`` member of an open npz, read from the members' headers alone
+    (the first bytes of each, decompressed no further), so that a caller can sum what the arrays would take
+    before reading any. A member that is not a plain ``.npy`` array, a file of more than ``max_members``
+    members, or a header numpy cannot parse raises ``ValueError``."""
+    infos = zf.infolist()
+    if len(infos) > max_members:
+        raise ValueError(f"it holds {len(infos)} members (at most {max_members})")
+    out = {}
+    for info in infos:
+        if not info.filename.endswith(".npy"):
+            raise ValueError(f"its member {info.filename[:60]!r} is not an array")
+        with zf.open(info) as fh:
+            version = np.lib.format.read_magic(fh)
+            if version == (1, 0):
+                shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+            elif version in ((2, 0), (3, 0)):
+                shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+            else:
+                raise ValueError(f"its member {info.filename[:60]!r} has an unknown array version")
+        if dtype.hasobject:
+            raise ValueError(f"its member {info.filename[:60]!r} holds Python objects")
+        out[info.filename[:-4]] = (dtype, tuple(int(s) for s in shape))
+    return out
+
+
+def nbytes(shapes: dict) -> int:
+    """What the arrays of :func:`member_shapes` take in memory (bytes).
+
+    >>> nbytes({"a": (np.dtype("f8"), (10, 3)), "b": (np.dtype("u1"), (4,))})
+    244
+    """
+    return sum(math.prod(shape) * dtype.itemsize for dtype, shape in shapes.values())

@@ -167,3 +167,94 @@ def test_markup_in_a_strangers_twin_is_text(surveys, tmp_path):
 def test_bad_date_in_twin(surveys, tmp_path, date):
     t = _copy(surveys.twins["after150"], tmp_path / "d", lambda d: d.update(survey_date=date))
     _refused([surveys.twins["before"], t], tmp_path / "out", "survey_date")
+
+
+def _planted_npz(path, members: dict) -> None:
+    """An npz whose members are .npy headers claiming ``shape`` with only a few bytes of data behind them (what a
+    bomb's headers say, without the gigabytes): {name: (dtype, shape)}."""
+    import io
+    import zipfile
+
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, (dtype, shape) in members.items():
+            buf = io.BytesIO()
+            np.lib.format.write_array_header_2_0(buf, {"descr": np.dtype(dtype).str, "fortran_order": False,
+                                                       "shape": shape})
+            zf.writestr(f"{name}.npy", buf.getvalue() + b"\0" * 64)
+
+
+def _record_members(twin):
+    with np.load(twin / "observed.npz") as z:
+        return {k: (z[k].dtype, z[k].shape) for k in z.files}
+
+
+@pytest.mark.parametrize("what", ["rasters", "sections", "extra"])
+def test_record_bomb_refused_from_its_headers(surveys, tmp_path, what):
+    """A record whose headers claim 8 rasters of 20000 x 20000 (16 GB once read), a (4e8, 2) section array or an
+    array it should not hold is refused from its members' headers, before anything is decompressed."""
+    import resource
+    import time
+
+    bad = _copy(surveys.twins["after150"], tmp_path / "bomb")
+    members = _record_members(bad)
+    for k in [k for k in members if k.startswith(("code", "ground"))]:
+        del members[k]
+    if what == "rasters":
+        members["lo"] = (np.float64, (8, 2))
+        members["z0"] = (np.float64, (8,))
+        for k in range(8):
+            members[f"code{k}"] = (np.uint8, (20000, 20000))
+            members[f"ground{k}"] = (np.float32, (20000, 20000))
+    else:
+        members["lo"], members["z0"] = (np.float64, (1, 2)), (np.float64, (1,))
+        members["code0"], members["ground0"] = (np.uint8, (10, 10)), (np.float32, (10, 10))
+        if what == "sections":
+            members["sec_lon"] = (np.float32, (400_000_000, 2))
+        else:
+            members["payload"] = (np.float64, (10,))
+    _planted_npz(bad / "observed.npz", members)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    t = time.perf_counter()
+    line = _refused([surveys.twins["before"], bad], tmp_path / "out", "observed.npz", "rerun build-twin")
+    assert time.perf_counter() - t < 10
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 200 * 1024  # KiB: nothing was allocated
+    assert {"rasters": "would take", "sections": "sections hold more points", "extra": "should not"}[what] in line
+
+
+def test_twin_json_too_large_or_too_deep(surveys, tmp_path):
+    from twinreg.change.epochs import MAX_TWIN_BYTES
+
+    big = _copy(surveys.twins["after150"], tmp_path / "big")
+    with open(big / "twin.json", "r+b") as fh:  # a sparse file: no disk, no time
+        fh.truncate(MAX_TWIN_BYTES + 1)
+    _refused([surveys.twins["before"], big], tmp_path / "out", "twin.json", "larger than")
+    deep = _copy(surveys.twins["after150"], tmp_path / "deep")
+    (deep / "twin.json").write_text("[" * 200_000 + "]" * 200_000)
+    _refused([surveys.twins["before"], deep], tmp_path / "out", "nested deeper")
+
+
+def _first_object(edit):
+    def apply(doc):
+        edit(doc["objects"][0], doc)
+    return apply
+
+
+@pytest.mark.parametrize("edit,words", [
+    (lambda o, d: d.update(noise_m=-5), "noise_m"),
+    (lambda o, d: o["size"].update(length=-4.2), "size"),
+    (lambda o, d: o["measured_size"].update(height=1e4), "measured_size"),
+    (lambda o, d: o["match"] and o["match"].update(confidence=7.0) or o.update(n_points=2.5), "confidence"),
+    (lambda o, d: d["objects"][1].update(id=o["id"]), "two objects with the id"),
+])
+def test_values_out_of_range(surveys, tmp_path, edit, words):
+    t = _copy(surveys.twins["after150"], tmp_path / "t", _first_object(edit))
+    _refused([surveys.twins["before"], t], tmp_path / "out", words, "rerun build-twin")
+
+
+def test_record_height_not_finite(surveys, tmp_path):
+    bad = _copy(surveys.twins["after150"], tmp_path / "nan")
+    with np.load(bad / "observed.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["z0"] = arrays["z0"] * np.nan
+    np.savez(bad / "observed.npz", **arrays)
+    _refused([surveys.twins["before"], bad], tmp_path / "out", "observed.npz", "not described consistently")
