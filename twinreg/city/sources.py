@@ -111,7 +111,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
     import laspy
 
     from ..io._files import checked_input
-    from ..io.points import check_las_header, crs_and_units, header_date
+    from ..io.points import check_las_header, check_point_count, crs_and_units, header_date
 
     path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
     try:
@@ -120,6 +120,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
     except Exception as exc:
         raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
     check_las_header(path, header)
+    check_point_count(path, header)
     header_crs = header_error = None
     try:
         header_crs = header.parse_crs()
@@ -131,6 +132,10 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
         # laspy reads a truncated COPC as an empty one: refuse it here rather than lose its points
         raise SceneReadError(f"{path}: a COPC file without its octree hierarchy (truncated?); copy or download it "
                              "again")
+    if copc:
+        from ..io.copc import check_copc
+
+        check_copc(path, int(header.point_count), SceneReadError)
     info, unit_name, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error)
     mins, maxs = np.asarray(header.mins, dtype=np.float64), np.asarray(header.maxs, dtype=np.float64)
     s = np.array([scale, scale, z_scale])

@@ -85,3 +85,64 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     finally:
         writer.Close()
     return Path(path)
+
+
+#: the most hierarchy pages and nodes a COPC file may have (a 10-billion-point file at 100,000 points a node has
+#: 100,000 nodes), and the most points one node may hold (a node is decompressed whole)
+MAX_COPC_PAGES = 1_000_000
+MAX_COPC_NODES = 10_000_000
+MAX_NODE_POINTS = 1 << 24
+#: where the COPC info VLR's data starts (it is the first VLR, after the 375-byte LAS 1.4 header), and its size
+_INFO_AT, _INFO_SIZE = 375 + 54, 160
+_ENTRY = np.dtype([("level", "<i4"), ("x", "<i4"), ("y", "<i4"), ("z", "<i4"), ("offset", "<u8"),
+                   ("bytes", "<i4"), ("count", "<i4")])
+
+
+def check_copc(path, point_count: int, error) -> int:
+    """Walk a COPC file's octree hierarchy before any query (laspy follows a page that points at itself for
+    ever): every page read once, each page and node inside the file, node keys unique and inside the octree, node
+    counts non-negative, at most :data:`MAX_NODE_POINTS` a node and summing to the header's ``point_count``.
+    Returns the number of nodes; raises ``error`` with one line naming the file otherwise."""
+    path = Path(path)
+    size = path.stat().st_size
+
+    def bad(what):
+        return error(f"{path}: its COPC hierarchy {what}; the file is damaged: copy or write it again")
+
+    with open(path, "rb") as fh:
+        fh.seek(_INFO_AT)
+        info = fh.read(_INFO_SIZE)
+        if len(info) != _INFO_SIZE:
+            raise bad("has no info record")
+        root_offset, root_size = np.frombuffer(info, dtype="<u8", count=2, offset=40)
+        pages, seen_pages, keys, total, nodes = [(int(root_offset), int(root_size))], set(), set(), 0, 0
+        while pages:
+            offset, nbytes = pages.pop()
+            if offset in seen_pages:
+                raise bad(f"visits the page at byte {offset:,} twice (a loop)")
+            seen_pages.add(offset)
+            if len(seen_pages) > MAX_COPC_PAGES:
+                raise bad(f"has more than {MAX_COPC_PAGES:,} pages")
+            if nbytes <= 0 or nbytes % _ENTRY.itemsize or offset < _INFO_AT or offset + nbytes > size:
+                raise bad(f"has a page of {nbytes:,} bytes at byte {offset:,}, outside the file's {size:,} bytes")
+            fh.seek(offset)
+            entries = np.frombuffer(fh.read(nbytes), dtype=_ENTRY)
+            for e in entries:
+                key = (int(e["level"]), int(e["x"]), int(e["y"]), int(e["z"]))
+                side = 1 << min(max(key[0], 0), 62)
+                if not 0 <= key[0] <= 40 or not all(0 <= k < side for k in key[1:]) or key in keys:
+                    raise bad(f"has a node key {key} twice or outside the octree")
+                keys.add(key)
+                at, n, count = int(e["offset"]), int(e["bytes"]), int(e["count"])
+                if count == -1:
+                    pages.append((at, n))
+                    continue
+                nodes += 1
+                if count < 0 or count > MAX_NODE_POINTS or n < 0 or (count and (n == 0 or at + n > size)):
+                    raise bad(f"has a node {key} of {count:,} points in {n:,} bytes at byte {at:,}")
+                total += count
+                if nodes > MAX_COPC_NODES:
+                    raise bad(f"has more than {MAX_COPC_NODES:,} nodes")
+    if total != point_count:
+        raise bad(f"counts {total:,} points where the header says {point_count:,}")
+    return nodes

@@ -103,6 +103,37 @@ def check_las_header(path: Path, header) -> None:
                              "rewrite the file with correct offsets (e.g. pdal translate or las2las)")
 
 
+def most_points(path: Path, header) -> int | None:
+    """The most points a LAS/LAZ file of this size can hold, from its header alone: an uncompressed file stores
+    every record in full; a LAZ file of fixed-size chunks stores at least each chunk's first point in full (None
+    for LAZ with variable chunks, which have no such bound)."""
+    import struct
+
+    room = Path(path).stat().st_size - int(header.offset_to_point_data)
+    size = int(header.point_format.size)
+    if not header.are_points_compressed:
+        return max(room, 0) // size
+    laszip = next((v for v in header.vlrs if getattr(v, "user_id", "") == "laszip encoded"), None)
+    data = getattr(laszip, "record_data", b"") or b""
+    if len(data) < 16:
+        return None
+    (chunk,) = struct.unpack_from("<I", data, 12)
+    if chunk == 0 or chunk == 0xFFFFFFFF:
+        return None
+    return max(room, 0) // size * chunk
+
+
+def check_point_count(path: Path, header) -> None:
+    """:class:`SceneReadError` when a LAS/LAZ header claims more points than the file can hold (a damaged or
+    planted header; nothing is allocated for it)."""
+    most = most_points(path, header)
+    n = int(header.point_count)
+    if most is not None and n > most:
+        raise SceneReadError(f"{path}: the header says {n:,} points but the file's {Path(path).stat().st_size:,} "
+                             f"bytes hold at most {most:,}; the file is truncated or damaged: copy or export it "
+                             "again")
+
+
 def header_date(header) -> str | None:
     """A LAS/LAZ header's creation date as ``YYYY-MM-DD`` (the survey's, by the specification), or None."""
     try:
@@ -117,10 +148,17 @@ def _read_las(path: Path):
     import laspy
 
     try:
-        las = laspy.read(str(path))
+        with laspy.open(str(path)) as reader:
+            check_las_header(path, reader.header)
+            check_point_count(path, reader.header)
+            las = reader.read()
+    except SceneReadError:
+        raise
     except Exception as exc:
         raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
-    check_las_header(path, las.header)
+    if len(las.points) < las.header.point_count:
+        raise SceneReadError(f"{path}: holds {len(las.points):,} of the {las.header.point_count:,} points its header "
+                             "says; the file is truncated or damaged: copy or export it again")
     pts = np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
                            np.asarray(las.z, dtype=np.float64)])
     try:

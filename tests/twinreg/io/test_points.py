@@ -107,3 +107,28 @@ def test_detect_cli_on_autzen_writes_objects_and_topview(tmp_path):
     # replacing the output folder happens as a whole
     res = CliRunner().invoke(app, ["detect", str(las), "--out", str(out)])
     assert res.exit_code == 0 and not [p for p in tmp_path.iterdir() if ".tmp-" in p.name or ".old-" in p.name]
+
+
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+def test_header_claiming_more_points_than_the_file_holds(tmp_path, suffix):
+    """A header claiming 1e9 points over a file of 10 is refused from the header and the file's size, before
+    anything is allocated, by the scene reader and by the tiles' reader."""
+    import struct
+
+    import laspy
+
+    from twinreg.city.sources import read_source
+
+    h = laspy.LasHeader(point_format=3, version="1.2")
+    h.scales, h.offsets = [0.01] * 3, [0, 0, 0]
+    las = laspy.LasData(h)
+    las.x, las.y, las.z = (np.random.default_rng(0).uniform(0, 10, (3, 10)))
+    las.write(tmp_path / f"ten{suffix}")
+    data = bytearray((tmp_path / f"ten{suffix}").read_bytes())
+    struct.pack_into("<I", data, 107, 1_000_000_000)  # the legacy point count of a LAS 1.2 header
+    bomb = tmp_path / f"bomb{suffix}"
+    bomb.write_bytes(bytes(data))
+    for read in (read_points, read_source):
+        with pytest.raises(SceneReadError, match=r"bomb\S*: the header says 1,000,000,000 points but the file's "
+                                                 r"\d+ bytes hold at most [\d,]+; the file is truncated"):
+            read(bomb)
