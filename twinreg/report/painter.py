@@ -20,13 +20,11 @@ HELPER_TIMEOUT_S = 30.0
 
 
 def _die_with_parent() -> None:
-    try:
-        import ctypes
-        import signal
+    import signal
 
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except Exception:  # pragma: no cover - not Linux
-        pass
+    from ..lifeline import die_with_parent
+
+    die_with_parent(signal.SIGTERM)
 
 
 def _end(proc, first: float, grace: float) -> None:

@@ -108,3 +108,36 @@ def test_the_embedded_cluster_refuses_every_other_process():
         lines = proc.stdout.split("\n")
         assert [ln.split()[0] for ln in lines if ln] == ["REFUSED"] * 3, proc.stdout + proc.stderr
         assert eng.map(abs, [-3], ["ok"]) == [3]  # the run's own client still works
+
+
+def test_workers_leave_when_the_run_is_killed(tmp_path):
+    """kill -9 of the process running an embedded cluster while its workers are stuck in compiled code that holds
+    the interpreter (as a reader looping over a planted file would be): the worker processes are gone within
+    seconds (Dask's own watch of the parent is a thread, which cannot run then)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import psutil
+
+    script = ("import time\nfrom twinreg.city.engine import Engine\n"
+              "def busy(k):\n"
+              "    import re\n"
+              "    re.match(r'(a+)+$', 'a' * 60 + 'b')  # hours in compiled code that holds the interpreter\n"
+              "with Engine(workers=2) as eng:\n"
+              "    futures = [eng.client.submit(busy, k, pure=False) for k in range(2)]\n"
+              "    time.sleep(3)\n"
+              "    print(eng.n_workers, flush=True)\n"
+              "    time.sleep(120)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "2"
+        children = psutil.Process(proc.pid).children(recursive=True)
+        assert len(children) >= 2
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+        _, alive = psutil.wait_procs(children, timeout=10)
+        assert not alive, [p.cmdline()[:3] for p in alive]
+    finally:
+        proc.kill()
