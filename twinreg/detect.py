@@ -146,7 +146,7 @@ def write_detection(det: Detection, out: Path, all_objects: bool = False) -> lis
     from .io.ply import write_ply
 
     written = []
-    with staged_folder(out, protect=[det.scene.path]) as stage:
+    with staged_folder(out, protect=[det.scene.path], kind="detection") as stage:
         for oid, o in det.ids(all_objects):
             write_ply(stage / f"{oid}.ply", det.scene.points[o.indices],
                       comments=[f"twinreg object {oid} of {det.scene.path.name}", f"unit m (file unit {det.scene.unit})"])

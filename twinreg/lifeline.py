@@ -2,10 +2,12 @@
 leave when it is gone (killed, crashed), so no worker outlives its command.
 
 The embedded cluster's workers are spawned by the run's process (the nannies live there); they load this module
-at start (Dask's ``preload``) with the run's process id in :data:`PARENT_ENV`. The kernel then kills a worker when
-the thread that started it ends (Linux's parent-death signal: this works even while the worker is stuck in
-compiled code that holds the interpreter), and a thread polls the parent's id twice a second as well (other
-systems; a parent that died before the signal was asked for).
+at start (Dask's ``preload``). The kernel then kills a worker when the thread that started it ends (Linux's
+parent-death signal: this works even while the worker is stuck in compiled code that holds the interpreter), and a
+thread polls the parent's id twice a second as well (other systems). A parent that died before the worker loaded
+this module is Dask's own watch's to see (the worker is not stuck yet). The parent is the process that spawned the
+worker, read at start: not an environment variable, which Dask's inherited configuration could carry from another
+run.
 """
 
 from __future__ import annotations
@@ -14,8 +16,6 @@ import os
 import threading
 import time
 
-#: the environment variable naming the process a worker must not outlive
-PARENT_ENV = "TWINREG_PARENT_PID"
 #: seconds between two looks at the parent
 POLL_S = 0.5
 
@@ -49,9 +49,5 @@ def die_with_parent(sig: int | None = None) -> None:
 
 def dask_setup(worker=None) -> None:
     """Dask's preload hook, in each worker process of an embedded cluster: end with the run's process."""
-    parent = os.environ.get(PARENT_ENV, "")
-    if parent.isdigit():
-        die_with_parent()
-        if os.getppid() != int(parent):  # it died before the signal was asked for
-            os._exit(1)
-        watch_parent(int(parent))
+    die_with_parent()
+    watch_parent(os.getppid())

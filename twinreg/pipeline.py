@@ -23,7 +23,7 @@ from .export.tiles3d import scan_sample
 from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from .export.twin_ply import write_twin_ply
 from .geo.georef import Georef, scene_georef
-from .io.outdir import check_replaceable, staged_folder
+from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
 from .matching.match import ModelCache, match_objects
 from .report.painter import HELPER_TIMEOUT_S, Painter, Pending
@@ -113,7 +113,14 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     timing = {}
     params = checked_params(params, tol, threshold)
     scene_path = Path(scene_path)
-    check_replaceable(Path(out), protect=[scene_path, catalogue.folder])
+    check_replaceable(Path(out), protect=[scene_path, catalogue.folder], kind="twin")
+    with locked(Path(out), "build-twin"):
+        return _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
+                             templates)
+
+
+def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
+                  templates) -> dict:
     if catalogue.count() == 0:
         raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
                              "`twinreg add-model MESH` or `twinreg import-models DIR`")
@@ -148,7 +155,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     timing["sections"] = time.perf_counter() - t
 
     clusters = classify(shapes, params, timing, progress)
-    with staged_folder(Path(out), protect=[scene_path, catalogue.folder]) as stage:
+    with staged_folder(Path(out), protect=[scene_path, catalogue.folder], kind="twin") as stage:
         try:
             names = [f"obj{k + 1}" for k in range(len(targets))]
             taxonomy = Pending(painter, plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,

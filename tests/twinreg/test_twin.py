@@ -4,6 +4,7 @@ import io
 import json
 import xml.etree.ElementTree as ET
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -261,3 +262,27 @@ def test_a_stuck_helper_does_not_hang_build_twin(park, catalogue16, tmp_path, mo
     assert _children(earlier) == []
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_two_runs_on_one_out_one_succeeds_one_is_refused(park, catalogue16, tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    cmd = [str(Path(sys.executable).parent / "twinreg"), "--library", str(catalogue16.folder), "build-twin",
+           str(park["path"]), *DUBLIN, "--anchor", str(park["offset"][0]), str(park["offset"][1]), "--out", str(out)]
+    first = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        t = time.monotonic()
+        while not (tmp_path / ".out.lock").exists() and time.monotonic() - t < 60:
+            time.sleep(0.05)
+        second = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+        assert second.returncode == 1
+        line = second.stderr.strip()
+        assert line.startswith("error:") and "\n" not in line, line
+        assert f"another twinreg run is writing this folder (process {first.pid}, twinreg build-twin" in line, line
+        assert first.wait(300) == 0, first.stderr.read()
+    finally:
+        first.kill()
+    assert (out / "twin.json").is_file() and not (tmp_path / ".out.lock").exists()

@@ -170,7 +170,7 @@ def report(catalogue, out, density: float = 150.0, scans: int = 10, seed: int = 
     doc = {"catalogue": str(catalogue.folder), "n_models": len(rows), "density": density, "scans_per_model": scans,
            "seed": seed, "models": models, "taxonomy": tax, "confusion": conf,
            "cannot_tell_apart": _pairs_confused(conf)}
-    with staged_folder(Path(out), protect=[catalogue.folder]) as stage:
+    with staged_folder(Path(out), protect=[catalogue.folder], kind="library report") as stage:
         (stage / "models").mkdir()
         if progress:
             progress("pictures")

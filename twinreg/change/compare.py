@@ -13,7 +13,7 @@ import numpy as np
 
 from cosco.params import DEFAULT, CoscoParams
 
-from ..io.outdir import check_replaceable, staged_folder
+from ..io.outdir import check_replaceable, locked, staged_folder
 from .align import align
 from .epochs import read_epochs
 from .fragments import merge_pieces
@@ -52,23 +52,30 @@ def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[
     return doc, epochs
 
 
-def compare(folders, out, params: CoscoParams = DEFAULT, say=None, progress=None) -> dict:
+def compare(folders, out, params: CoscoParams = DEFAULT, say=None, progress=None, protect=()) -> dict:
     """Compare twins into ``out`` (see the module's text); returns changes.json's document. Nothing is written
-    when the twins cannot be compared."""
+    when the twins cannot be compared; ``out`` may be neither a twin nor inside one of them or of ``protect`` (the
+    catalogue)."""
+    folders = [Path(f) for f in folders]
+    out = Path(out)
+    protect = [*folders, *protect]
+    check_replaceable(out, protect=protect, kind="comparison")
+    with locked(out, "compare"):
+        return _locked_compare(folders, out, params, say, progress, protect)
+
+
+def _locked_compare(folders, out, params, say, progress, protect) -> dict:
     from .outputs import write_geojson
     from .report import write_report
     from .viewdata import write_view
 
-    folders = [Path(f) for f in folders]
-    out = Path(out)
-    check_replaceable(out, protect=folders)
     t0 = time.perf_counter()
     if progress:
         progress(f"reading {len(folders)} twins and comparing them")
     doc, epochs = changes_document(folders, params, say)
     if progress:
         progress("writing changes.json, changes.geojson and changes.html")
-    with staged_folder(out, protect=folders) as stage:
+    with staged_folder(out, protect=protect, kind="comparison") as stage:
         t = time.perf_counter()
         write_geojson(stage / "changes.geojson", doc, epochs)
         write_report(stage, doc, epochs)

@@ -140,9 +140,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     """Build the twin of tiles (files, folders, globs of LAS/LAZ/COPC) cell by cell on Dask; returns the twin JSON
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances;
     ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`)."""
-    import twinreg
-
-    from ..io.outdir import check_replaceable, claim
+    from ..io.outdir import check_replaceable, locked
     from ..pipeline import checked_params
 
     t_start = time.perf_counter()
@@ -158,10 +156,21 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
         raise SceneReadError(f"{sources[0].path}: the tiles hold no points")
     out = Path(out)
     protect = [Path(s.path) for s in sources] + [catalogue.folder]
-    check_replaceable(out, protect)
+    check_replaceable(out, protect, kind="twin")
     if catalogue.count() == 0:
         raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
                              "`twinreg add-model MESH` or `twinreg import-models DIR`")
+    with locked(out, "build-twin"):
+        return _locked_city(sources, georef, p, out, protect, catalogue, params, workers, scheduler, restart, ply,
+                            progress, date, classified, t_start, timing)
+
+
+def _locked_city(sources, georef, p, out, protect, catalogue, params, workers, scheduler, restart, ply, progress,
+                 date, classified, t_start, timing) -> dict:
+    import twinreg
+
+    from ..io.outdir import claim
+
     created = not out.exists()
     claim(out, protect)
     store = CellStore(out)

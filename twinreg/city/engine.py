@@ -74,17 +74,15 @@ class Engine:
                 # the workers keep the memory they free for the next cell (twinreg.memory), set before they start
                 import dask
 
-                from ..lifeline import PARENT_ENV
                 from ..memory import WORKER_ENV
 
-                # the workers leave when this process dies, however it dies (twinreg.lifeline)
-                environ = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENV,
-                           PARENT_ENV: str(os.getpid())}
+                environ = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENV}
                 with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
                     self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                                 memory_limit=memory, dashboard_address=None,
                                                 silence_logs=logging.CRITICAL, host="127.0.0.1", scheduler_port=0,
                                                 protocol="tls://", security=Security.temporary(),
+                                                # the workers leave when this process dies, however it dies
                                                 preload=["twinreg.lifeline"])
                 self.client = Client(self.cluster, security=self.cluster.security)
         except Exception as exc:  # unreachable, refused, a malformed address, no free port...

@@ -122,7 +122,7 @@ def export_city(run: CityRun) -> dict:
                          tail={"grid": grid, "cells": cells})
     folders = [{"name": r.name, "bounds": _cell_bounds(georef, plan.cells[r.name]),
                 "ids": [d["id"] for d in by_cell.get(r.name, [])]} for r in results if by_cell.get(r.name)]
-    with staged_folder(out, protect=protect) as stage:
+    with staged_folder(out, protect=protect, kind="twin") as stage:
         t3 = time.perf_counter()
         # the JSON formats (twin.city.json and .jsonl, GeoJSON, sections.json: a third of the export at 100M
         # points) in a forked child while this process writes the KMZ, the report and the tiles

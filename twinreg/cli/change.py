@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ._common import JsonOpt, RunProgress, handled, info, print_json
+from ._common import JsonOpt, LibraryOpt, RunProgress, handled, info, library_folder, print_json
 
 app = typer.Typer()
 
@@ -21,6 +21,7 @@ def compare_cmd(
                                                 show_default=False)],
     out: Annotated[Path, typer.Option("--out", help="Folder for changes.json, changes.geojson, changes.html "
                                       "(replaced as a whole).", show_default=False)],
+    library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
     """What stayed, moved, left, arrived or was replaced between surveys of one place, and where a survey saw
@@ -28,7 +29,8 @@ def compare_cmd(
     from ..change.compare import compare
 
     with RunProgress("compare") as bars:
-        doc = compare(twins, out, say=info, progress=lambda m: bars.update(m, None, None))
+        doc = compare(twins, out, say=info, progress=lambda m: bars.update(m, None, None),
+                      protect=[library_folder(library)])
     if json_:
         print_json(doc)
         return

@@ -54,7 +54,7 @@ def simulate_city_cmd(
     if source != "catalogue":
         info("the catalogue is empty: the city's cars are the project's parametric ones")
     when = date.date().isoformat() if date else None
-    with RunProgress() as bars, staged_folder(out, protect=[epoch_of] if epoch_of else ()) as stage:
+    with RunProgress() as bars, staged_folder(out, protect=[epoch_of] if epoch_of else (), kind="city") as stage:
         if epoch_of is not None:
             truth = _later(stage, epoch_of, models, names, sizes, density, seed, when, bars.update)
         else:

@@ -30,7 +30,7 @@ def detect(
 ):
     """Ground removal and connectivity-based object detection."""
     if out is not None:
-        check_replaceable(out, protect=[scene])
+        check_replaceable(out, protect=[scene], kind="detection")
     with err_console.status(f"reading {scene.name}") as status:
         det = detect_file(scene, unit=unit, progress=lambda stage: status.update(f"{scene.name}: {stage} done"))
     doc = detection_json(det, all_objects)

@@ -26,6 +26,9 @@ from ..errors import ExportError
 MARKER = ".twinreg-output.json"
 #: files under this folder of OUT are a tiled run's finished cells (twinreg's, kept to resume; see city/resume.py)
 WORK_PREFIX = ".cells/"
+#: what a marked folder holds (the marker's ``kind``), and the command that writes it
+KINDS = {"twin": "build-twin", "comparison": "compare", "detection": "detect --out", "demo": "demo",
+         "library report": "library-report", "city": "simulate-city"}
 
 
 def _umask() -> int:
@@ -74,15 +77,32 @@ def _listing(folder: Path) -> list[str]:
     return sorted(out)
 
 
-def check_replaceable(target, protect=()) -> Path:
+def marked_kind(folder, marker: dict | None = None) -> str | None:
+    """What a folder twinreg wrote holds (:data:`KINDS`): its marker's ``kind``, else (a marker written before
+    kinds were recorded) guessed from its files; None when unknown."""
+    folder = Path(folder)
+    kind = (marker or {}).get("kind")
+    if isinstance(kind, str) and kind in KINDS:
+        return kind
+    for name, guess in (("twin.json", "twin"), ("changes.json", "comparison"), ("truth.json", "city")):
+        if (folder / name).is_file():
+            return guess
+    return None
+
+
+def check_replaceable(target, protect=(), kind: str | None = None) -> Path:
     """Raise :class:`ExportError` unless ``target`` may be replaced: missing, an empty folder, or a folder
-    twinreg wrote (its marker lists every file in it), and holding none of the ``protect`` paths (inputs, the
-    catalogue). A symbolic link is judged by the folder it points to."""
+    twinreg wrote (its marker lists every file in it) holding what this command writes (``kind``, one of
+    :data:`KINDS`; a twin is never replaced by a comparison, nor the reverse), neither holding nor lying inside any
+    of the ``protect`` paths (inputs, the catalogue). A symbolic link is judged by the folder it points to."""
     target = real_target(target)
     for p in protect:
         if p is not None and _inside(Path(p), target):
             raise ExportError(f"{target}: the output folder holds {p}, which this run reads; choose another --out "
                               "(an output folder is replaced as a whole)")
+        if p is not None and Path(p).is_dir() and _inside(target, Path(p)):
+            raise ExportError(f"{target}: the output folder lies inside {p}, which this run reads; choose an --out "
+                              "outside it")
     if not target.exists() and not target.is_symlink():
         return target
     if not target.is_dir():
@@ -96,9 +116,14 @@ def check_replaceable(target, protect=()) -> Path:
         raise ExportError(f"{target}: the folder holds files twinreg did not write ({shown}); choose a new or empty "
                           "--out folder (an output folder is replaced as a whole)")
     try:
-        listed = set(json.loads(marker.read_text(encoding="utf-8"))["files"])
+        doc = json.loads(marker.read_text(encoding="utf-8"))
+        listed = set(doc["files"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ExportError(f"{marker}: not a readable twinreg marker ({exc}); choose another --out") from exc
+    held = marked_kind(target, doc if isinstance(doc, dict) else None)
+    if kind is not None and held is not None and held != kind:
+        raise ExportError(f"{target}: holds a {held} (written by twinreg {KINDS[held]}), which this command does not "
+                          f"replace with a {kind}; choose another --out")
     foreign = [e for e in entries if e != MARKER and e not in listed and not e.startswith(WORK_PREFIX)]
     if foreign:
         shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
@@ -185,10 +210,11 @@ def recover(target) -> str | None:
                 if old.exists():
                     shutil.rmtree(old, ignore_errors=True)
             journal.unlink(missing_ok=True)
-        prefix = f".{target.name}.tmp-"
-        for p in target.parent.glob(prefix + "*"):
-            pid = p.name[len(prefix):].split("-")[0]
-            if p.is_dir() and pid.isdigit() and not _alive(int(pid)):
+        # the staging folders of killed runs beside it, whatever folder they were for (.NAME.tmp-PID-...)
+        for p in target.parent.glob(".*.tmp-*"):
+            pid = p.name.rsplit(".tmp-", 1)[-1].split("-")[0]
+            if p.is_dir() and not p.is_symlink() and pid.isdigit() and not _alive(int(pid)) \
+                    and not _journal(target.parent / p.name[1:].rsplit(".tmp-", 1)[0]).exists():
                 shutil.rmtree(p, ignore_errors=True)
                 done = done or "cleaned"
     return done
@@ -201,36 +227,37 @@ def _drop_temporaries(stage: Path) -> None:
             p.unlink(missing_ok=True)
 
 
-def claim(target, protect=()) -> Path:
+def claim(target, protect=(), kind: str = "twin") -> Path:
     """Make ``target`` a folder marked as twinreg's (creating it when missing), after :func:`check_replaceable`:
     a long run can then keep work in it (``.cells/``) before its results replace it as a whole."""
     target = real_target(target)
     recover(target)
-    check_replaceable(target, protect)
+    check_replaceable(target, protect, kind)
     try:
         target.mkdir(parents=True, exist_ok=True)
         marker = target / MARKER
         if not marker.exists():
             with atomic_path(marker, ".json") as tmp:
-                Path(tmp).write_text(json.dumps({"tool": "twinreg", "files": []}), encoding="utf-8")
+                Path(tmp).write_text(json.dumps({"tool": "twinreg", "kind": kind, "files": []}), encoding="utf-8")
     except OSError as exc:
         raise ExportError(f"{target}: cannot write here ({exc.strerror}); choose another --out") from exc
     return target
 
 
 @contextlib.contextmanager
-def staged_folder(target, protect=()):
+def staged_folder(target, protect=(), kind: str | None = None):
     """Yield a staging folder; on success it replaces ``target`` as a whole, on failure it is deleted and
     ``target`` is left as it was. ``target`` must pass :func:`check_replaceable` (``protect``: paths the run
-    reads, such as its inputs and the catalogue, which OUT may not hold). A symbolic link as OUT: the folder it
-    points to is replaced, the link kept."""
+    reads, such as its inputs and the catalogue, which OUT may neither hold nor lie in; ``kind``: what the folder
+    holds, :data:`KINDS`, recorded in its marker). A symbolic link as OUT: the folder it points to is replaced, the
+    link kept."""
     target = real_target(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ExportError(f"{target}: cannot write here ({exc.strerror}); choose another --out") from exc
     recover(target)
-    check_replaceable(target, protect)
+    check_replaceable(target, protect, kind)
     try:
         stage = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}.tmp-{os.getpid()}-"))
         os.chmod(stage, 0o777 & ~_umask())
@@ -239,7 +266,7 @@ def staged_folder(target, protect=()):
     try:
         yield stage
         _drop_temporaries(stage)
-        marker = {"tool": "twinreg", "files": _listing(stage)}
+        marker = {"tool": "twinreg", "files": _listing(stage)} | ({"kind": kind} if kind else {})
         (stage / MARKER).write_text(json.dumps(marker, indent=1), encoding="utf-8")
     except BaseException as exc:
         shutil.rmtree(stage, ignore_errors=True)
@@ -249,7 +276,7 @@ def staged_folder(target, protect=()):
     old = target.parent / f".{target.name}.old-{os.getpid()}"
     try:
         with _parent_lock(target):
-            check_replaceable(target, protect)  # another run may have written it meanwhile
+            check_replaceable(target, protect, kind)  # another run may have written it meanwhile
             journal = _journal(target)
             with atomic_path(journal, ".swap") as tmp:
                 Path(tmp).write_text(json.dumps({"stage": stage.name, "old": old.name}), encoding="utf-8")
@@ -266,3 +293,57 @@ def staged_folder(target, protect=()):
             raise ExportError(f"{target}: cannot replace the folder ({exc.strerror})") from exc
         raise
     shutil.rmtree(old, ignore_errors=True)
+
+
+def _lock_file(target: Path) -> Path:
+    return target.parent / f".{target.name}.lock"
+
+
+@contextlib.contextmanager
+def locked(target, command: str):
+    """Hold OUT for the whole of a run: a second run writing the same OUT is refused at once with one line naming
+    the running one (its process id, command and start). The lock is the kernel's (``flock`` on ``.OUT.lock``
+    beside OUT): a killed run's lock goes with it, and the file is removed when the run ends."""
+    import datetime
+
+    target = real_target(target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ExportError(f"{target}: cannot write here ({exc.strerror}); choose another --out") from exc
+    path = _lock_file(target)
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise ExportError(f"{target}: cannot write here ({exc.strerror}); choose another --out") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                held = json.loads(os.read(fd, 4096).decode("utf-8"))
+                who = (f"process {int(held['pid'])}, twinreg {str(held['command'])[:40]}, started "
+                       f"{str(held['started'])[:19]}")
+            except (OSError, ValueError, KeyError, TypeError):
+                who = "another process"
+            os.close(fd)
+            raise ExportError(f"{target}: another twinreg run is writing this folder ({who}); wait for it to end or "
+                              "choose another --out") from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)  # the file was removed by the run that held it: lock the new one
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, json.dumps({"pid": os.getpid(), "command": command,
+                                 "started": datetime.datetime.now().isoformat(timespec="seconds")}).encode())
+        yield target
+    finally:
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+        os.close(fd)

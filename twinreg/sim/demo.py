@@ -29,7 +29,7 @@ def run_demo(out, seed: int = 0, n_cars: int = 14, progress=None) -> dict:
     it is missing, empty or an earlier demo (see :func:`~twinreg.io.outdir.staged_folder`). Returns a summary."""
     t0 = time.perf_counter()
     out = Path(out)
-    with staged_folder(out) as stage:
+    with staged_folder(out, kind="demo") as stage:
         summary = _run(stage, seed, n_cars, progress)
     summary["files"] = {k: str(out / v) for k, v in summary["files"].items()}
     summary["timing_s"]["total"] = round(time.perf_counter() - t0, 2)

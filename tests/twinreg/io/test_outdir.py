@@ -155,3 +155,78 @@ def test_the_listing_is_every_file_as_rglob_lists_it(tmp_path):
     os.symlink(tmp_path / "missing", tmp_path / "broken")
     want = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if not p.is_dir())
     assert _listing(tmp_path) == want == [".hidden", "a/b/f.txt", "broken", "c/to_file"]
+
+
+def _staged(target, kind, protect=()):
+    with staged_folder(target, protect=protect, kind=kind) as stage:
+        (stage / f"{kind.replace(' ', '_')}.json").write_text("{}")
+
+
+def test_a_folder_of_another_kind_is_not_replaced(tmp_path):
+    """A twin (a city twin can be half an hour of work) is not replaced by a comparison, nor the reverse; an older
+    marker without a kind is judged by its files."""
+    twin, changes = tmp_path / "twin", tmp_path / "changes"
+    _staged(twin, "twin")
+    _staged(changes, "comparison")
+    assert json.loads((twin / MARKER).read_text())["kind"] == "twin"
+    before = listing(twin)
+    with pytest.raises(ExportError, match=r"holds a twin \(written by twinreg build-twin\).*with a comparison"):
+        _staged(twin, "comparison")
+    with pytest.raises(ExportError, match=r"holds a comparison \(written by twinreg compare\)"):
+        _staged(changes, "twin")
+    assert listing(twin) == before
+    old = tmp_path / "old"
+    _staged(old, "twin")
+    (old / "twin.json").write_text("{}")
+    marker = json.loads((old / MARKER).read_text())
+    (old / MARKER).write_text(json.dumps({"tool": "twinreg", "files": marker["files"] + ["twin.json"]}))
+    with pytest.raises(ExportError, match="holds a twin"):
+        _staged(old, "comparison")
+    _staged(twin, "twin")  # the same kind is replaced as before
+
+
+def test_out_inside_an_input_or_the_catalogue_is_refused(tmp_path):
+    twin, lib = tmp_path / "twin", tmp_path / "library"
+    _staged(twin, "twin")
+    lib.mkdir()
+    for inside in (twin / "changes", lib / "changes"):
+        with pytest.raises(ExportError, match="lies inside"):
+            _staged(inside, "comparison", protect=[twin, lib])
+        assert not inside.exists()
+
+
+def test_a_second_run_on_the_same_out_is_refused(tmp_path):
+    """While one run holds OUT, another is refused at once, naming it; the lock goes with the run (killed or
+    not) and leaves no file."""
+    from twinreg.io.outdir import locked
+
+    out = tmp_path / "out"
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom twinreg.io.outdir import locked\n"
+                               f"with locked({str(out)!r}, 'build-twin'):\n    print('held', flush=True)\n"
+                               "    time.sleep(60)\n"], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(ExportError, match=rf"another twinreg run is writing this folder \(process {holder.pid}, "
+                                              r"twinreg build-twin, started 20"):
+            with locked(out, "compare"):
+                pass
+    finally:
+        holder.kill()
+        holder.wait()
+    with locked(out, "compare"):  # a killed holder's lock is gone with it
+        pass
+    assert not any(p.name.endswith(".lock") for p in tmp_path.iterdir())
+
+
+def test_a_killed_runs_staging_is_cleared_by_the_next_write_beside_it(tmp_path):
+    """kill -9 during the staging of one OUT: the hidden staging folder is removed by the next command writing
+    anything beside it (not only to that OUT)."""
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()
+    left = tmp_path / f".changes.tmp-{dead}-abcd1234"
+    left.mkdir()
+    (left / "changes.json").write_text("{}")
+    alive = tmp_path / f".other.tmp-{__import__('os').getpid()}-abcd1234"
+    alive.mkdir()
+    _staged(tmp_path / "twin", "twin")
+    assert not left.exists() and alive.exists()
