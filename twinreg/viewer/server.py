@@ -7,7 +7,10 @@ A twin may come from someone else, so the page treats its text as text (``viewer
 data) and the server makes that a rule: a Content-Security-Policy allows only this server's own scripts (and the
 page's import map, by its hash), no inline script or handler; requests must name 127.0.0.1 or localhost as their
 Host (a DNS-rebinding page elsewhere cannot read the folder); no folder is listed; a bad path is a 400 or 404,
-never a traceback; an idle connection is closed after :data:`IDLE_TIMEOUT_S`."""
+never a traceback; an idle connection is closed after :data:`IDLE_TIMEOUT_S`. The folder's files are data, never
+pages: only the types the viewer reads are served from it (:data:`DATA_TYPES`; anything else, a planted
+``evil.html`` or ``evil.js`` included, is a 404), each with ``Content-Security-Policy: default-src 'none'; sandbox``
+and ``nosniff``, so that nothing from a twin can run as this server's script or page."""
 
 from __future__ import annotations
 
@@ -28,6 +31,10 @@ STATIC = Path(__file__).resolve().parent / "static"
 IDLE_TIMEOUT_S = 15
 #: the Host names a request may use
 LOCAL_HOSTS = ("127.0.0.1", "localhost")
+#: the files of a twin or comparison folder the viewer reads, by suffix, with the type they are served as
+DATA_TYPES = {".json": "application/json", ".glb": "model/gltf-binary", ".bin": "application/octet-stream"}
+#: the policy of every answer from the folder: nothing in it runs, even opened as a page of its own
+DATA_POLICY = "default-src 'none'; sandbox"
 
 
 
@@ -60,6 +67,10 @@ class _Handler(SimpleHTTPRequestHandler):
     policy: str = "default-src 'none'"
     timeout = IDLE_TIMEOUT_S
 
+    def _data(self) -> bool:
+        """Whether the request is for the twin's folder (data), not for the viewer's own files."""
+        return unquote(urlparse(self.path).path).startswith("/twin/")
+
     def translate_path(self, path: str) -> str:
         p = unquote(urlparse(path).path)
         if "\x00" in p or "\\" in p:
@@ -89,15 +100,23 @@ class _Handler(SimpleHTTPRequestHandler):
         if os.path.isdir(path):  # no folder is listed, whatever it holds
             self.send_error(404, "not found")
             return None
+        if self._data() and Path(path).suffix.lower() not in DATA_TYPES:  # never a page, a script or a style
+            self.send_error(404, "not found")
+            return None
         try:
             return super().send_head()
         except (OSError, ValueError):
             self.send_error(400, "bad request")
             return None
 
+    def guess_type(self, path):
+        if self._data():
+            return DATA_TYPES.get(Path(str(path)).suffix.lower(), "application/octet-stream")
+        return super().guess_type(path)
+
     def end_headers(self):
         self.send_header("Cache-Control", "no-store")
-        self.send_header("Content-Security-Policy", self.policy)
+        self.send_header("Content-Security-Policy", DATA_POLICY if self._data() else self.policy)
         self.send_header("X-Content-Type-Options", "nosniff")
         self.send_header("Referrer-Policy", "no-referrer")
         super().end_headers()

@@ -217,3 +217,29 @@ def test_a_bad_port_is_a_usage_error(demo_twin):
                               capture_output=True, text=True, timeout=60, env=_env())
         assert proc.returncode == 2, (port, proc.stderr)
         assert "Traceback" not in proc.stderr and "OverflowError" not in proc.stderr
+
+
+def test_planted_pages_and_scripts_in_a_twin_are_never_served(demo_twin, tmp_path):
+    """A stranger's twin folder holding evil.html and evil.js: neither is served (the folder's files are data of
+    the types the viewer reads), and its data comes with a policy under which nothing runs."""
+    from twinreg.viewer import serve
+
+    folder = tmp_path / "planted"
+    shutil.copytree(demo_twin, folder)
+    (folder / "evil.html").write_text('<script src="/twin/evil.js"></script>')
+    (folder / "evil.js").write_text("window.__pwned = 1")
+    (folder / "evil.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" onload="alert(1)"/>')
+    (folder / "tiles" / "x.json.html").write_text("<script>alert(1)</script>")
+    server, url = serve(folder, 0)
+    try:
+        for bad in ("twin/evil.html", "twin/evil.js", "twin/evil.svg", "twin/tiles/x.json.html", "twin/report.html"):
+            assert _get(url + bad) == 404, bad
+        for good, kind in (("twin/twin.json", "application/json"), ("twin/tiles/tileset.json", "application/json")):
+            with urllib.request.urlopen(url + good) as r:
+                assert r.headers["Content-Type"] == kind
+                assert r.headers["Content-Security-Policy"] == "default-src 'none'; sandbox"
+                assert r.headers["X-Content-Type-Options"] == "nosniff"
+        with urllib.request.urlopen(url) as r:  # the viewer's own page keeps its own policy
+            assert "script-src 'self'" in r.headers["Content-Security-Policy"]
+    finally:
+        server.shutdown()
