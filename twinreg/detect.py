@@ -95,10 +95,14 @@ def describe_detected(det: Detection, params: CoscoParams = DEFAULT, objects=Non
 
 
 def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None,
-                crs: str | None = None) -> Detection:
-    """Read a scene (``crs``: its projected CRS, overriding a LAS header's) and detect its objects."""
+                crs: str | None = None, override_crs: bool = False, on_read=None) -> Detection:
+    """Read a scene (``crs``: its projected CRS; one that differs from a LAS header's only with ``override_crs``)
+    and detect its objects; ``on_read(scene)`` is called once the points are read, before the detection (to
+    refuse a scene early)."""
     t = time.perf_counter()
-    scene = read_points(path, unit=unit, crs=crs)
+    scene = read_points(path, unit=unit, crs=crs, override_crs=override_crs)
+    if on_read is not None:
+        on_read(scene)
     if len(scene.points) < 100:
         raise SceneReadError(f"{path}: only {len(scene.points)} points; a scene needs at least 100")
     read_s = time.perf_counter() - t

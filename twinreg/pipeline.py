@@ -22,12 +22,28 @@ from .export.objects import object_output
 from .export.tiles3d import scan_sample
 from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from .export.twin_ply import write_twin_ply
-from .geo.georef import Georef, scene_georef
+from .geo.georef import Georef, check_area, scene_georef
 from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
 from .matching.match import ModelCache, match_objects
 from .report.painter import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
+
+
+def require_models(catalogue: Catalogue) -> None:
+    """:class:`CatalogueError` naming the folder and the fix when the catalogue a run matches against is missing
+    (the folder, or its database) or holds no model."""
+    folder = catalogue.folder
+    if not folder.exists():
+        raise CatalogueError(f"{folder}: no catalogue there (the folder does not exist); pass --library with the "
+                             "folder that holds catalogue.sqlite, or add models to a new one with `twinreg "
+                             f"--library {folder} add-model MESH`")
+    if not catalogue.exists:
+        raise CatalogueError(f"{folder}: the folder holds no catalogue (no catalogue.sqlite); pass --library with "
+                             "the folder that holds one, or add models with `twinreg add-model MESH`")
+    if catalogue.count() == 0:
+        raise CatalogueError(f"the catalogue in {folder} is empty; add models with `twinreg add-model MESH` or "
+                             "`twinreg import-models DIR`")
 
 
 def _say(progress, msg):
@@ -113,6 +129,10 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     timing = {}
     params = checked_params(params, tol, threshold)
     scene_path = Path(scene_path)
+    from .io._files import checked_input
+    from .io.points import POINT_SUFFIXES
+
+    checked_input(scene_path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin", SceneReadError)
     check_replaceable(Path(out), protect=[scene_path, catalogue.folder], kind="twin")
     with locked(Path(out), "build-twin"):
         return _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
@@ -121,9 +141,7 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
 
 def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
                   templates) -> dict:
-    if catalogue.count() == 0:
-        raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
-                             "`twinreg add-model MESH` or `twinreg import-models DIR`")
+    require_models(catalogue)
     from .matching.prober import Prober
 
     prober = Prober.start()  # open3d loads in a helper while this process detects and registers
@@ -141,8 +159,13 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
 def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing,
            ply=True, date=None, templates=False, prober=None) -> dict:
     _say(progress, "reading and detecting")
-    det = detect_file(scene_path, unit=unit, params=params,
-                      crs=georef.crs if georef is not None and georef.crs_source == "--crs" else None)
+    given = georef is not None and georef.crs_source == "--crs"
+
+    def placed(scene):  # a scan that the CRS puts elsewhere on Earth is refused before its detection
+        check_area(scene_georef(georef, scene), scene.points.min(0), scene.points.max(0), str(scene_path))
+
+    det = detect_file(scene_path, unit=unit, params=params, crs=georef.crs if given else None,
+                      override_crs=given and georef.override, on_read=placed)
     georef = scene_georef(georef, det.scene)
     timing.update(det.timing_s)
     targets = det.objects

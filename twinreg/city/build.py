@@ -16,7 +16,7 @@ import numpy as np
 
 from cosco.params import DEFAULT, CoscoParams
 
-from ..errors import CatalogueError, CityError, ParameterError, SceneReadError
+from ..errors import CityError, ParameterError, SceneReadError
 from .cells import CellJob, process_cell
 from .classified import FOLDER, write_classified_cells
 from .engine import Engine
@@ -149,17 +149,21 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     if workers is not None and workers < 1:
         raise ParameterError(f"--workers must be 1 or more (got {workers})")
     crs = georef.crs if georef is not None and georef.crs_source == "--crs" else None
-    sources = open_sources(paths, unit=unit, crs=crs)
+    sources = open_sources(paths, unit=unit, crs=crs, override_crs=bool(georef is not None and georef.override))
     georef = city_georef(georef, sources)
     p = plan(sources, cell, buffer, params.ground_reach)
+    from ..geo.georef import check_area
+
+    check_area(georef, np.min([s.lo for s in sources], axis=0), np.max([s.hi for s in sources], axis=0),
+               sources[0].path if len(sources) == 1 else f"{sources[0].path} and {len(sources) - 1} more tiles")
     if not p.cells:
         raise SceneReadError(f"{sources[0].path}: the tiles hold no points")
     out = Path(out)
     protect = [Path(s.path) for s in sources] + [catalogue.folder]
     check_replaceable(out, protect, kind="twin")
-    if catalogue.count() == 0:
-        raise CatalogueError(f"the catalogue in {catalogue.folder} is empty; add models with "
-                             "`twinreg add-model MESH` or `twinreg import-models DIR`")
+    from ..pipeline import require_models
+
+    require_models(catalogue)
     with locked(out, "build-twin"):
         return _locked_city(sources, georef, p, out, protect, catalogue, params, workers, scheduler, restart, ply,
                             progress, date, classified, t_start, timing)

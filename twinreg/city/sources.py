@@ -106,7 +106,7 @@ def is_tiled(paths, explicit: bool = False) -> bool:
         return False
 
 
-def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Source:
+def read_source(path: Path, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> Source:
     """The header of one LAS/LAZ/COPC tile as a :class:`Source` (no points are read)."""
     import laspy
 
@@ -136,7 +136,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
         from ..io.copc import check_copc
 
         check_copc(path, int(header.point_count), SceneReadError)
-    info, unit_name, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error)
+    info, unit_name, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error, override_crs)
     mins, maxs = np.asarray(header.mins, dtype=np.float64), np.asarray(header.maxs, dtype=np.float64)
     s = np.array([scale, scale, z_scale])
     st = path.stat()
@@ -146,14 +146,14 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None) -> Sourc
                   date=header_date(header))
 
 
-def open_sources(paths, unit: str = "auto", crs: str | None = None) -> list[Source]:
+def open_sources(paths, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> list[Source]:
     """Headers of every tile; tiles whose CRS or unit disagree are refused with one line naming two of them."""
     files = expand_paths(paths)
     bad = [f for f in files if f.suffix.lower() not in TILE_SUFFIXES]
     if bad:
         raise SceneReadError(f"{bad[0]}: a tiled run reads LAS, LAZ or COPC files; pass this file on its own to "
                              "build-twin, or convert it to LAZ")
-    sources = [read_source(f, unit, crs) for f in files]
+    sources = [read_source(f, unit, crs, override_crs) for f in files]
     first = sources[0]
     for s in sources[1:]:
         if not _same_crs(first.crs, s.crs):

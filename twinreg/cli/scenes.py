@@ -64,7 +64,10 @@ def build_twin_cmd(
     anchor: Annotated[Optional[tuple[float, float]], typer.Option(
         help="Scene X Y at --lat/--lon (default 0 0).")] = None,
     crs: Annotated[Optional[str], typer.Option(
-        help="The scene's projected CRS, e.g. EPSG:2157 (default: the CRS a LAS/LAZ header states).")] = None,
+        help="The scene's projected CRS, e.g. EPSG:2157 [default: the CRS a LAS/LAZ header states; a different one "
+             "only with --override-crs].", show_default=False)] = None,
+    override_crs: Annotated[bool, typer.Option(
+        "--override-crs", help="--crs replaces the CRS the file's header states (the header is wrong).")] = False,
     vertical_crs: Annotated[Optional[str], typer.Option(
         "--vertical-crs", help="The datum of the scan's heights (and of --alt), e.g. EPSG:5709 (NAP), EPSG:5703 "
                                "(NAVD88) [default: a compound CRS's in the header; else unknown, taken as "
@@ -115,7 +118,7 @@ def build_twin_cmd(
     from ..pipeline import RunSettings, build
 
     georef = georef_from_options(lat=lat, lon=lon, alt=alt, anchor=anchor, crs=crs, required=False,
-                                 vertical_crs=vertical_crs)
+                                 vertical_crs=vertical_crs, override_crs=override_crs)
     cat = open_catalogue(library, create=False)
     first = paths[0]
     out = out or Path("exports") / (first.stem if first.suffix else first.name or "twin")

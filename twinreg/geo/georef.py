@@ -97,6 +97,7 @@ class Georef:
     crs_name: str | None = None
     crs_source: str | None = None
     vertical: object = None
+    override: bool = False
 
     @property
     def heights(self):
@@ -175,13 +176,21 @@ class Georef:
 
 
 def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: str | None = None,
-                        required: bool = True, vertical_crs: str | None = None) -> Georef | None:
+                        required: bool = True, vertical_crs: str | None = None,
+                        override_crs: bool = False) -> Georef | None:
     """Validate the georeferencing options. Raises :class:`GeorefError` with the fix. With ``required`` False,
     no option at all gives None (the scene's own CRS is used once it is read: :func:`scene_georef`).
-    ``vertical_crs``: the datum of the scan's heights (and of ``alt``), overriding a header's."""
+    ``vertical_crs``: the datum of the scan's heights (and of ``alt``), overriding a header's. ``override_crs``:
+    ``crs`` replaces a CRS the file's header states (without it, a ``crs`` that differs from the header's is
+    refused when the file is read)."""
     from dataclasses import replace
 
+    if override_crs and not crs:
+        raise GeorefError("--override-crs says that --crs replaces the CRS the file's header states; give --crs "
+                          "EPSG:NNNN with it")
     g = _georef_from_options(lat, lon, alt, anchor, crs, required and vertical_crs is None)
+    if override_crs:
+        g = replace(g, override=True)
     if vertical_crs is None:
         return g
     from .vertical import vertical_of
@@ -232,3 +241,37 @@ def scene_georef(georef: Georef | None, scene) -> Georef:
     if georef.crs and info is not None:
         return georef.with_crs(info) if info.source == "--crs" else georef
     return georef
+
+
+#: how far (degrees) a scan may reach beyond its CRS's area of use before it is refused: the areas are those of
+#: the CRS's definition, and a survey may cross a zone's edge
+AREA_MARGIN_DEG = 1.0
+
+
+def check_area(georef: Georef, lo, hi, where: str, error=GeorefError) -> None:
+    """Refuse a scan whose footprint ``lo``-``hi`` ((2,) or (3,) scene metres) falls outside the area of use of its
+    CRS (by more than :data:`AREA_MARGIN_DEG`): a valid but wrong CRS would put it elsewhere on Earth. One line
+    naming the CRS, its area and where the scan would land."""
+    if not georef.crs:
+        return
+    from pyproj import CRS
+
+    area = CRS.from_user_input(georef.crs).area_of_use
+    if area is None:
+        return
+    lo, hi = np.asarray(lo, dtype=np.float64)[:2], np.asarray(hi, dtype=np.float64)[:2]
+    corners = np.array([[lo[0], lo[1], 0.0], [hi[0], lo[1], 0.0], [lo[0], hi[1], 0.0], [hi[0], hi[1], 0.0],
+                        [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 0.0]])
+    with np.errstate(all="ignore"):
+        ll = georef.to_wgs84(corners)
+    m = AREA_MARGIN_DEG
+    inside = (np.isfinite(ll[:, :2]).all(1) & (ll[:, 0] >= area.west - m) & (ll[:, 0] <= area.east + m)
+              & (ll[:, 1] >= area.south - m) & (ll[:, 1] <= area.north + m))
+    if inside.all():
+        return
+    lon, lat = ll[4, 0], ll[4, 1]
+    there = (f"{abs(lat):.1f} {'N' if lat >= 0 else 'S'}, {abs(lon):.1f} {'E' if lon >= 0 else 'W'}"
+             if np.isfinite(ll[4, :2]).all() else "nowhere on Earth")
+    raise error(f"{where}: in {georef.crs_name or georef.crs} ({georef.crs}) the scan would lie at {there}, outside "
+                f"the CRS's area of use ({area.name}: {area.south:.2f} to {area.north:.2f} N, {area.west:.2f} to "
+                f"{area.east:.2f} E); give the CRS the coordinates are in (--crs EPSG:NNNN), or check --unit")

@@ -241,13 +241,19 @@ def _read_o3d(path: Path) -> np.ndarray:
     return pts
 
 
-def crs_and_units(path: Path, unit: str, crs, header_crs, header_error):
-    """(CrsInfo or None, unit name, horizontal scale, vertical scale) for a file, or SceneReadError."""
+def crs_and_units(path: Path, unit: str, crs, header_crs, header_error, override: bool = False):
+    """(CrsInfo or None, unit name, horizontal scale, vertical scale) for a file, or SceneReadError. A ``crs``
+    (``--crs``) that differs from the one the header states is refused unless ``override`` (``--override-crs``)."""
     from ..geo.georef import crs_info
 
     info = None
     if crs:
         info = crs_info(crs, "--crs", where=f"--crs {crs}")
+        if header_crs is not None and not override and not _same_crs(info.crs, header_crs):
+            stated = crs_info(header_crs, "file header", where=f"{path}", error=SceneReadError)
+            raise SceneReadError(f"{path}: --crs {crs} ({info.name}) differs from the CRS the file's header states "
+                                 f"({stated.name}, {stated.crs}); drop --crs to use the header's, or add "
+                                 "--override-crs if the header is wrong")
     elif header_crs is not None:
         info = crs_info(header_crs, "file header", where=f"{path}", error=SceneReadError)
     elif header_error is not None and unit == "auto":
@@ -268,12 +274,20 @@ def crs_and_units(path: Path, unit: str, crs, header_crs, header_error):
     return info, unit, scale, (info.vertical_unit_m if info is not None else scale)
 
 
-def read_points(path, unit: str = "auto", crs: str | None = None) -> PointSet:
+def _same_crs(a, b) -> bool:
+    """Whether two CRSs (pyproj input) are the same, axis order aside."""
+    from pyproj import CRS
+
+    return CRS.from_user_input(a).equals(CRS.from_user_input(b), ignore_axis_order=True)
+
+
+def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> PointSet:
     """Read a point file to a :class:`PointSet`.
 
     unit : ``auto`` (the CRS's units when one is known, else metres) or one of m, cm, mm, ft, us-ft, in.
     crs : the file's projected CRS (``--crs``), overriding the one a LAS/LAZ header states. Horizontal and vertical
-    units come from the CRS (the vertical part of a compound CRS, else the horizontal unit).
+    units come from the CRS (the vertical part of a compound CRS, else the horizontal unit); a ``crs`` that differs
+    from the header's is refused unless ``override_crs``.
     Raises :class:`SceneReadError` with one line naming the file for a missing, unreadable, truncated or empty file,
     a geographic CRS, or a CRS record that cannot be parsed (unless ``--unit`` or ``--crs`` say what it meant).
     """
@@ -298,7 +312,7 @@ def read_points(path, unit: str = "auto", crs: str | None = None) -> PointSet:
     pts = pts[finite]
     if len(pts) == 0:
         raise SceneReadError(f"{path}: no valid points")
-    info, unit, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error)
+    info, unit, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error, override_crs)
     if scale != 1.0 or z_scale != 1.0:
         pts = pts * np.array([scale, scale, z_scale])
     far = np.abs(pts).max(1) > MAX_COORD

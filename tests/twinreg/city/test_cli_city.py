@@ -47,7 +47,7 @@ def test_bad_tiling_options_are_refused_with_one_line(tmp_path, parametric_catal
 
     tiles = tmp_path / "tiles"
     tiles.mkdir()
-    write_las(tiles / "a.laz", np.random.default_rng(0).uniform([0, 0, 0], [50, 50, 2], (500, 3)), crs="EPSG:28992")
+    write_las(tiles / "a.laz", np.random.default_rng(0).uniform([0, 0, 0], [50, 50, 2], (500, 3)) + [155000, 463000, 0], crs="EPSG:28992")
     base = ["--library", str(parametric_catalogue.folder), "build-twin", str(tiles), "--out", str(tmp_path / "o")]
     for extra, words in ((["--cell", "20"], "--cell must be more than"), (["--workers", "0"], "--workers must be"),
                          (["--buffer", "-1"], "--buffer must be")):
@@ -64,7 +64,7 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path, parametric_catalogue):
 
     tiles = tmp_path / "tiles"
     tiles.mkdir()
-    write_las(tiles / "a.laz", np.random.default_rng(0).uniform([0, 0, 0], [50, 50, 2], (500, 3)), crs="EPSG:28992")
+    write_las(tiles / "a.laz", np.random.default_rng(0).uniform([0, 0, 0], [50, 50, 2], (500, 3)) + [155000, 463000, 0], crs="EPSG:28992")
     res = runner.invoke(app, ["--library", str(parametric_catalogue.folder), "build-twin", str(tiles), "--out",
                               str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9"])
     assert res.exit_code == 1

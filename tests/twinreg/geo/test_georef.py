@@ -158,3 +158,41 @@ def test_crs_problems_are_one_line_errors(tmp_path, small_park):
     with pytest.raises(SceneReadError, match="disagrees with the unit of the CRS"):
         read_points(broken, unit="m", crs="EPSG:2994")
     assert read_points(broken, unit="ft").crs is None  # told the unit: readable, georeferenced by options
+
+
+AHN = SHARED_DATA / "ahn_amsterdam" / "ahn_2397_9705.laz"
+AUTZEN = SHARED_DATA / "autzen_parking" / "autzen_parking_north.las"
+
+
+@pytest.mark.parametrize("scan,args,words", [
+    (AHN, ["--crs", "EPSG:2157"], ["ahn_2397_9705.laz: in IRENET95 / Irish Transverse Mercator (EPSG:2157) the scan "
+                                   "would lie at 50.9 N, 14.8 W, outside the CRS's area of use (Ireland"]),
+    (AUTZEN, ["--crs", "EPSG:2157"], ["--crs EPSG:2157 (IRENET95 / Irish Transverse Mercator) differs from the CRS "
+                                      "the file's header states (NAD_1983_HARN_Lambert_Conformal_Conic",
+                                      "--override-crs"]),
+    # (read as ITM metres, Autzen's feet happen to fall in Ireland: an override is the user's word)
+    (AUTZEN, ["--crs", "EPSG:28992", "--override-crs"], ["outside the CRS's area of use (Netherlands"]),
+    (AUTZEN, ["--override-crs"], ["--override-crs says that --crs replaces"]),
+])
+def test_a_wrong_crs_is_refused_before_the_detection(parametric_catalogue, tmp_path, scan, args, words):
+    """A valid but wrong CRS puts a real scan elsewhere on Earth: refused in one line naming the CRS, its area
+    and where the scan would land, at once and with nothing written; a --crs other than the header's needs
+    --override-crs."""
+    import time
+
+    from typer.testing import CliRunner
+
+    from twinreg.cli import app
+
+    need(scan)
+    out = tmp_path / "out"
+    t = time.monotonic()
+    r = CliRunner().invoke(app, ["build-twin", str(scan), *args, "--library", str(parametric_catalogue.folder),
+                                 "--out", str(out)])
+    assert time.monotonic() - t < 20
+    assert r.exit_code in (1, 2), r.output
+    line = r.output.strip()
+    assert line.startswith("error:") and "\n" not in line, line
+    for w in words:
+        assert w in line, line
+    assert not out.exists() and list(tmp_path.iterdir()) == []
