@@ -21,7 +21,7 @@ from .export.kmz import write_kmz
 from .export.objects import object_output
 from .export.tiles3d import scan_sample
 from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
-from .export.twin_ply import write_twin_ply
+from .export.twin_ply import write_prj, write_twin_ply
 from .geo.georef import Georef, check_area, scene_georef
 from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
@@ -167,6 +167,8 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     det = detect_file(scene_path, unit=unit, params=params, crs=georef.crs if given else None,
                       override_crs=given and georef.override, on_read=placed)
     georef = scene_georef(georef, det.scene)
+    centre = georef.centre_of(det.scene.points)
+    georef = georef.identified(centre["lon"], centre["lat"])
     timing.update(det.timing_s)
     targets = det.objects
     if not targets:
@@ -288,7 +290,8 @@ def _match_and_export(run: SceneRun) -> dict:
     kmz = Pending(run.prober.helper if run.prober else None, write_kmz, stage / "twin.kmz",
                   f"twinreg: {scene_path.name}", kmz_objects, meshes)
     if ply:
-        write_twin_ply(stage / "twin.ply", ply_parts, offset, georef.to_json(), scene_path.name)
+        write_twin_ply(stage / "twin.ply", ply_parts, offset, georef, scene_path.name)
+        write_prj(stage / "twin.prj", georef)
     rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
     twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
                                   [("scene", det.scene.points[rows], colours)], f"twinreg: {scene_path.name}", models,

@@ -154,8 +154,11 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     p = plan(sources, cell, buffer, params.ground_reach)
     from ..geo.georef import check_area
 
-    check_area(georef, np.min([s.lo for s in sources], axis=0), np.max([s.hi for s in sources], axis=0),
-               sources[0].path if len(sources) == 1 else f"{sources[0].path} and {len(sources) - 1} more tiles")
+    lo, hi = np.min([s.lo for s in sources], axis=0), np.max([s.hi for s in sources], axis=0)
+    check_area(georef, lo, hi, sources[0].path if len(sources) == 1 else f"{sources[0].path} and "
+               f"{len(sources) - 1} more tiles")
+    centre = georef.centre_of(np.array([lo, hi]))
+    georef = georef.identified(centre["lon"], centre["lat"])
     if not p.cells:
         raise SceneReadError(f"{sources[0].path}: the tiles hold no points")
     out = Path(out)

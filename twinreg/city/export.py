@@ -132,8 +132,8 @@ def export_city(run: CityRun) -> dict:
             write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", kmz_objects, meshes, folders=folders)
             if ply:
                 for name, parts in per_cell_ply.items():
-                    write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset),
-                                   georef.to_json(), f"{twin['scene']}, cell {name}")
+                    write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset), georef,
+                                   f"{twin['scene']}, cell {name}")
             write_city_report(stage, twin, results, objects, outcomes, plan)
             rows: dict = {}
             for k, o in enumerate(objects):

@@ -26,17 +26,44 @@ from pathlib import Path
 
 import numpy as np
 
-from .geojson import _flat
+from .geojson import properties
 
 #: CityJSON integer coordinates: tenths of a millimetre (explicit geometry and a template placed by its matrix
 #: then agree within 0.2 mm)
 SCALE = 0.0001
 
 
-def _reference_system(crs: str | None) -> str | None:
-    if crs and crs.upper().startswith("EPSG:"):
-        return f"https://www.opengis.net/def/crs/EPSG/0/{crs.split(':', 1)[1]}"
-    return None
+def _reference_system(georef) -> str | None:
+    """The OGC URL of the CRS the file's coordinates are in: the compound CRS when the heights' datum is stated
+    and EPSG registers the pair (RD New + NAP: 7415), else the horizontal CRS (its code identified from a WKT)."""
+    from ..geo.georef import ogc_url
+
+    code = georef.reference_code or georef.crs_code
+    if code is None and georef.crs and georef.crs.upper().startswith("EPSG:"):
+        code = georef.crs
+    return ogc_url(code)
+
+
+def _extent(p: "_Placed") -> list[float]:
+    """``geographicalExtent``: the bounds (CRS units) of every placed vertex, from each mesh's convex hull (an affine
+    map keeps a hull's extremes): [minx, miny, minz, maxx, maxy, maxz]."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    groups: dict = {}
+    for k, key in enumerate(p.keys):
+        groups.setdefault(key, []).append(k)
+    for key, rows in groups.items():
+        v = p.meshes[key][0]
+        try:
+            hull = v[ConvexHull(v).vertices] if len(v) > 4 else v
+        except (QhullError, ValueError):  # flat or degenerate: every vertex
+            hull = v
+        mats = np.array([p.matrices[k][:3, :3] for k in rows])
+        placed = np.einsum("kij,hj->khi", mats, hull) + p.ref[rows][:, None, :]
+        lo = np.minimum(lo, placed.reshape(-1, 3).min(0))
+        hi = np.maximum(hi, placed.reshape(-1, 3).max(0))
+    return [float(v) for v in (*lo, *hi)]
 
 
 @dataclass
@@ -70,7 +97,7 @@ def _placed(instances, meshes, docs, headings, georef) -> _Placed:
         m = np.eye(4)
         m[:3, :3] = to_crs @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.diag(inst.scale or (1, 1, 1))
         matrices.append(m)
-        flat = {k: v for k, v in _flat(doc).items() if v is not None and k != "id"}
+        flat = {k: v for k, v in properties(doc).items() if v is not None and k != "id"}
         attributes.append({"function": "vehicle", **flat})
     translate = np.floor(ref.min(0)) if len(ref) else np.zeros(3)
     return _Placed(used, [i.mesh for i in instances], ref, matrices, attributes, [d["id"] for d in docs], translate)
@@ -87,11 +114,11 @@ def _header(p: _Placed, title: str, georef) -> dict:
     doc = {"type": "CityJSON", "version": "2.0",
            "transform": {"scale": [SCALE, SCALE, SCALE], "translate": [float(t) for t in p.translate]},
            "metadata": {"title": title}, "CityObjects": {}, "vertices": []}
-    rs = _reference_system(georef.crs)
+    rs = _reference_system(georef)
     if rs:
         doc["metadata"]["referenceSystem"] = rs
     if len(p.ref):
-        doc["metadata"]["geographicalExtent"] = [float(v) for v in (*p.translate, *p.ref.max(0))]
+        doc["metadata"]["geographicalExtent"] = _extent(p)
     return doc
 
 

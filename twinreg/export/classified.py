@@ -37,7 +37,4 @@ def write_classified(path: Path, points: np.ndarray, classes: np.ndarray, ids: n
     twin is placed by --lat/--lon, with no CRS in the file)."""
     from ..io.copc import write_copc
 
-    pts = np.asarray(points, dtype=np.float64)
-    if georef.crs:
-        pts = pts / [georef.crs_unit_m, georef.crs_unit_m, georef.vertical_unit_m]
-    return write_copc(path, pts, georef.crs, classes=classes, source_ids=ids)
+    return write_copc(path, georef.to_crs_units(points), georef.crs, classes=classes, source_ids=ids)

@@ -1,5 +1,6 @@
 """The twin's open formats, written together by the per-scene pipeline and the city engine: 3D Tiles and
-twin.glb (:mod:`.tiles3d`), CityJSON (:mod:`.cityjson`) and GeoJSON (:mod:`.geojson`)."""
+twin.glb (:mod:`.tiles3d`), CityJSON (:mod:`.cityjson`), GeoJSON (:mod:`.geojson`) and GeoPackage
+(:mod:`.gpkg`)."""
 
 from __future__ import annotations
 
@@ -49,14 +50,24 @@ def write_tile_formats(stage: Path, outputs: list, offsets: list, georef, groups
 
 
 def write_text_formats(stage: Path, instances: list, light: dict, docs: list, lonlat: list, georef, title: str,
-                       templates: bool, seq: bool, outputs: list) -> None:
-    """The formats that are JSON text: twin.city.json (and twin.city.jsonl with ``seq``), twin.geojson (the
-    footprints' ``lonlat``) and sections.json."""
+                       templates: bool, seq: bool, outputs: list, rings=None) -> None:
+    """The formats of the objects' records: twin.city.json (and twin.city.jsonl with ``seq``), twin.geojson (the
+    footprints' ``lonlat``), sections.json and twin.gpkg (the footprints' ``rings`` in the CRS's units)."""
+    from .gpkg import write_gpkg
+
     stage = Path(stage)
     write_cityjson(stage / "twin.city.json", instances, light, docs, [d["heading_rad"] for d in docs], georef,
                    title, templates, stage / "twin.city.jsonl" if seq else None)
     write_geojson(stage / "twin.geojson", docs, lonlat)
     write_sections(stage / "sections.json", outputs)
+    write_gpkg(stage / "twin.gpkg", docs, lonlat if rings is None else rings, gpkg_crs(georef))
+
+
+def gpkg_crs(georef) -> str | None:
+    """The CRS of twin.gpkg's layer: the compound or horizontal code, else the CRS's WKT (None: WGS84)."""
+    if not georef.crs:
+        return None
+    return georef.reference_code or georef.crs_code or georef.crs
 
 
 class _Threaded:
@@ -80,10 +91,14 @@ def start_text_formats(stage: Path, outputs: list, offsets: list, georef, title:
     ``wait()`` for, and to ``stop()`` on every path (:class:`~twinreg.report.painter.Forked`)."""
     docs = [o.doc for o in outputs]
     # pyproj's transformations and the catalogue's connection stay in this process and thread
-    ll = footprints_lonlat([np.asarray(o.footprint["corners"]) + np.asarray(off)[:2]
-                            for o, off in zip(outputs, offsets)], georef)
+    corners = [np.asarray(o.footprint["corners"]) + np.asarray(off)[:2] for o, off in zip(outputs, offsets)]
+    ll = footprints_lonlat(corners, georef)
+    rings = None
+    if georef.crs and corners:
+        flat = np.vstack(corners)
+        rings = georef.to_crs_units(np.c_[flat, np.zeros(len(flat))])[:, :2]
     args = (Path(stage), _instances(outputs, offsets), _light(outputs, models), docs, ll, georef, title, templates,
-            seq, outputs)
+            seq, outputs, rings)
     if not fork:
         return _Threaded(*args)
     from ..report.painter import Forked

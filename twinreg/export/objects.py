@@ -142,13 +142,16 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
     else:
         lon, lat, bearing = where
     doc = {"id": oid, "n_points": int(n_points), "centroid": [float(v) for v in centre_scene],
+           "position_crs": [float(v) for v in georef.to_crs_units(centre_scene)[0]],
            "heading_rad": float(heading), "size": {k: round(float(v), 3) for k, v in size.items()},
            "measured_size": shape.size.as_dict(),
            "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4)},
-           "cluster": int(label), "match": match_doc, "lat": float(lat), "lon": float(lon),
+           "cluster": int(label), "kind": "car" if match_doc else "unknown", "match": match_doc,
+           "lat": float(lat), "lon": float(lon),
            "bearing_deg": round(bearing, 3)}
     if match_doc is None:
         doc["reason"] = res.reason
+        doc["reason_code"] = res.reason_code
         if res.rejected:
             doc["rejected_model"] = res.rejected
     description = (f"{match_doc['name']} ({match_doc['make'] or ''} {match_doc['model'] or ''}), RMSE "

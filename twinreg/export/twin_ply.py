@@ -1,5 +1,8 @@
-"""twin.ply: the placed model meshes and boxes for unmatched objects, per-vertex colour by cluster, in the scene
-frame shifted by a stated offset (float64 vertices; the header comments put it back in place exactly)."""
+"""twin.ply: the placed model meshes and boxes for unmatched objects, per-vertex colour by cluster, in the scan's
+own coordinates: the CRS's units (feet for a CRS in feet) as the scan and scan.copc.laz hold them, float64, so that
+the twin overlays the scan in CloudCompare with no hand work; a twin placed by --lat/--lon is in its local frame's
+metres. Short header comments say the CRS's code, its units and the anchor; the CRS's WKT, which one comment line
+cannot hold (readers such as open3d's refuse long header lines), goes to twin.prj beside it."""
 
 from __future__ import annotations
 
@@ -18,9 +21,14 @@ def cluster_color(label: int) -> np.ndarray:
     return PALETTE[(int(label) - 1) % len(PALETTE)]
 
 
-def write_twin_ply(path, parts: list[tuple[np.ndarray, np.ndarray, int]], offset: np.ndarray, georef: dict,
+#: the longest text of a value in a header comment (a PLY reader's line buffer is short)
+COMMENT_VALUE = 80
+
+
+def write_twin_ply(path, parts: list[tuple[np.ndarray, np.ndarray, int]], offset: np.ndarray, georef,
                    scene_name: str) -> Path:
-    """parts: (vertices (n, 3) scene-local metres, faces, cluster label) per object."""
+    """parts: (vertices (n, 3) scene-local metres, faces, cluster label) per object; ``offset`` (3,) takes them to
+    the scene frame; ``georef`` (:class:`~twinreg.geo.georef.Georef`) to the CRS's units."""
     verts, faces, colors = [], [], []
     base = 0
     for v, f, label in parts:
@@ -28,17 +36,44 @@ def write_twin_ply(path, parts: list[tuple[np.ndarray, np.ndarray, int]], offset
         faces.append(np.asarray(f) + base)
         colors.append(np.repeat(cluster_color(label)[None], len(v), axis=0))
         base += len(v)
-    v = np.vstack(verts) if verts else np.zeros((0, 3))
+    v = georef.to_crs_units(np.vstack(verts) + np.asarray(offset)) if verts else np.zeros((0, 3))
     f = np.vstack(faces) if faces else np.zeros((0, 3), dtype=np.int64)
     c = np.vstack(colors) if colors else np.zeros((0, 3), dtype=np.uint8)
-    comments = [
-        f"twinreg digital twin of {scene_name}",
-        f"offset {offset[0]:.6f} {offset[1]:.6f} {offset[2]:.6f} (scene = vertex + offset, metres)",
-        f"anchor_latlon {georef.get('lat')} {georef.get('lon')} alt {georef.get('alt')} "
-        f"anchor_xy {georef['anchor'][0]} {georef['anchor'][1]}",
-        f"crs {georef.get('crs') or 'local ENU tangent plane at the anchor'}",
-    ]
-    if georef.get("crs"):
-        comments.append(f"crs_unit_m {georef.get('crs_unit_m', 1.0)} vertical_unit_m {georef.get('vertical_unit_m', 1.0)}"
-                        " (CRS coordinates = scene coordinates / unit)")
-    return write_ply(path, v, f, c, comments)
+    return write_ply(path, v, f, c, ply_comments(georef, scene_name))
+
+
+def ply_comments(georef, scene_name: str) -> list[str]:
+    """The header comments of a twin's PLY: what it is, its coordinates' CRS and units (or its local frame's
+    anchor), each line short."""
+    short = (lambda text: str(text)[:COMMENT_VALUE])  # noqa: E731
+    lines = [f"twinreg digital twin of {short(scene_name)}",
+             "offset 0.000000 0.000000 0.000000 (vertices are the scan's own coordinates)"]
+    if georef.crs:
+        code = georef.crs_code or (georef.crs if len(georef.crs) <= COMMENT_VALUE else "see twin.prj")
+        lines += [f"crs {code} {short(georef.crs_name or '')}",
+                  f"crs_unit_m {georef.crs_unit_m} vertical_unit_m {georef.vertical_unit_m} (x y z in the CRS's units)"]
+        if georef.heights.known:
+            lines.append(f"heights {short(georef.heights.crs)} {short(georef.heights.name)}")
+    else:
+        lines += [f"anchor_latlon {georef.lat} {georef.lon} alt {georef.alt} anchor_xy {georef.anchor[0]} "
+                  f"{georef.anchor[1]}", "crs local east/north/up tangent plane at the anchor (metres)"]
+    return lines
+
+
+def write_prj(path, georef) -> Path | None:
+    """The CRS's WKT beside a file that cannot hold it (Esri's WKT1, as a .prj is read; WKT2 for a CRS it cannot
+    express); None for a local frame."""
+    if not georef.crs:
+        return None
+    from pyproj import CRS
+
+    from ..io.outdir import atomic_path
+
+    crs = CRS.from_user_input(georef.crs)
+    try:
+        text = crs.to_wkt("WKT1_ESRI")
+    except Exception:  # pragma: no cover - a CRS Esri's WKT cannot express
+        text = None
+    with atomic_path(path, ".prj") as tmp:
+        Path(tmp).write_text(text or crs.to_wkt(), encoding="utf-8")
+    return Path(path)

@@ -98,6 +98,8 @@ class Georef:
     crs_source: str | None = None
     vertical: object = None
     override: bool = False
+    crs_code: str | None = None
+    reference_code: str | None = None
 
     @property
     def heights(self):
@@ -112,7 +114,38 @@ class Georef:
         if self.crs:
             doc.update(crs_name=self.crs_name, crs_source=self.crs_source, crs_unit_m=self.crs_unit_m,
                        vertical_unit_m=self.vertical_unit_m)
+            if self.crs_code or self.reference_code:
+                doc.update(crs_code=self.crs_code, reference_system=ogc_url(self.reference_code or self.crs_code))
         return doc | self.heights.to_json()
+
+    def to_crs_units(self, points) -> np.ndarray:
+        """(n, 3) scene points (metres) in the CRS's own units (x, y divided by :attr:`crs_unit_m`, z by
+        :attr:`vertical_unit_m`): the coordinates GIS tools expect in files that state the CRS; a local frame's
+        metres are returned as they are.
+
+        >>> Georef(None, None, 0.0, (0.0, 0.0), "EPSG:2994", 0.3048, 0.3048).to_crs_units([[0.3048, 0.6096, 3.048]])
+        array([[ 1.,  2., 10.]])
+        """
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        if not self.crs:
+            return pts.copy()
+        return pts / np.array([self.crs_unit_m, self.crs_unit_m, self.vertical_unit_m])
+
+    def identified(self, lon: float, lat: float) -> "Georef":
+        """This georeference with its CRS's authority code (a header's WKT often has none PROJ can name: it is
+        looked for among the projected CRSs used at ``lon``, ``lat``) and the code of the CRS the heights are in
+        (the compound CRS of the horizontal one and a stated vertical datum, when EPSG registers one: RD New +
+        NAP is EPSG:7415)."""
+        from dataclasses import replace
+
+        if not self.crs:
+            return self
+        code = authority_code(self.crs, round(lon, 2), round(lat, 2))
+        reference = code
+        v = self.heights
+        if code and v.known and v.crs and ":" in v.crs and not _is_compound(self.crs):
+            reference = compound_code(code, v.crs) or code
+        return replace(self, crs_code=code, reference_code=reference)
 
     def with_crs(self, info: CrsInfo) -> "Georef":
         from dataclasses import replace
@@ -275,3 +308,59 @@ def check_area(georef: Georef, lo, hi, where: str, error=GeorefError) -> None:
     raise error(f"{where}: in {georef.crs_name or georef.crs} ({georef.crs}) the scan would lie at {there}, outside "
                 f"the CRS's area of use ({area.name}: {area.south:.2f} to {area.north:.2f} N, {area.west:.2f} to "
                 f"{area.east:.2f} E); give the CRS the coordinates are in (--crs EPSG:NNNN), or check --unit")
+
+
+@functools.lru_cache(maxsize=32)
+def authority_code(crs: str, lon: float | None = None, lat: float | None = None) -> str | None:
+    """``EPSG:NNNN`` of a CRS given as a code or WKT: PROJ's own identification, else the projected CRS used at
+    ``lon``, ``lat`` that equals it (a LAS header's WKT named after ESRI's names, Autzen's for one, has a code PROJ
+    does not find by name); None when there is none."""
+    from pyproj import CRS
+    from pyproj.aoi import AreaOfInterest
+    from pyproj.database import query_crs_info
+    from pyproj.enums import PJType
+
+    c = CRS.from_user_input(crs)
+    auth = c.to_authority(min_confidence=70)
+    if auth:
+        return f"{auth[0]}:{auth[1]}"
+    if lon is None or lat is None or c.is_compound:
+        return None
+    area = AreaOfInterest(lon - 0.01, lat - 0.01, lon + 0.01, lat + 0.01)
+    for info in query_crs_info(auth_name="EPSG", pj_types=[PJType.PROJECTED_CRS], area_of_interest=area,
+                               contains=False):
+        if not info.deprecated and CRS.from_authority("EPSG", info.code).equals(c, ignore_axis_order=True):
+            return f"EPSG:{info.code}"
+    return None
+
+
+@functools.lru_cache(maxsize=32)
+def _is_compound(crs: str) -> bool:
+    from pyproj import CRS
+
+    return CRS.from_user_input(crs).is_compound
+
+
+@functools.lru_cache(maxsize=32)
+def compound_code(horizontal: str, vertical: str) -> str | None:
+    """The registered code of the compound of two CRSs (``EPSG:28992`` and ``EPSG:5709`` give ``EPSG:7415``), or
+    None when EPSG registers none."""
+    from pyproj import CRS
+
+    (h_auth, h_code), (v_auth, v_code) = horizontal.split(":", 1), vertical.split(":", 1)
+    if h_auth != v_auth:
+        return None
+    auth = CRS.from_user_input(f"{h_auth}:{h_code}+{v_code}").to_authority(min_confidence=90)
+    return f"{auth[0]}:{auth[1]}" if auth else None
+
+
+def ogc_url(code: str | None) -> str | None:
+    """The OGC URL of an authority code, as CityJSON and GeoPackage readers name a CRS.
+
+    >>> ogc_url("EPSG:7415")
+    'https://www.opengis.net/def/crs/EPSG/0/7415'
+    """
+    if not code or ":" not in code:
+        return None
+    auth, number = code.split(":", 1)
+    return f"https://www.opengis.net/def/crs/{auth}/0/{number}"

@@ -81,6 +81,16 @@ class Evidence:
                   max(self.sink, 0.0) / max(self.sink_limit, 1e-9), max(-self.sink, 0.0) / max(self.float_limit, 1e-9)]
         return float(max(ratios))
 
+    def reason_code(self) -> str:
+        """Why this placement is refused, as one word of :data:`~twinreg.matching.match.REASON_CODES`."""
+        if not self.verdict.accepted:
+            return "points_unexplained"
+        if self.sink > self.sink_limit:
+            return "model_too_tall"
+        if -self.sink > self.float_limit:
+            return "model_too_low"
+        return "top_unseen"
+
     def reason(self, name: str) -> str:
         """Why this placement is refused (one clause)."""
         if not self.verdict.accepted:

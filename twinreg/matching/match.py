@@ -55,13 +55,21 @@ class Match:
 
 @dataclass
 class ObjectMatch:
-    """One object's outcome: its COSCO shape, its match (or None with a reason)."""
+    """One object's outcome: its COSCO shape, its match (or None with a reason, in words and as one of
+    :data:`REASON_CODES`)."""
 
     shape: cosco.ObjectShape
     match: Match | None
     reason: str = ""
     candidates: list = field(default_factory=list)
     rejected: dict | None = None
+    reason_code: str | None = None
+
+
+#: why an object got no model, as GIS tables filter it: no catalogue model of its size; the best model leaves too
+#: many of its points unexplained; fits only sunk into the ground (taller than the object); only floating above it
+#: (lower); leaves too much of its top surface unseen
+REASON_CODES = ("no_model_of_this_size", "points_unexplained", "model_too_tall", "model_too_low", "top_unseen")
 
 
 def _rot(a: float) -> np.ndarray:
@@ -283,7 +291,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
         if near is not None:
             cache.add_rows(cache.catalogue.rows([near[0]]))
             reason += f"; the nearest, {cache.row(near[0]).name}, is {_size_gap_text(near[1])} than the object"
-        return ObjectMatch(shape, None, reason, [])
+        return ObjectMatch(shape, None, reason, [], reason_code="no_model_of_this_size")
     decision = None
     if cloud is not None:
         decision = _decided(shape, regs, cache, cloud, noise, spacing, params)
@@ -298,7 +306,8 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
                           f"{_size_gap_text(gap)} than the object, and none of the nearest fits it ({reason})")
             return ObjectMatch(shape, None, reason, [m for _, m in regs],
                                rejected={"name": name, "rmse_m": round(best.rmse, 4), **best.verdict.as_dict(),
-                                         **best.as_dict()})
+                                         **best.as_dict()},
+                               reason_code="no_model_of_this_size" if found.outside else best.reason_code())
         k = next(j for j, (_, mid) in enumerate(regs) if mid == decision.best.model_id)
         if k > 0:  # the winner's pose polished (the first by RMSE already was)
             regs[k] = (cosco.polished(obj_pair, cache.pair(regs[k][1]), regs[k][0], params), regs[k][1])
