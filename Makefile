@@ -39,13 +39,18 @@ $(NPM_STAMP): package.json package-lock.json
 	@echo "installing chromium (the viewer's browser test)"
 	$(call apt_install,chromium)
 
+# CloudCompare from Debian's packages, for the test that opens twin.ply in it (headless)
+/usr/bin/CloudCompare:
+	@echo "installing cloudcompare (the twin.ply test opens it headless)"
+	$(call apt_install,--no-install-recommends cloudcompare)
+
 install: $(STAMP) $(NPM_STAMP)
 
 demo: $(STAMP) $(NPM_STAMP)
 	$(BIN)/twinreg demo
 
 # the suite fails (instead of skipping) when ../shared/data is missing; plain `pytest` may skip, with a count
-test: $(STAMP) $(NPM_STAMP) /usr/bin/chromium
+test: $(STAMP) $(NPM_STAMP) /usr/bin/chromium /usr/bin/CloudCompare
 	TWINREG_REQUIRE_SHARED_DATA=1 $(BIN)/python -m pytest
 
 # the quick benches (minutes); the long ones are listed with their commands
