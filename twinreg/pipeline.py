@@ -277,9 +277,11 @@ def _match_and_export(run: SceneRun) -> dict:
         section_items.append(out.sections)
         outs.append(out)
 
-    when, source = survey_date(run.date, [det.scene.survey_date])
+    when, source = survey_date(run.date, [(det.scene.survey_date, det.scene.survey_date_source)])
     scan = ScanSummary(scene_path.name, len(det.scene.points), det.scene.n_outliers, det.scene.unit, offset, noise,
-                       det.scene.points, survey_date=when, survey_date_source=source)
+                       det.scene.points, survey_date=when, survey_date_source=source,
+                       warnings=[det.scene.survey_date_warning] if det.scene.survey_date_warning and source ==
+                       det.scene.survey_date_source else [])
     twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,

@@ -43,6 +43,8 @@ class Source:
     size: int
     mtime_ns: int
     date: str | None = None
+    date_source: str | None = None
+    date_warning: str | None = None
 
     @property
     def area(self) -> float:
@@ -111,16 +113,21 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None, override
     import laspy
 
     from ..io._files import checked_input
-    from ..io.points import check_las_header, check_point_count, crs_and_units, header_date
+    from ..io.points import check_las_header, check_point_count, crs_and_units, las_survey_date
 
     path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
     try:
         with laspy.open(str(path)) as reader:
             header = reader.header
+            check_las_header(path, header)
+            check_point_count(path, header)
+            gps = None
+            if "gps_time" in header.point_format.dimension_names and header.point_count:
+                gps = np.asarray(reader.read_points(min(int(header.point_count), 10_000)).gps_time)
+    except SceneReadError:
+        raise
     except Exception as exc:
         raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
-    check_las_header(path, header)
-    check_point_count(path, header)
     header_crs = header_error = None
     try:
         header_crs = header.parse_crs()
@@ -143,7 +150,7 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None, override
     return Source(path=str(path.resolve()), n_points=int(header.point_count), lo=tuple(mins * s), hi=tuple(maxs * s),
                   copc=copc, crs=info.crs if info else None, crs_name=info.name if info else None,
                   unit=unit_name, scale=scale, z_scale=z_scale, size=st.st_size, mtime_ns=st.st_mtime_ns,
-                  date=header_date(header))
+                  **dict(zip(("date", "date_source", "date_warning"), las_survey_date(path, header, gps))))
 
 
 def open_sources(paths, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> list[Source]:

@@ -129,6 +129,8 @@ def build_twin_cmd(
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
     tiled = "grid" in twin
+    for warning in twin.get("warnings", []):
+        info(f"warning: {warning}")
     if twin["georef"].get("vertical_source") is None:
         info("warning: the vertical datum of the scan's heights is unknown, so the 3D exports take them as "
              "ellipsoidal (off by the geoid, up to 100 m); give it with --vertical-crs EPSG:NNNN (e.g. 5709 NAP)")

@@ -24,6 +24,7 @@ class ScanSummary:
     sources: list | None = None
     survey_date: str | None = None
     survey_date_source: str | None = None
+    warnings: list = field(default_factory=list)
 
 
 @dataclass
@@ -63,6 +64,7 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
         "georef": georef.to_json() | {"scan_centre": georef.centre_of(scan.extent)},
         "offset": [float(v) for v in scan.offset], "noise_m": round(float(scan.noise), 4),
         "survey_date": scan.survey_date, "survey_date_source": scan.survey_date_source,
+        **({"warnings": list(scan.warnings)} if scan.warnings else {}),
         "objects": objects,
         **taxonomy_json(tax),
     }
@@ -80,14 +82,19 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
     return doc
 
 
-def survey_date(given: str | None, headers: list) -> tuple[str | None, str | None]:
-    """The survey's date and its source: ``--date`` when given, else the one date the files' headers state (the
-    earliest when tiles differ), else (None, None).
+def survey_date(given: str | None, files: list) -> tuple[str | None, str | None]:
+    """The survey's date and its source: ``--date`` when given, else from the files' ``(date, source)``: the best
+    source any file has (GPS time before a header's creation date), the earliest date when files differ; else
+    (None, None).
 
-    >>> survey_date(None, ["2026-03-02", None, "2026-03-01"]), survey_date("2026-05-01", ["2026-03-02"])
-    (('2026-03-01', 'file header'), ('2026-05-01', '--date'))
+    >>> survey_date(None, [("2026-03-02", "GPS time"), (None, None), ("2026-03-01", "file header creation date")])
+    ('2026-03-02', 'GPS time')
+    >>> survey_date("2026-05-01", [("2026-03-02", "GPS time")])
+    ('2026-05-01', '--date')
     """
+    from ..io.points import DATE_SOURCES
+
     if given:
         return given, "--date"
-    dates = sorted(d for d in headers if d)
-    return (dates[0], "file header") if dates else (None, None)
+    found = sorted((DATE_SOURCES.index(s), d, s) for d, s in files if d and s in DATE_SOURCES)
+    return (found[0][1], found[0][2]) if found else (None, None)

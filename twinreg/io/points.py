@@ -45,6 +45,8 @@ class PointSet:
     z_scale: float = 1.0
     n_outliers: int = 0
     survey_date: str | None = None
+    survey_date_source: str | None = None
+    survey_date_warning: str | None = None
 
     def without(self, drop: np.ndarray) -> "PointSet":
         """The same scene without the points of the (n,) mask ``drop`` (counted as outliers)."""
@@ -143,6 +145,43 @@ def header_date(header) -> str | None:
     return d.isoformat() if d is not None else None
 
 
+#: where GPS time starts; "adjusted standard GPS time" (a LAS header's global encoding bit 0) is GPS seconds minus
+#: 1e9 (leap seconds, 18 in 2026, cannot move a median across a day but at midnight: ignored)
+GPS_EPOCH = __import__("datetime").datetime(1980, 1, 6)
+#: sources of a survey date, best first
+DATE_SOURCES = ("--date", "GPS time", "file header creation date")
+
+
+def las_survey_date(path: Path, header, gps_time=None) -> tuple[str | None, str | None, str | None]:
+    """(date ``YYYY-MM-DD``, its source, a warning or None) of a LAS/LAZ file's survey: from its points' GPS times
+    when the header says they are adjusted standard GPS time (the acquisition itself), else the header's creation
+    date, with a warning when that date is within a month before the file was written (it is then likely the day
+    the file was made, not the flight)."""
+    import datetime
+
+    try:
+        standard = int(header.global_encoding.gps_time_type) == 1
+    except Exception:
+        standard = False
+    if standard and gps_time is not None and len(gps_time):
+        t = np.asarray(gps_time, dtype=np.float64)
+        t = t[np.isfinite(t)]
+        if len(t):
+            day = (GPS_EPOCH + datetime.timedelta(seconds=float(np.median(t)) + 1e9)).date()
+            if datetime.date(1990, 1, 1) <= day <= datetime.date.today() + datetime.timedelta(days=1):
+                return day.isoformat(), "GPS time", None
+    created = header_date(header)
+    if created is None:
+        return None, None, None
+    written = datetime.date.fromtimestamp(Path(path).stat().st_mtime)
+    warning = None
+    if 0 <= (written - datetime.date.fromisoformat(created)).days <= 31:
+        warning = (f"{Path(path).name}: the survey date {created} is the header's creation date, within a month "
+                   f"of the day the file was written ({written.isoformat()}); it may be the day the file was made, "
+                   "not the flight: give the survey's date with --date YYYY-MM-DD")
+    return created, "file header creation date", warning
+
+
 def _read_las(path: Path):
     """(points (n, 3) in file units, the header's CRS or None, the error parsing it or None)."""
     import laspy
@@ -161,10 +200,12 @@ def _read_las(path: Path):
                              "says; the file is truncated or damaged: copy or export it again")
     pts = np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
                            np.asarray(las.z, dtype=np.float64)])
+    has_gps = "gps_time" in las.point_format.dimension_names
+    date = las_survey_date(path, las.header, np.asarray(las.gps_time) if has_gps else None)
     try:
-        return pts, las.header.parse_crs(), None, header_date(las.header)
+        return pts, las.header.parse_crs(), None, date
     except Exception as exc:  # a CRS record is there but broken: the caller decides (error unless told the unit)
-        return pts, None, exc, header_date(las.header)
+        return pts, None, exc, date
 
 
 _PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
@@ -293,7 +334,8 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
     """
     path, suffix = checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin",
                                  SceneReadError)
-    header_crs = header_error = date = None
+    header_crs = header_error = None
+    date = (None, None, None)
     if suffix in (".las", ".laz"):
         pts, header_crs, header_error, date = _read_las(path)
     elif suffix == ".bin":
@@ -323,4 +365,4 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
     offset = np.floor(pts.min(0) / 100.0) * 100.0
     offset[2] = 0.0
     return PointSet(path=path, points=pts, offset=offset, unit=unit, crs_info=info, n_dropped=dropped, scale=scale,
-                    z_scale=z_scale, survey_date=date)
+                    z_scale=z_scale, survey_date=date[0], survey_date_source=date[1], survey_date_warning=date[2])
