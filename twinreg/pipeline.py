@@ -110,20 +110,22 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
                                date=s.date, classified=s.classified_scan)
     say = (lambda msg: progress(msg, None, None)) if progress else None
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
-                      progress=say, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates)
+                      progress=say, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates,
+                      tick=progress)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
                tol: float | None = None, params: CoscoParams = DEFAULT, progress=None,
                threshold: float | None = None, ply: bool = True, date: str | None = None,
-               templates: bool = False) -> dict:
+               templates: bool = False, tick=None) -> dict:
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
     ``ply=False`` leaves out twin.ply; ``date``: the survey's date, ``YYYY-MM-DD``, else the LAS/LAZ header's;
     ``templates``: CityJSON with geometry templates).
 
     georef : from :func:`~twinreg.geo.georef.georef_from_options`, or None to use the CRS the file states. tol,
     threshold : the size tolerance and cluster threshold (m), ``params.size_tol`` and ``params.cluster_threshold``
-    when None.
+    when None. progress : ``progress(message)`` as each stage starts; tick : ``tick(stage, done, total)`` as the
+    objects of a counted stage (the matching) are done.
     """
     t_start = time.perf_counter()
     timing = {}
@@ -136,11 +138,11 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     check_replaceable(Path(out), protect=[scene_path, catalogue.folder], kind="twin")
     with locked(Path(out), "build-twin"):
         return _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
-                             templates)
+                             templates, tick)
 
 
 def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
-                  templates) -> dict:
+                  templates, tick=None) -> dict:
     require_models(catalogue)
     from .matching.prober import Prober
 
@@ -148,7 +150,7 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
     painter = Painter.start(warm=warm_up)
     try:
         return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply,
-                      date, templates, prober)
+                      date, templates, prober, tick)
     finally:
         if painter:
             painter.stop()
@@ -157,7 +159,7 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
 
 
 def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing,
-           ply=True, date=None, templates=False, prober=None) -> dict:
+           ply=True, date=None, templates=False, prober=None, tick=None) -> dict:
     _say(progress, "reading and detecting")
     given = georef is not None and georef.crs_source == "--crs"
 
@@ -188,7 +190,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
-                           templates=templates, prober=prober)
+                           templates=templates, prober=prober, tick=tick)
             twin = _match_and_export(run)
         except BaseException:
             for helper in (painter, prober):  # a helper may be writing into the stage: stopped before it goes
@@ -245,6 +247,7 @@ class SceneRun:
     date: str | None = None
     templates: bool = False
     prober: object = None
+    tick: object = None
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -257,7 +260,8 @@ def _match_and_export(run: SceneRun) -> dict:
     noise = scene_noise(det.hag, det.is_ground)
     models = ModelCache(catalogue, params, prober=run.prober)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
-                                   clouds=[object_points(det, o) for o in targets], noise=noise, cache=models)
+                                   clouds=[object_points(det, o) for o in targets], noise=noise, cache=models,
+                                   done=(lambda k, n: run.tick("matching", k, n)) if run.tick else None)
     timing["prefilter"] = stats["prefilter_s"]
     timing["model_prep"] = stats["model_prep_s"]
     timing["registration"] = stats["registration_s"]

@@ -1,6 +1,7 @@
 """The command line as users and scripts see it: exit codes, one JSON document on stdout, files written."""
 
 import json
+import re
 import shutil
 
 import numpy as np
@@ -189,3 +190,67 @@ def test_the_command_line_imports_no_heavy_library_until_a_command_needs_it():
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                               cwd=Path(__file__).resolve().parents[2])
         assert done.returncode == 0 and done.stdout.strip() == "[]", module + done.stdout + done.stderr[-2000:]
+
+
+def test_help_renders_flags_as_flags_and_shows_defaults():
+    """--help as users read it: arguments as NAME..., flags without a type, every default shown (square brackets
+    in a help text are not eaten as markup)."""
+    import re
+
+    for command in ("build-twin", "compare", "library-report", "add-model", "list-models", "detect", "view"):
+        res = runner.invoke(app, [command, "--help"], terminal_width=120)
+        assert res.exit_code == 0, res.output
+        assert "<bool>" not in res.output and "{" not in res.output.splitlines()[0], res.output[:400]
+        assert not re.search(r"<list\[", res.output), res.output[:400]
+    text = runner.invoke(app, ["build-twin", "--help"], terminal_width=120).output
+    assert text.startswith("Usage: twinreg build-twin [OPTIONS] PATH...")
+    for default in ("[default: 0.065]", "[default: 10]", "[default: the cores]", "[default: about 6M",
+                    "[default: twin.ply"):
+        assert default in text, default
+    assert re.search(r"--restart\s+Tiled runs", text)
+    report = runner.invoke(app, ["library-report", "--help"], terminal_width=120).output
+    assert "[default: 20.0]" in report
+
+
+def test_progress_as_plain_lines_when_stderr_is_a_log(parametric_catalogue, tmp_path):
+    """stderr redirected to a file (a log, a CI job): the run says its stages with the elapsed time and the
+    matching's count and time left, then every file written and the objects by outcome."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from twinreg.sim.parametric import LIBRARY, car_mesh
+    from twinreg.io.ply import write_ply
+    from twinreg.sim.scan import car_park
+
+    park = car_park([car_mesh(s) for s in LIBRARY[:4]], n_cars=8, seed=3)
+    write_ply(tmp_path / "park.ply", park.points)
+    out = tmp_path / "out"
+    with open(tmp_path / "log.txt", "w") as log:
+        proc = subprocess.run([str(Path(sys.executable).parent / "twinreg"), "--library",
+                               str(parametric_catalogue.folder), "build-twin", str(tmp_path / "park.ply"), "--lat",
+                               "53.35", "--lon", "-6.26", "--out", str(out)], stderr=log, timeout=300)
+    text = (tmp_path / "log.txt").read_text()
+    assert proc.returncode == 0, text
+    assert re.search(r"^\[\d+ s\] park\.ply: matching \d+/\d+ \(100 %\), \d+ s$", text, re.M), text
+    objects = next(line for line in text.splitlines() if line.startswith("objects: "))
+    assert re.match(r"objects: \d+ with a model \(\d+ at confidence 0\.5 or more\)", objects), objects
+    written = next(line for line in text.splitlines() if line.startswith(f"written to {out}: "))
+    for name in sorted(p.name for p in out.iterdir() if not p.name.startswith(".")):
+        assert name in written, name
+    assert "tiles/ (" in written and "twin.gpkg" in written
+
+
+def test_a_missing_scan_or_catalogue_is_said_as_it_is(tmp_path, parametric_objs):
+    missing_lib = tmp_path / "no_such_library"
+    scene = tmp_path / "scene.xyz"
+    np.savetxt(scene, np.random.default_rng(0).uniform(0, 10, (500, 3)))
+    res = run("build-twin", tmp_path / "nothing.laz", "--library", missing_lib, "--lat", 53.3, "--lon", -6.2)
+    assert res.exit_code == 1 and "nothing.laz: no such file" in res.output, res.output  # the scan first
+    res = run("build-twin", scene, "--library", missing_lib, "--lat", 53.3, "--lon", -6.2, "--out", tmp_path / "o")
+    assert res.exit_code == 1 and "no catalogue there (the folder does not exist)" in res.output, res.output
+    (tmp_path / "empty").mkdir()
+    res = run("build-twin", scene, "--library", tmp_path / "empty", "--lat", 53.3, "--lon", -6.2, "--out",
+              tmp_path / "o")
+    assert res.exit_code == 1 and "holds no catalogue (no catalogue.sqlite)" in res.output, res.output
+    assert not missing_lib.exists() and not (tmp_path / "o").exists()

@@ -131,7 +131,7 @@ def _pairs_confused(conf: dict) -> list[dict]:
     return out
 
 
-def report(catalogue, out, density: float = 150.0, scans: int = 10, seed: int = 0, workers: int = 2,
+def report(catalogue, out, density: float = 20.0, scans: int = 10, seed: int = 0, workers: int = 2,
            progress=None) -> dict:
     """Write library.json, library.html and the pictures to ``out`` (a staged folder: all or nothing)."""
     from ..io.outdir import staged_folder

@@ -237,6 +237,10 @@ def read_epochs(folders, say=None) -> list[Epoch]:
     epochs = [read_epoch(f) for f in folders]
     _check_distinct(epochs)
     for e in epochs[1:]:
+        far = _distance_km(epochs[0], e)
+        if far > FAR_KM:
+            raise CompareError(f"{e.folder}: lies {far:,.0f} km from {epochs[0].folder} (by their objects' "
+                               "positions): they are surveys of different places; compare twins of the same place")
         if not same_frame(epochs[0], e):
             raise CompareError(f"{e.folder}: its coordinates are in {e.frame()}, those of {epochs[0].folder} in "
                                f"{epochs[0].frame()}; rebuild one twin in the other's CRS (--crs) to compare them")
@@ -287,6 +291,21 @@ def _one_datum(epochs: list[Epoch], say) -> None:
     if converted and say:
         say("; ".join(f"{e.folder}: heights in {e.vertical}, converted to {ref.vertical} "
                       f"({e.height['shift_m']:+.3f} m)" for e in converted))
+
+
+#: twins whose objects lie further apart than this (km) are not of one place, whatever their frames
+FAR_KM = 50.0
+
+
+def _distance_km(a: Epoch, b: Epoch) -> float:
+    """The distance (km) between the medians of two epochs' objects' WGS84 positions, as their twin.json states
+    them (0 when either has none)."""
+    if not len(a.lonlat) or not len(b.lonlat):
+        return 0.0
+    from pyproj import Geod
+
+    (lon1, lat1), (lon2, lat2) = np.median(a.lonlat, axis=0), np.median(b.lonlat, axis=0)
+    return float(Geod(ellps="WGS84").inv(lon1, lat1, lon2, lat2)[2]) / 1000.0
 
 
 def _centre_lonlat(e: Epoch) -> tuple[float, float]:

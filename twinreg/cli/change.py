@@ -7,14 +7,14 @@ from typing import Annotated
 
 import typer
 
-from ._common import JsonOpt, LibraryOpt, RunProgress, handled, info, library_folder, print_json
+from ._common import Command, command_app, JsonOpt, LibraryOpt, RunProgress, handled, info, library_folder, print_json
 
-app = typer.Typer()
+app = command_app()
 
 _SHOWN = ("same", "moved", "replaced", "left", "arrived", "unobserved")
 
 
-@app.command("compare")
+@app.command("compare", cls=Command)
 @handled
 def compare_cmd(
     twins: Annotated[list[Path], typer.Argument(help="Two or more build-twin folders of the same place, any order.",

@@ -8,12 +8,12 @@ from typing import Annotated, Optional
 
 import typer
 
-from ._common import JsonOpt, LibraryOpt, RunProgress, handled, info, print_json
+from ._common import Command, command_app, JsonOpt, LibraryOpt, RunProgress, handled, info, print_json
 
-app = typer.Typer()
+app = command_app()
 
 
-@app.command("simulate-city")
+@app.command("simulate-city", cls=Command)
 @handled
 def simulate_city_cmd(
     out: Annotated[Path, typer.Argument(help="Folder for the LAZ tiles and truth.json (replaced as a whole).")],

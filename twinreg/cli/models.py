@@ -13,9 +13,9 @@ from rich.text import Text
 from ..catalogue.duplicates import near_duplicate_report
 from ..catalogue.folder import import_folder, mesh_files
 from ..catalogue.names import printable
-from ._common import JsonOpt, LibraryOpt, err_console, fail, handled, info, open_catalogue, out_console, print_json
+from ._common import Command, command_app, JsonOpt, LibraryOpt, err_console, fail, handled, info, open_catalogue, out_console, print_json
 
-app = typer.Typer()
+app = command_app()
 
 RefArg = Annotated[str, typer.Argument(
     help="The model: id:N, name:TEXT, or an id (digits) or unique name.", show_default=False)]
@@ -31,7 +31,7 @@ def _summary(row) -> str:
             f"{row.notes}")
 
 
-@app.command("add-model")
+@app.command("add-model", cls=Command)
 @handled
 def add_model(
     mesh: Annotated[Path, typer.Argument(help="Mesh file: OBJ, PLY, STL, OFF, GLB/glTF or DAE.")],
@@ -42,7 +42,7 @@ def add_model(
     unit: UnitOpt = "auto",
     up: UpOpt = "auto",
     front: FrontOpt = "auto",
-    tag: Annotated[Optional[List[str]], typer.Option("--tag", help="A tag (repeatable).")] = None,
+    tag: Annotated[Optional[List[str]], typer.Option("--tag", metavar="TAG", help="A tag (repeatable).")] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -60,7 +60,7 @@ def add_model(
         info(_summary(row))
 
 
-@app.command("import-models")
+@app.command("import-models", cls=Command)
 @handled
 def import_models(
     folder: Annotated[Path, typer.Argument(help="Folder searched recursively for mesh files.")],
@@ -110,7 +110,7 @@ def _table(rows) -> Table:
 SORT_KEYS = ("id", "name", "length", "width", "height", "make", "class")
 
 
-@app.command("list-models")
+@app.command("list-models", cls=Command)
 @handled
 def list_models(
     near: Annotated[Optional[tuple[float, float, float]], typer.Option(
@@ -119,7 +119,7 @@ def list_models(
         help="Size tolerance (m) on each of L, W, H [default: 0.2, the matcher's].")] = None,
     body_class: Annotated[Optional[str], typer.Option(
         "--body-class", "--class", help="Only models whose body class contains this (any case): sedan, SUV.")] = None,
-    tag: Annotated[Optional[List[str]], typer.Option("--tag", help="Only models with this tag (repeatable: all).")
+    tag: Annotated[Optional[List[str]], typer.Option("--tag", metavar="TAG", help="Only models with this tag (repeatable: all).")
                    ] = None,
     sort: Annotated[str, typer.Option("--sort", help=f"Order: {', '.join(SORT_KEYS)}.")] = "id",
     csv_: Annotated[bool, typer.Option("--csv", help="Print CSV (the JSON fields, sizes flattened).")] = False,
@@ -161,7 +161,7 @@ def _print_csv(rows) -> None:
                     d["front"]])
 
 
-@app.command("show-model")
+@app.command("show-model", cls=Command)
 @handled
 def show_model(
     ref: RefArg,
@@ -191,7 +191,7 @@ def show_model(
                 out_console.print(f"[bold]{key}[/bold]: {doc[key]}", highlight=False)
 
 
-@app.command("update-model")
+@app.command("update-model", cls=Command)
 @handled
 def update_model(
     ref: RefArg,
@@ -199,7 +199,7 @@ def update_model(
     make: Annotated[Optional[str], typer.Option()] = None,
     model: Annotated[Optional[str], typer.Option()] = None,
     body_class: Annotated[Optional[str], typer.Option("--body-class")] = None,
-    tag: Annotated[Optional[List[str]], typer.Option("--tag", help="Replace the tags (repeatable).")] = None,
+    tag: Annotated[Optional[List[str]], typer.Option("--tag", metavar="TAG", help="Replace the tags (repeatable).")] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -212,7 +212,7 @@ def update_model(
         info(f"updated model {row.id} '{row.name}'")
 
 
-@app.command("remove-model")
+@app.command("remove-model", cls=Command)
 @handled
 def remove_model(
     ref: RefArg,

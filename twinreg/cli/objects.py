@@ -12,14 +12,14 @@ import cosco
 
 from ..errors import SceneReadError, require_positive
 from ..objects import inspect_file, objects_from_folder, objects_from_scene, shape_json
-from ._common import JsonOpt, err_console, handled, info, print_json
+from ._common import Command, command_app, JsonOpt, err_console, handled, info, print_json
 
-app = typer.Typer()
+app = command_app()
 
 UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|ft|us-ft|in (auto: metres or the LAS CRS unit).")]
 
 
-@app.command("inspect")
+@app.command("inspect", cls=Command)
 @handled
 def inspect(
     obj: Annotated[Path, typer.Argument(metavar="OBJECT", help="One object's points: PLY, PCD, LAS, LAZ, XYZ, BIN.")],
@@ -45,7 +45,7 @@ def inspect(
              f" x {s['height']:.2f} m, centre ({doc['centroid'][0]:.2f}, {doc['centroid'][1]:.2f})")
 
 
-@app.command("cluster")
+@app.command("cluster", cls=Command)
 @handled
 def cluster_cmd(
     scene: Annotated[Path, typer.Argument(help="A scene file (objects are detected) or a folder of object files.")],

@@ -12,14 +12,14 @@ from cosco.params import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
 from ..io.outdir import check_replaceable
-from ._common import JsonOpt, LibraryOpt, RunProgress, err_console, handled, info, open_catalogue, print_json
+from ._common import Command, command_app, JsonOpt, LibraryOpt, RunProgress, err_console, handled, info, open_catalogue, print_json
 
-app = typer.Typer()
+app = command_app()
 
 UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|ft|us-ft|in (auto: metres or the LAS CRS unit).")]
 
 
-@app.command("detect")
+@app.command("detect", cls=Command)
 @handled
 def detect(
     scene: Annotated[Path, typer.Argument(help="Scene points: PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin.")],
@@ -52,10 +52,10 @@ def detect(
             info(f"written to {out}")
 
 
-@app.command("build-twin")
+@app.command("build-twin", cls=Command)
 @handled
 def build_twin_cmd(
-    paths: Annotated[list[Path], typer.Argument(
+    paths: Annotated[list[Path], typer.Argument(metavar="PATH",
         help="Scene points (PLY, PCD, LAS, LAZ, XYZ/TXT, KITTI .bin), or LAS/LAZ/COPC tiles: files, a folder or a "
              "quoted glob.", show_default=False)],
     lat: Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")] = None,
@@ -149,12 +149,13 @@ def build_twin_cmd(
             what = (f"{m['name']} ({m['rmse_m'] * 100:.1f} cm{trust_text(m)})" if m
                     else f"no match: {o.get('reason', '')}")
             info(f"  {o['id']}: {what}, bearing {o['bearing_deg']:.1f} deg")
-    written = [p for p in ("twin.json", "twin.ply", "twin.kmz", "report.html") if (out / p).exists()]
-    info("written: " + ", ".join(str(out / p) for p in written) + (f", {out / 'ply'}/" if (out / "ply").exists()
-                                                                  else ""))
+    from ..export.summary import files_written, outcomes
+
+    info("objects: " + "; ".join(outcomes(twin["objects"])))
+    info(f"written to {out}: " + ", ".join(files_written(out)))
 
 
-@app.command("demo")
+@app.command("demo", cls=Command)
 @handled
 def demo(
     out: Annotated[Path, typer.Option(help="Output folder.")] = Path("exports/demo"),
@@ -192,7 +193,7 @@ def demo(
     out_console.print(f"3D: twinreg view {out / 'twin'}", highlight=False)
 
 
-@app.command("view")
+@app.command("view", cls=Command)
 @handled
 def view(
     folder: Annotated[Path, typer.Argument(help="A twin folder (the OUT of build-twin) or a comparison (of compare).")],

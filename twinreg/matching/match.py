@@ -99,8 +99,9 @@ def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams):
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
                   params: CoscoParams = DEFAULT, share: int = 4, progress=None, clouds: list | None = None,
                   noise=None, cache: ModelCache | None = None, spacings: list | None = None,
-                  leaders: dict | None = None) -> tuple[list[ObjectMatch], dict]:
-    """Match every object; returns the per-object outcomes and statistics (trials, timings).
+                  leaders: dict | None = None, done=None) -> tuple[list[ObjectMatch], dict]:
+    """Match every object; returns the per-object outcomes and statistics (trials, timings); ``done(k, n)`` is
+    called as each of the n objects is decided.
 
     labels : cluster label per object (objects of one cluster share work), or None. clouds : each object's points
     ((n, 3) metres, the frame of its shape) and noise : the scan's range noise (m), to verify the best candidates
@@ -142,6 +143,7 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     results: list[ObjectMatch | None] = [None] * len(shapes)
     t = time.perf_counter()
     stats["leaders"] = {}
+    n_done = 0
     for label, members in groups.items():
         # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
         known = leaders is not None and labels is not None and label in leaders
@@ -167,6 +169,9 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
             t_v = time.perf_counter()
             results[i] = _outcome(shapes[i], regs, cache, found[i], cloud, noise_i, pairs[i], params, spacings[i])
             stats["verification_s"] += time.perf_counter() - t_v
+            n_done += 1
+            if done is not None:
+                done(n_done, len(shapes))
     stats["registration_s"] = time.perf_counter() - t - stats["verification_s"]
     stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]
     return results, stats

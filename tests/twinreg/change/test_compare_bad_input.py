@@ -258,3 +258,15 @@ def test_record_height_not_finite(surveys, tmp_path):
     arrays["z0"] = arrays["z0"] * np.nan
     np.savez(bad / "observed.npz", **arrays)
     _refused([surveys.twins["before"], bad], tmp_path / "out", "observed.npz", "not described consistently")
+
+
+def test_twins_far_apart_are_said_to_be_other_places(surveys, tmp_path):
+    """Twins 8,000 km apart are not of one place: said so, not "rebuild one in the other's CRS"."""
+    def to_oregon(doc):
+        doc["georef"].update(crs="EPSG:2994", crs_name="NAD83(HARN) / Oregon GIC Lambert (ft)", lat=None, lon=None)
+        for o in doc["objects"]:
+            o["lat"], o["lon"] = 44.06, -123.07
+
+    far = _copy(surveys.twins["after150"], tmp_path / "oregon", to_oregon)
+    line = _refused([surveys.twins["before"], far], tmp_path / "out", "km from", "different places")
+    assert "--crs" not in line
