@@ -215,6 +215,7 @@ def test_help_renders_flags_as_flags_and_shows_defaults():
 def test_progress_as_plain_lines_when_stderr_is_a_log(parametric_catalogue, tmp_path):
     """stderr redirected to a file (a log, a CI job): the run says its stages with the elapsed time and the
     matching's count and time left, then every file written and the objects by outcome."""
+    import os
     import subprocess
     import sys
     from pathlib import Path
@@ -229,7 +230,8 @@ def test_progress_as_plain_lines_when_stderr_is_a_log(parametric_catalogue, tmp_
     with open(tmp_path / "log.txt", "w") as log:
         proc = subprocess.run([str(Path(sys.executable).parent / "twinreg"), "--library",
                                str(parametric_catalogue.folder), "build-twin", str(tmp_path / "park.ply"), "--lat",
-                               "53.35", "--lon", "-6.26", "--out", str(out)], stderr=log, timeout=300)
+                               "53.35", "--lon", "-6.26", "--out", str(out)], stderr=log, timeout=300,
+                              env={**os.environ, "TWINREG_PROGRESS_QUIET": "0"})
     text = (tmp_path / "log.txt").read_text()
     assert proc.returncode == 0, text
     assert re.search(r"^\[\d+ s\] park\.ply: matching \d+/\d+ \(100 %\), \d+ s$", text, re.M), text

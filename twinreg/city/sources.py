@@ -108,8 +108,20 @@ def is_tiled(paths, explicit: bool = False) -> bool:
         return False
 
 
+def _first_gps_times(reader, header, n: int = 10_000):
+    """The GPS times of a tile's first ``n`` points (the survey's date), or None: none stored, or those points do
+    not decompress (a tile damaged there fails its own cells later, not the run's start)."""
+    if "gps_time" not in header.point_format.dimension_names or not header.point_count:
+        return None
+    try:
+        return np.asarray(reader.read_points(min(int(header.point_count), n)).gps_time)
+    except Exception:
+        return None
+
+
 def read_source(path: Path, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> Source:
-    """The header of one LAS/LAZ/COPC tile as a :class:`Source` (no points are read)."""
+    """The header of one LAS/LAZ/COPC tile as a :class:`Source` (checked: its point count against its size, a COPC
+    hierarchy walked; at most 10,000 points read, for their GPS times)."""
     import laspy
 
     from ..io._files import checked_input
@@ -121,9 +133,17 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None, override
             header = reader.header
             check_las_header(path, header)
             check_point_count(path, header)
-            gps = None
-            if "gps_time" in header.point_format.dimension_names and header.point_count:
-                gps = np.asarray(reader.read_points(min(int(header.point_count), 10_000)).gps_time)
+            copc = _is_copc(header)
+            if copc and not any(getattr(v, "user_id", "") == "copc" and getattr(v, "record_id", 0) == 1000
+                                for v in (header.evlrs or [])):
+                # laspy reads a truncated COPC as an empty one: refuse it here rather than lose its points
+                raise SceneReadError(f"{path}: a COPC file without its octree hierarchy (truncated?); copy or "
+                                     "download it again")
+            if copc:
+                from ..io.copc import check_copc
+
+                check_copc(path, int(header.point_count), SceneReadError)
+            gps = _first_gps_times(reader, header)
     except SceneReadError:
         raise
     except Exception as exc:
@@ -133,16 +153,6 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None, override
         header_crs = header.parse_crs()
     except Exception as exc:
         header_error = exc
-    copc = _is_copc(header)
-    if copc and not any(getattr(v, "user_id", "") == "copc" and getattr(v, "record_id", 0) == 1000
-                        for v in (header.evlrs or [])):
-        # laspy reads a truncated COPC as an empty one: refuse it here rather than lose its points
-        raise SceneReadError(f"{path}: a COPC file without its octree hierarchy (truncated?); copy or download it "
-                             "again")
-    if copc:
-        from ..io.copc import check_copc
-
-        check_copc(path, int(header.point_count), SceneReadError)
     info, unit_name, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error, override_crs)
     mins, maxs = np.asarray(header.mins, dtype=np.float64), np.asarray(header.maxs, dtype=np.float64)
     s = np.array([scale, scale, z_scale])

@@ -105,8 +105,8 @@ class RunProgress:
 
     #: seconds between two plain lines while a stage lasts
     every = 10.0
-    #: seconds at the start of a run in which no plain line is printed
-    quiet = 2.0
+    #: seconds at the start of a run in which no plain line is printed ($TWINREG_PROGRESS_QUIET overrides it)
+    quiet = float(os.environ.get("TWINREG_PROGRESS_QUIET", 2.0))
 
     def __init__(self, title: str = "", plain: bool | None = None):
         import threading

@@ -270,3 +270,28 @@ def test_twins_far_apart_are_said_to_be_other_places(surveys, tmp_path):
     far = _copy(surveys.twins["after150"], tmp_path / "oregon", to_oregon)
     line = _refused([surveys.twins["before"], far], tmp_path / "out", "km from", "different places")
     assert "--crs" not in line
+
+
+def test_out_may_not_be_a_twin_or_inside_one_or_the_catalogue(surveys, tmp_path, parametric_catalogue):
+    """compare --out T where T is a twin (a city twin can be half an hour of work), a folder inside an input twin
+    or inside the catalogue: refused, nothing changed."""
+    before, after = surveys.twins["before"], surveys.twins["after150"]
+    other = _copy(after, tmp_path / "other")
+    state = sorted((p.name, p.stat().st_mtime_ns) for p in other.iterdir())
+    line = _refused_at([before, after], other, "holds a twin (written by twinreg build-twin)")
+    assert sorted((p.name, p.stat().st_mtime_ns) for p in other.iterdir()) == state and "--out" in line
+    _refused_at([before, after], after / "changes", "lies inside")
+    lib = parametric_catalogue.folder
+    r = runner.invoke(app, ["compare", str(before), str(after), "--out", str(lib / "changes"), "--library",
+                            str(lib)])
+    assert r.exit_code == 1 and "lies inside" in r.output and not (lib / "changes").exists(), r.output
+
+
+def _refused_at(args, out, *words):
+    r = runner.invoke(app, ["compare", *map(str, args), "--out", str(out)])
+    assert r.exit_code == 1, r.output
+    line = r.output.strip()
+    assert line.startswith("error:") and "\n" not in line, line
+    for w in words:
+        assert w in line, line
+    return line
