@@ -77,7 +77,7 @@ def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
     from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise
     from twinreg.matching.match import match_objects
-    from twinreg.pipeline import classify
+    from twinreg.stages import classify
     from twinreg.sim.accuracy import car_objects, density_passes
     from twinreg.sim.scan import car_park
 

@@ -68,6 +68,11 @@ class CellFileError(ValueError):
     to a user)."""
 
 
+class RecordError(ValueError):
+    """An observation record (observed.npz) that is not one this program wrote (the caller names the twin and the
+    fix; never shown to a user as it is)."""
+
+
 class ParameterError(TwinregError):
     """An option's value is out of its range (bad usage: exit status 2)."""
 

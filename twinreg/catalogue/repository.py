@@ -237,7 +237,7 @@ class Catalogue:
         """The model's mesh decimated to Google Earth's limit (or to ``max_faces`` triangles), cached beside the
         full mesh (``meshes/<sha>.ge.npz``, ``<sha>.<max_faces>.npz``, written atomically the first time a twin
         uses the model)."""
-        from .decimate import GE_MAX_TRIANGLES, decimate
+        from ..io.decimate import GE_MAX_TRIANGLES, decimate
 
         path = self.mesh_path(row, "ge" if max_faces is None else str(int(max_faces)))
         if path.exists():

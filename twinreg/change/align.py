@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import observed
+from ..io import observed
 from .epochs import Epoch
 from .footprints import turn
 

@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import CompareError
 from ..geo.georef import Georef
 from ..io._files import read_json_doc
-from . import observed
+from ..io import observed
 
 #: the largest twin.json read (bytes; a city of 100,000 objects writes about 150 MB)
 MAX_TWIN_BYTES = 256 * 1024 ** 2

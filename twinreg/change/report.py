@@ -11,7 +11,7 @@ import numpy as np
 
 from ..report.plots import pyplot, save_figure
 from ..report.scene import text
-from . import observed
+from ..io import observed
 from .footprints import record_corners
 
 COLOURS = {"same": "#7f8c8d", "moved": "#e67e22", "replaced": "#8e44ad", "left": "#c0392b", "arrived": "#27ae60",

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import observed
+from ..io import observed
 from .align import Alignment
 from .epochs import Epoch
 from .footprints import ring, samples

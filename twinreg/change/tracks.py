@@ -7,7 +7,7 @@ import datetime
 
 import numpy as np
 
-from . import observed
+from ..io import observed
 from .epochs import Epoch
 
 #: the grid (m) on which the area every survey saw is counted

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import observed
+from ..io import observed
 
 MAX_POINTS = 400_000
 

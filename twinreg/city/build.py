@@ -141,7 +141,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances;
     ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`)."""
     from ..io.outdir import check_replaceable, locked
-    from ..pipeline import checked_params
+    from ..stages import checked_params
 
     t_start = time.perf_counter()
     timing: dict = {}
@@ -164,7 +164,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     out = Path(out)
     protect = [Path(s.path) for s in sources] + [catalogue.folder]
     check_replaceable(out, protect, kind="twin")
-    from ..pipeline import require_models
+    from ..stages import require_models
 
     require_models(catalogue)
     with locked(out, "build-twin"):

@@ -19,7 +19,7 @@ import numpy as np
 from cosco.sections import Frame, ObjectShape, Sections, Size
 from cosco.symmetry import Symmetry
 
-from ..change.observed import Raster
+from ..io.observed import Raster
 from ..errors import CellFileError
 from ..io.npz import read_arrays, read_member
 from ..io.outdir import atomic_path

@@ -59,7 +59,7 @@ class CellObject:
 @dataclass
 class CellResult:
     """A finished cell: counts over its core, the scan noise measured on its ground, its objects, its timings,
-    where its core's scan saw anything (``observed``, a :class:`~twinreg.change.observed.Raster`: the report's map
+    where its core's scan saw anything (``observed``, a :class:`~twinreg.io.observed.Raster`: the report's map
     and the twin's observation record) and its scan for the 3D tiles: ``scan_tiles``, where the worker wrote every
     point of its core as tiles (:func:`~twinreg.export.scan_tiles.write_cell_scan`)."""
 
@@ -101,7 +101,7 @@ def _process_cell(job: CellJob) -> CellResult:
     from cosco.footprint import min_area_rectangle
     from cosco.segment import point_spacing
 
-    from ..change.observed import raster
+    from ..io.observed import raster
     from ..detect import describe_detected, detect_points, object_ground, object_points
     from ..export.scan_tiles import cell_scan_folder, write_cell_scan
     from ..export.tiles3d import scan_sample

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..change import observed
+from ..io import observed
 from ..export.formats import start_text_formats, write_tile_formats
 from ..export.kmz import write_kmz
 from ..export.objects import object_output, pose

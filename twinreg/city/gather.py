@@ -20,7 +20,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     object's point sample is, ``(cell file, index in it)``, for objects that do not hold it (the workers read
     them)."""
     from ..matching.match import ModelCache
-    from ..pipeline import classify
+    from ..stages import classify
 
     shapes = [o.shape for o in objects]
     sections = [s.sections for s in shapes]

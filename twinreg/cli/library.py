@@ -108,7 +108,7 @@ def library_report(
 ):
     """A gallery of the models, their taxonomy and near-duplicates, and which of them a scan of the given density
     confuses (library.html, library.json)."""
-    from ..catalogue.library_report import report
+    from ..evaluation.library_report import report
     from ..errors import require_positive
 
     require_positive("--density", density)

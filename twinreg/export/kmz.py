@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..catalogue.decimate import decimate
+from ..io.decimate import decimate
 from ..io.outdir import atomic_path
 from .collada import escape, write_collada
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..change.observed import heights
+from ..io.observed import heights
 from .plots import plot_dendrogram, pyplot, save_figure
 from .scene import STYLE, short_reason
 

@@ -82,7 +82,7 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
     from ..io.points import PointSet
     from ..matching.acceptance import scene_noise
     from ..matching.match import match_objects
-    from ..pipeline import classify
+    from ..stages import classify
     from .scan import car_park
 
     rows = sorted(catalogue.list(), key=lambda r: r.name)

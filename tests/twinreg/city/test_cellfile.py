@@ -12,7 +12,7 @@ import pytest
 
 from cosco import describe_object
 from tests.conftest import toy_car
-from twinreg.change.observed import raster
+from twinreg.io.observed import raster
 from twinreg.city.cellfile import FORMAT, load, load_clouds, save
 from twinreg.city.cells import CellObject, CellResult
 from twinreg.city.resume import CellStore

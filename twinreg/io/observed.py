@@ -25,6 +25,8 @@ import numpy as np
 
 from cosco.sections import Sections
 
+from ..errors import RecordError
+
 FILE = "observed.npz"
 FORMAT = "twinreg-observed/1"
 PIXEL = 0.5
@@ -108,10 +110,6 @@ def write(path: Path, rasters: list[Raster], sections: list[Sections]) -> dict:
     seen = sum(int((r.code != NONE).sum()) for r in rasters)
     return {"file": FILE, "format": FORMAT, "pixel_m": PIXEL, "rasters": len(rasters),
             "area_seen_m2": round(seen * PIXEL * PIXEL, 1)}
-
-
-class RecordError(ValueError):
-    """An observation record that is not one this program wrote (the caller names the twin and the fix)."""
 
 
 @dataclass
@@ -217,7 +215,7 @@ def _check_shapes(zf: zipfile.ZipFile, n_objects: int) -> None:
     """Refuse a record from its members' headers alone, before any array is decompressed: unknown members, wrong
     types or dimensions, sections longer than :data:`MAX_SECTION_POINTS` an object, or arrays that would take more
     than :data:`MAX_ARRAY_BYTES`."""
-    from ..io.npz import member_shapes, nbytes
+    from .npz import member_shapes, nbytes
 
     try:
         shapes = member_shapes(zf)

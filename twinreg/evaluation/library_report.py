@@ -37,7 +37,7 @@ def _scan_one(folder: str, k: int, density: float, scans: int, seed: int) -> lis
     from ..matching.match import ModelCache, match_objects
     from ..sim.accuracy import density_passes
     from ..sim.scan import pose_matrix, scan_meshes, transform
-    from .repository import Catalogue
+    from ..catalogue.repository import Catalogue
 
     cat = Catalogue(folder, create=False)
     rows = sorted(cat.list(), key=lambda r: r.id)
@@ -95,7 +95,7 @@ def taxonomy(catalogue) -> dict:
     """The paper's section dissimilarity between every pair of models, their clusters, and the near-duplicates."""
     import cosco
 
-    from .duplicates import NEAR_DUPLICATE_M, surface_distance
+    from ..catalogue.duplicates import NEAR_DUPLICATE_M, surface_distance
 
     rows = sorted(catalogue.list(), key=lambda r: r.id)
     geo = [catalogue.geometry(r, with_mesh=False) for r in rows]
