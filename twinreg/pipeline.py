@@ -11,23 +11,22 @@ from pathlib import Path
 from cosco.params import DEFAULT, CoscoParams
 
 from .catalogue.repository import Catalogue
-from .io import observed
 from .detect import describe_detected, detect_file, object_points
 from .errors import SceneReadError
 from .export.classified import scan_classes, write_classified
 from .export.formats import write_formats
 from .export.kmz import write_kmz
-from .export.objects import object_output
 from .export.tiles3d import scan_sample
 from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from .export.twin_ply import write_prj, write_twin_ply
 from .geo.georef import Georef, check_area, scene_georef
+from .io import observed
 from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
 from .matching.match import ModelCache, match_objects
 from .report.painter import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
-from .stages import checked_params, classify, require_models
+from .stages import checked_params, classify, place, require_models
 
 
 def _say(progress, msg):
@@ -219,17 +218,14 @@ def _match_and_export(run: SceneRun) -> dict:
 
     _say(progress, "export")
     t = time.perf_counter()
-    objects, ply_parts, kmz_objects, meshes, footprints, section_items, outs = [], [], [], {}, [], [], []
-    for k, (o, res) in enumerate(zip(targets, results)):
-        label = int(clusters.labels[k])
-        out = object_output(f"obj{k + 1}", o.n_points, res, label, offset, georef, models)
-        objects.append(out.doc)
-        kmz_objects.append(out.kmz)
-        meshes.setdefault(out.mesh_key, out.mesh)
-        ply_parts.append((out.placed, out.faces, label))
-        footprints.append(out.footprint)
-        section_items.append(out.sections)
-        outs.append(out)
+    outs = place([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
+                 clusters.labels, [offset] * len(targets), georef, models)
+    objects, kmz_objects = [o.doc for o in outs], [o.kmz for o in outs]
+    footprints, section_items = [o.footprint for o in outs], [o.sections for o in outs]
+    meshes: dict = {}
+    for o in outs:
+        meshes.setdefault(o.mesh_key, o.mesh)
+    ply_parts = [(o.placed, o.faces, int(label)) for o, label in zip(outs, clusters.labels)]
 
     when, source = survey_date(run.date, [(det.scene.survey_date, det.scene.survey_date_source)])
     scan = ScanSummary(scene_path.name, len(det.scene.points), det.scene.n_outliers, det.scene.unit, offset, noise,

@@ -13,14 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import observed
 from ..export.formats import start_text_formats, write_tile_formats
 from ..export.kmz import write_kmz
-from ..export.objects import object_output, pose
 from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from ..export.twin_ply import write_twin_ply
+from ..io import observed
 from ..io.outdir import staged_folder
 from .classified import FOLDER as CLASSIFIED
+from ..stages import place
 from .resume import WORK
 
 #: how long the JSON formats may take in their child before this process writes them itself (s, and s an object:
@@ -90,18 +90,12 @@ def export_city(run: CityRun) -> dict:
     from ..report.city import write_city_report
 
     out = Path(out)
-    docs, kmz_objects, meshes, per_cell_ply, outs = [], [], {}, {}, []
+    meshes, per_cell_ply = {}, {}
     t = time.perf_counter()
-    # every object's lat/lon and bearing in two vectorised transformations (one per object took 8 s at 5,000)
-    poses = [pose(res) for res in outcomes]
-    centres = np.array([c + o.offset for (c, _), o in zip(poses, objects)]).reshape(-1, 3)
-    lonlat, bearings = georef.placements(centres, [h for _, h in poses])
-    for k, (o, res, label) in enumerate(zip(objects, outcomes, tax.labels)):
-        where = (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k]))
-        item = object_output(o.id, o.n_points, res, int(label), o.offset, georef, models, where=where)
-        docs.append(item.doc)
-        outs.append(item)
-        kmz_objects.append(item.kmz)
+    outs = place([o.id for o in objects], [o.n_points for o in objects], outcomes, tax.labels,
+                 [o.offset for o in objects], georef, models)
+    docs, kmz_objects = [item.doc for item in outs], [item.kmz for item in outs]
+    for o, item, label in zip(objects, outs, tax.labels):
         meshes.setdefault(item.mesh_key, item.mesh)
         if ply:
             per_cell_ply.setdefault(o.cell, []).append((item.placed, item.faces, int(label)))
