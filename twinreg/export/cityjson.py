@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cosco.frames import yaw
+
 from .geojson import properties
 
 #: CityJSON integer coordinates: tenths of a millimetre (explicit geometry and a template placed by its matrix
@@ -93,9 +95,8 @@ def _placed(instances, meshes, docs, headings, georef) -> _Placed:
     ref = np.array([i.origin for i in instances], dtype=np.float64).reshape(-1, 3) @ to_crs
     matrices, attributes = [], []
     for inst, doc, a in zip(instances, docs, headings):
-        c, s = np.cos(a), np.sin(a)
         m = np.eye(4)
-        m[:3, :3] = to_crs @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.diag(inst.scale or (1, 1, 1))
+        m[:3, :3] = to_crs @ yaw(a) @ np.diag(inst.scale or (1, 1, 1))
         matrices.append(m)
         flat = {k: v for k, v in properties(doc).items() if v is not None and k != "id"}
         attributes.append({"function": "vehicle", **flat})

@@ -10,6 +10,7 @@ import numpy as np
 
 import cosco
 from cosco.footprint import min_area_rectangle
+from cosco.frames import yaw_pose
 
 from .twin_ply import cluster_color
 
@@ -125,10 +126,7 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
     else:
         s = shape.size
         bv, faces = box_mesh(s.length, s.width, s.height)
-        c, sn = np.cos(shape.heading), np.sin(shape.heading)
-        pose = np.eye(4)
-        pose[:3, :3] = [[c, -sn, 0], [sn, c, 0], [0, 0, 1.0]]
-        pose[:3, 3] = shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]
+        pose = yaw_pose(shape.heading, shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0])
         outline = bv
         heading, centre_local, size = shape.heading, shape.centroid, s.as_dict()
         mesh_key, mesh = f"box_{oid}", (bv, faces, (0.9, 0.2, 0.2))

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import cosco
+from cosco.frames import yaw_pose
 from cosco.params import DEFAULT, CoscoParams
 
 from ..catalogue.repository import Catalogue
@@ -73,8 +74,7 @@ REASON_CODES = ("no_model_of_this_size", "points_unexplained", "model_too_tall",
 
 
 def _rot(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0.0, 0.0], [s, c, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    return yaw_pose(a)
 
 
 def _shift(x: float, y: float, z: float) -> np.ndarray:

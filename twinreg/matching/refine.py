@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cosco.frames import yaw_pose
+
 #: the largest correction accepted (rad, m)
 MAX_TURN = np.radians(8.0)
 MAX_SHIFT = 0.4
@@ -30,9 +32,7 @@ def yaw_fit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     ms, md = src.mean(0), dst.mean(0)
     s, d = src - ms, dst - md
     theta = np.arctan2(np.sum(s[:, 0] * d[:, 1] - s[:, 1] * d[:, 0]), np.sum(s[:, 0] * d[:, 0] + s[:, 1] * d[:, 1]))
-    c, sn = np.cos(theta), np.sin(theta)
-    m = np.eye(4)
-    m[:3, :3] = [[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]]
+    m = yaw_pose(theta)
     m[:3, 3] = md - m[:3, :3] @ ms
     return m
 

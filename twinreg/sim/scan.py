@@ -32,11 +32,9 @@ DEFAULT_PASSES = (Pass(np.radians(20), np.radians(70), 0.10), Pass(np.radians(20
 
 def pose_matrix(x: float, y: float, heading: float, z: float = 0.0) -> np.ndarray:
     """(4, 4) transform putting a model (front +X) at (x, y, z) facing ``heading`` (rad from +X)."""
-    c, s = np.cos(heading), np.sin(heading)
-    m = np.eye(4)
-    m[:2, :2] = [[c, -s], [s, c]]
-    m[:3, 3] = [x, y, z]
-    return m
+    from cosco.frames import yaw_pose
+
+    return yaw_pose(heading, (x, y, z))
 
 
 def transform(vertices: np.ndarray, matrix: np.ndarray) -> np.ndarray:
