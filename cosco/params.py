@@ -171,7 +171,14 @@ class CoscoParams:
     An object's height is the ``seg_height_quantile`` of its heights above ground; its lowest point may be
     ``seg_max_base`` m plus one spacing above the ground. Symmetry (cosco/symmetry.py): start planes every
     ``sym_sweep_step`` (rad) besides the guided ones; a plane within ``sym_along_axis`` of the footprint's long
-    axis is "along" it; two planes within ``sym_same_plane`` are the same.
+    axis is "along" it; two planes within ``sym_same_plane`` are the same; its Nelder-Mead search starts from a
+    simplex ``sym_simplex_turn`` (rad) and ``sym_simplex_shift`` (m) wide and stops within ``sym_xatol`` (rad and
+    m) and ``sym_fatol`` (score). A pose refined on the points (twinreg/matching/refine.py) may turn at most
+    ``refine_max_turn`` (rad) and move at most ``refine_max_shift`` (m) from where the sections put it.
+
+    The twin over time (twinreg/change/): a match at least ``change_sure`` confident counts as evidence of which
+    vehicle it is (pairs.py); a piece of one survey's object lies inside the other's when ``change_piece_inside``
+    of it is within that object's footprint grown by ``change_piece_grow`` m (fragments.py).
 
     Taxonomy at scale (cosco/taxonomy.py; docs/METHOD.md): up to ``taxonomy_full_max`` objects, the full matrix
     and the dendrogram (the paper); beyond, each object is compared with its ``taxonomy_neighbours`` nearest
@@ -278,6 +285,15 @@ class CoscoParams:
     sym_sweep_step: float = math.pi / 12
     sym_along_axis: float = math.radians(20.0)
     sym_same_plane: float = math.radians(8.0)
+    sym_simplex_turn: float = math.radians(4.0)
+    sym_simplex_shift: float = 0.08
+    sym_xatol: float = 5e-3
+    sym_fatol: float = 1e-3
+    refine_max_turn: float = math.radians(8.0)
+    refine_max_shift: float = 0.4
+    change_sure: float = 0.9
+    change_piece_inside: float = 0.6
+    change_piece_grow: float = 0.3
 
     taxonomy_full_max: int = 32
     taxonomy_neighbours: int = 3

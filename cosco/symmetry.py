@@ -216,8 +216,9 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
             lambda x: -obj.soft(x[0], x[1]),
             x0=[phi0, rho0],
             method="Nelder-Mead",
-            options={"maxiter": params.sym_iterations, "xatol": 5e-3, "fatol": 1e-3,
-                     "initial_simplex": [[phi0, rho0], [phi0 + np.radians(4), rho0], [phi0, rho0 + 0.08]]},
+            options={"maxiter": params.sym_iterations, "xatol": params.sym_xatol, "fatol": params.sym_fatol,
+                     "initial_simplex": [[phi0, rho0], [phi0 + params.sym_simplex_turn, rho0],
+                                         [phi0, rho0 + params.sym_simplex_shift]]},
         )
         return _refine_pairs(ref, ref_tree, res.x[0], res.x[1], tol, params.sym_refine_steps)
 

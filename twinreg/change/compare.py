@@ -33,8 +33,8 @@ def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[
         al = align(a, b)
         if al.note and say:
             say(f"epochs {k} and {k + 1}: {al.note}")
-        b, b_pieces = merge_pieces(a, b, -al.shift[:2])
-        a, a_pieces = merge_pieces(b, a, al.shift[:2])
+        b, b_pieces = merge_pieces(a, b, -al.shift[:2], params)
+        a, a_pieces = merge_pieces(b, a, al.shift[:2], params)
         pairs = pair_objects(a, b, al.shift, params, pieces=(a_pieces, b_pieces))
         step = classify(a, b, k, al, pairs)
         alignments.append(al.as_json(k))

@@ -12,18 +12,16 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cosco.footprint import min_area_rectangle
+from cosco.params import DEFAULT, CoscoParams
 
 from .epochs import Epoch
 from .footprints import corners, inside, samples
 
-#: a piece lies inside an object when this share of it is within the object's footprint grown by :data:`GROW`
-INSIDE = 0.6
-GROW = 0.3
-
-
-def _pieces(whole: Epoch, parts: Epoch, shift: np.ndarray) -> list[tuple[int, list[int]]]:
+def _pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
+            params: CoscoParams = DEFAULT) -> list[tuple[int, list[int]]]:
     """(object of ``whole``, its pieces in ``parts`` (two or more, none with a model)) for every object of
-    ``whole``; ``shift`` (2,) takes ``parts``' coordinates to ``whole``'s."""
+    ``whole``; ``shift`` (2,) takes ``parts``' coordinates to ``whole``'s. A piece lies inside an object when
+    ``params.change_piece_inside`` of it is within the object's footprint grown by ``params.change_piece_grow``."""
     free = np.array([m is None for m in parts.models], dtype=bool)
     if free.sum() < 2 or not len(whole):
         return []
@@ -37,19 +35,21 @@ def _pieces(whole: Epoch, parts: Epoch, shift: np.ndarray) -> list[tuple[int, li
         j = idx[np.asarray(cand)]
         pts = samples(parts.centre[j, :2] + shift, parts.heading[j], parts.size[j, 0], parts.size[j, 1], nu=10, nv=4)
         k = np.full(len(j), i)
-        share = inside(pts, whole.centre[k, :2], whole.heading[k], whole.size[k, 0] + 2 * GROW,
-                       whole.size[k, 1] + 2 * GROW).mean(1)
-        mine = [int(x) for x in j[share >= INSIDE] if int(x) not in taken]
+        grow = params.change_piece_grow
+        share = inside(pts, whole.centre[k, :2], whole.heading[k], whole.size[k, 0] + 2 * grow,
+                       whole.size[k, 1] + 2 * grow).mean(1)
+        mine = [int(x) for x in j[share >= params.change_piece_inside] if int(x) not in taken]
         if len(mine) >= 2:
             out.append((i, mine))
             taken.update(mine)
     return out
 
 
-def merge_pieces(whole: Epoch, parts: Epoch, shift: np.ndarray) -> tuple[Epoch, np.ndarray]:
+def merge_pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
+                 params: CoscoParams = DEFAULT) -> tuple[Epoch, np.ndarray]:
     """``parts`` with the pieces of each of ``whole``'s objects merged into one object (appended; the pieces
     dropped), and the (n,) mask of its merged objects."""
-    groups = _pieces(whole, parts, shift)
+    groups = _pieces(whole, parts, shift, params)
     if not groups:
         return parts, np.zeros(len(parts), dtype=bool)
     keep = np.ones(len(parts), dtype=bool)

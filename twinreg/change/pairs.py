@@ -17,8 +17,6 @@ from cosco.params import DEFAULT, CoscoParams
 from .epochs import Epoch
 from .footprints import overlap, turn
 
-#: a match this confident counts as evidence of which vehicle it is
-SURE = 0.9
 
 
 @dataclass
@@ -66,7 +64,8 @@ def _same_vehicle(a: Epoch, b: Epoch, i, j, section_m, params) -> tuple[np.ndarr
     p_sec = np.exp(-0.5 * (np.maximum(np.nan_to_num(section_m) / theta - 1.0, 0.0) * 4) ** 2)
     # two sure matches (COSCO's confidence of 0.9 or more was right in every case measured) to different models
     # speak against one vehicle; an unsure or missing match says nothing (a sparse survey, a near-duplicate pair)
-    sure = (np.nan_to_num(a.confidence[i]) >= SURE) & (np.nan_to_num(b.confidence[j]) >= SURE)
+    sure = ((np.nan_to_num(a.confidence[i]) >= params.change_sure)
+            & (np.nan_to_num(b.confidence[j]) >= params.change_sure))
     other = both & sure & ~np.array([a.models[p] == b.models[q] for p, q in zip(i, j)], dtype=bool)
     p_model = np.where(other, 0.25, 1.0)
     return z.max(axis=1) if len(z) else np.zeros(0), np.clip(p_size * p_sec * p_model, 0.0, 1.0)

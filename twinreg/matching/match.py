@@ -240,7 +240,8 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
         # the vertical and a shift (twinreg/matching/refine.py)
         e, in_model = screen
         m = e.extra["transform"]
-        c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach)
+        c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach,
+                   params=params)
         e = scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
         e.extra["refined"] = True
         return e
