@@ -3,6 +3,7 @@
 Numpy in, numpy out: no database, no CLI. Lengths in metres, angles in radians counter-clockwise from +X.
 """
 
+from .arrays import voxel_downsample
 from .cluster import Clustering, cluster
 from .dissimilarity import (
     Registration,
@@ -12,7 +13,8 @@ from .dissimilarity import (
     polished,
     register_sections,
 )
-from .footprint import Rectangle, axis_difference, min_area_rectangle, voxel_downsample
+from .footprint import Rectangle, min_area_rectangle
+from .frames import axis_difference
 from .params import DEFAULT, CoscoParams
 from .sections import Frame, ObjectShape, Sections, Size, describe_object
 from .symmetry import Symmetry, detect_symmetry

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points, column_max, column_min
+from .arrays import as_points, column_max, column_min
 from .params import DEFAULT, CoscoParams
 from .sorting import group_by_key, group_medians
 

@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points, cell_keys, check_object, from_frame, min_area_rectangle, to_frame
+from .arrays import as_points, cell_keys, check_object
+from .footprint import min_area_rectangle
+from .frames import from_frame, to_frame
 from .params import DEFAULT, CoscoParams
 from .symmetry import Symmetry, detect_symmetry, with_footprint
 

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import as_points, cell_keys, column_max, column_min, min_area_rectangle
+from .arrays import as_points, cell_keys, column_max, column_min
+from .footprint import min_area_rectangle
 from .params import DEFAULT, CoscoParams
 from .sorting import stable_argsort
 

@@ -14,7 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .footprint import as_points, axis_difference, min_area_rectangle, voxel_downsample, wrap_axis
+from .arrays import as_points, voxel_downsample
+from .footprint import min_area_rectangle
+from .frames import axis_difference, wrap_axis
 from .params import DEFAULT, CoscoParams
 
 if TYPE_CHECKING:

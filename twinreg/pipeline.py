@@ -24,7 +24,7 @@ from .io import observed
 from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
 from .matching.match import ModelCache, match_objects
-from .report.painter import HELPER_TIMEOUT_S, Painter, Pending
+from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
 from .stages import checked_params, classify, place, require_models
 

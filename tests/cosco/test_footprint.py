@@ -3,7 +3,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cosco.footprint import axis_difference, from_frame, min_area_rectangle, to_frame, voxel_downsample
+from cosco.arrays import voxel_downsample
+from cosco.footprint import min_area_rectangle
+from cosco.frames import axis_difference, from_frame, to_frame
 
 
 def _brute_force_area(xy):

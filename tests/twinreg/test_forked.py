@@ -1,4 +1,4 @@
-"""A call run in a forked child (twinreg/report/painter.py ``Forked``: a city's JSON formats beside its KMZ,
+"""A call run in a forked child (twinreg/process/helpers.py ``Forked``: a city's JSON formats beside its KMZ,
 report and tiles) gives its value; a child that fails, dies or overruns its time is stopped and the call runs in
 this process, once, with the same result; no child is left behind."""
 
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import psutil
 
-from twinreg.report.painter import Forked
+from twinreg.process.helpers import Forked
 
 
 def _write(path: str, text: str, pause: float = 0.0, parent: int = 0) -> int:

@@ -83,7 +83,7 @@ class Engine:
                                                 silence_logs=logging.CRITICAL, host="127.0.0.1", scheduler_port=0,
                                                 protocol="tls://", security=Security.temporary(),
                                                 # the workers leave when this process dies, however it dies
-                                                preload=["twinreg.lifeline"])
+                                                preload=["twinreg.process.lifeline"])
                 self.client = Client(self.cluster, security=self.cluster.security)
         except Exception as exc:  # unreachable, refused, a malformed address, no free port...
             self.__exit__(None, None, None)

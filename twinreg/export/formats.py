@@ -88,7 +88,7 @@ def start_text_formats(stage: Path, outputs: list, offsets: list, georef, title:
                        seq: bool, fork: bool = False):
     """Start :func:`write_text_formats` on a thread, or with ``fork`` in a forked child (a city's thousands of
     objects: JSON encoding holds Python's lock, so a thread shares one core with the caller); returns what to
-    ``wait()`` for, and to ``stop()`` on every path (:class:`~twinreg.report.painter.Forked`)."""
+    ``wait()`` for, and to ``stop()`` on every path (:class:`~twinreg.process.helpers.Forked`)."""
     docs = [o.doc for o in outputs]
     # pyproj's transformations and the catalogue's connection stay in this process and thread
     corners = [np.asarray(o.footprint["corners"]) + np.asarray(off)[:2] for o, off in zip(outputs, offsets)]
@@ -101,7 +101,7 @@ def start_text_formats(stage: Path, outputs: list, offsets: list, georef, title:
             seq, outputs, rings)
     if not fork:
         return _Threaded(*args)
-    from ..report.painter import Forked
+    from ..process.helpers import Forked
 
     return Forked(write_text_formats, *args)
 

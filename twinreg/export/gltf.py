@@ -14,7 +14,7 @@ import struct
 
 import numpy as np
 
-from cosco.footprint import column_max, column_min
+from cosco.arrays import column_max, column_min
 
 FLOAT, UINT8, UINT16, UINT32 = 5126, 5121, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosco.footprint import column_max, column_min
+from cosco.arrays import column_max, column_min
 
 from .gltf import Glb
 

@@ -18,7 +18,7 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     import laspy
     import pyproj
 
-    from cosco.footprint import column_max, column_min
+    from cosco.arrays import column_max, column_min
 
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     lo, hi = column_min(pts), column_max(pts)

@@ -126,7 +126,7 @@ def top_surface(points: np.ndarray, cell: float = 0.1) -> np.ndarray:
     >>> top_surface(np.array([[0.01, 0.0, 1.0], [0.02, 0.01, 2.0], [0.5, 0.5, 0.3]])).tolist()
     [[0.02, 0.01, 2.0], [0.5, 0.5, 0.3]]
     """
-    from cosco.footprint import cell_keys
+    from cosco.arrays import cell_keys
     from cosco.sorting import stable_argsort
 
     p = np.asarray(points, dtype=np.float64)

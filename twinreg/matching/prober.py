@@ -1,11 +1,11 @@
 """The verification's point-to-surface distances in a helper process (the run's second
-:class:`~twinreg.report.painter.Painter`), so that open3d, whose import alone takes about half a second
+:class:`~twinreg.process.helpers.Painter`), so that open3d, whose import alone takes about half a second
 (:mod:`twinreg.o3d`), loads on the other core while this process detects, describes and registers.
 
 The helper is started with the run and imports open3d at once; each model's mesh is sent with its first query and
 kept there (one :class:`~twinreg.matching.acceptance.SurfaceIndex` per model, as in-process). The answers are the
 same distances open3d gives in-process. Once the matching is done, the helper (``Prober.helper``) can take other
-calls, e.g. a file of the export (:class:`~twinreg.report.painter.Pending`). It is a speed-up only: when the helper
+calls, e.g. a file of the export (:class:`~twinreg.process.helpers.Pending`). It is a speed-up only: when the helper
 is missing, stuck or failed, the queries are answered in this process (and the helper stopped)."""
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ class Prober:
         are then quickest here) or no helper can start."""
         import sys
 
-        from ..report.painter import Painter
+        from ..process.helpers import Painter
 
         if "open3d" in sys.modules:
             return None

@@ -22,7 +22,7 @@ HELPER_TIMEOUT_S = 30.0
 def _die_with_parent() -> None:
     import signal
 
-    from ..lifeline import die_with_parent
+    from .lifeline import die_with_parent
 
     die_with_parent(signal.SIGTERM)
 
