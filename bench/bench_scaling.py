@@ -115,7 +115,7 @@ def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
                                 "car parks, 150 pts/m2",
                                 f"{1000 * t_match / len(shapes):.1f} ms per object (a catalogue's first run, which decimates "
                                 f"and caches each model's mesh once: {1000 * t_first / len(shapes):.0f} ms); "
-                                f"{stats['n_trials']} trials "
+                                f"{stats.n_trials} trials "
                                 f"of {n * len(shapes)} pairs; {right}/{len(shapes)} given their car's model or a "
                                 "clone of it", "under 50 ms per object at 1,000 models"))
             print(rows_out[-1], file=sys.stderr, flush=True)

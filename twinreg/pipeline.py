@@ -211,10 +211,10 @@ def _match_and_export(run: SceneRun) -> dict:
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
                                    clouds=[object_points(det, o) for o in targets], noise=noise, cache=models,
                                    done=(lambda k, n: run.tick("matching", k, n)) if run.tick else None)
-    timing["prefilter"] = stats["prefilter_s"]
-    timing["model_prep"] = stats["model_prep_s"]
-    timing["registration"] = stats["registration_s"]
-    timing["verification"] = stats["verification_s"]
+    timing["prefilter"] = stats.prefilter_s
+    timing["model_prep"] = stats.model_prep_s
+    timing["registration"] = stats.registration_s
+    timing["verification"] = stats.verification_s
 
     _say(progress, "export")
     t = time.perf_counter()

@@ -57,7 +57,7 @@ class CityRun:
     objects: list
     tax: object
     outcomes: list
-    stats: dict
+    stats: object
     models: object
     catalogue: object
     params: object

@@ -19,7 +19,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     """(taxonomy, outcomes in object order, matching statistics, the client's ModelCache). ``samples``: where each
     object's point sample is, ``(cell file, index in it)``, for objects that do not hold it (the workers read
     them)."""
-    from ..matching.match import ModelCache
+    from ..matching.match import MatchStats, ModelCache
     from ..stages import classify
 
     shapes = [o.shape for o in objects]
@@ -52,8 +52,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     if progress:
         progress("matching", 0, len(objects))
     outcomes = [None] * len(objects)
-    stats = {"prefilter_s": 0.0, "model_prep_s": 0.0, "registration_s": 0.0, "verification_s": 0.0,
-             "n_trials": 0, "n_pairs_without_prefilter": 0, "n_trials_saved_by_clusters": 0}
+    stats = MatchStats()
     leaders: dict = {}
     done = [0]
     folder = str(catalogue.folder)
@@ -74,9 +73,8 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
             res, st = result
             for i, r in zip(members[k], res):
                 outcomes[i] = r
-            for key in stats:
-                stats[key] += st.get(key, 0)
-            leaders.update(st.get("leaders", {}))
+            stats.add(st)
+            leaders.update(st.leaders)
             done[0] += len(res)
             if progress:
                 progress("matching", done[0], len(objects))

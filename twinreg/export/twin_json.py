@@ -29,9 +29,9 @@ class ScanSummary:
 
 @dataclass
 class MatchSummary:
-    """The matching statistics of a run (``match_objects``' stats) and the catalogue's size."""
+    """The matching statistics of a run (:class:`~twinreg.matching.match.MatchStats`) and the catalogue's size."""
 
-    stats: dict
+    stats: object
     catalogue_models: int
     worker_stages: bool = False
     extra: dict = field(default_factory=dict)
@@ -69,13 +69,13 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
         **taxonomy_json(tax),
     }
     m = {"tol_m": params.size_tol, "tol_spacing_k": params.size_spacing_k,
-         "catalogue_models": matching.catalogue_models, "n_trials": stats["n_trials"],
-         "n_pairs_without_prefilter": stats["n_pairs_without_prefilter"],
-         "n_trials_saved_by_clusters": stats["n_trials_saved_by_clusters"],
-         "registration_ms_per_trial": round(1000 * stats["registration_s"] / max(stats["n_trials"], 1), 3)}
+         "catalogue_models": matching.catalogue_models, "n_trials": stats.n_trials,
+         "n_pairs_without_prefilter": stats.n_pairs_without_prefilter,
+         "n_trials_saved_by_clusters": stats.n_trials_saved_by_clusters,
+         "registration_ms_per_trial": round(1000 * stats.registration_s / max(stats.n_trials, 1), 3)}
     if matching.worker_stages:
-        m["worker_s"] = {k[:-2]: round(stats[k], 3) for k in ("prefilter_s", "model_prep_s", "registration_s",
-                                                              "verification_s")}
+        m["worker_s"] = {k[:-2]: round(getattr(stats, k), 3)
+                         for k in ("prefilter_s", "model_prep_s", "registration_s", "verification_s")}
     doc["matching"] = m | matching.extra
     doc |= tail or {}
     doc["timing_s"] = {}

@@ -17,7 +17,8 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -27,6 +28,38 @@ from cosco.params import DEFAULT, CoscoParams
 
 from ..catalogue.repository import Catalogue
 from .cache import ModelCache
+
+
+class Candidate(NamedTuple):
+    """One catalogue model registered to one object by its sections: the registration and the model's id."""
+
+    reg: cosco.Registration
+    model_id: int
+
+
+@dataclass
+class MatchStats:
+    """What a matching did: its stages' seconds, its registration trials, the object-model pairs a full search
+    would have tried, the objects no model's size window held, the trials the clusters saved, and each cluster's
+    leader's ranking (``{label: (model ids, best RMSE)}``, for members matched in another call). Batches of a
+    city add up with :meth:`add`."""
+
+    prefilter_s: float = 0.0
+    model_prep_s: float = 0.0
+    registration_s: float = 0.0
+    verification_s: float = 0.0
+    n_trials: int = 0
+    n_pairs_without_prefilter: int = 0
+    n_without_window: int = 0
+    n_trials_saved_by_clusters: int = 0
+    leaders: dict = field(default_factory=dict)
+
+    def add(self, other: "MatchStats") -> None:
+        """Add another call's counts and seconds to these (its leaders joined to these)."""
+        for f in fields(self):
+            if f.name != "leaders":
+                setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
+        self.leaders.update(other.leaders)
 
 
 @dataclass
@@ -108,7 +141,7 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     against all the points (:mod:`twinreg.matching.acceptance`); without them the lowest RMSE wins unverified. noise may
     be one value or one per object (tiles of a city); spacings : each object's point spacing (m) when ``clouds``
     are samples of the objects' points, else None (measured on the clouds). leaders : ``{label: (ranking,
-    best RMSE)}`` of clusters whose leader was matched in another call (``stats["leaders"]`` of that call): all
+    best RMSE)}`` of clusters whose leader was matched in another call (``stats.leaders`` of that call): all
     the objects given for those labels are members, so one cluster's members can be matched in several batches
     with exactly the outcome of one call. cache : a
     :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
@@ -116,8 +149,7 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     from cosco.segment import point_spacing
 
     cache = ModelCache(catalogue, params) if cache is None else cache
-    stats = {"prefilter_s": 0.0, "registration_s": 0.0, "verification_s": 0.0, "n_trials": 0,
-             "n_pairs_without_prefilter": 0}
+    stats = MatchStats()
     pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
     t = time.perf_counter()
     index = cache.size_index()
@@ -128,13 +160,12 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     found = [index.candidates(s, spacings[i], params) for i, s in enumerate(shapes)]
     cands = [f.all for f in found]
     cache.add_rows(catalogue.rows(sorted({m for c in cands for m in c} - set(cache.known()))))
-    stats["prefilter_s"] = time.perf_counter() - t
-    stats["n_pairs_without_prefilter"] = total_models * len(shapes)
-    stats["n_without_window"] = sum(f.outside for f in found)
+    stats.prefilter_s = time.perf_counter() - t
+    stats.n_pairs_without_prefilter = total_models * len(shapes)
+    stats.n_without_window = sum(f.outside for f in found)
 
     # the distance fields of a model are built the first time it is tried (counted in the registration time): a
     # member of a cluster tries only a few of its candidates
-    stats["model_prep_s"] = 0.0
 
     # order: per cluster, the leader (its first object) first: it tries every candidate; then the members
     groups: dict[int, list[int]] = {}
@@ -142,7 +173,6 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
         groups.setdefault(int(labels[i]) if labels is not None else -1 - i, []).append(i)
     results: list[ObjectMatch | None] = [None] * len(shapes)
     t = time.perf_counter()
-    stats["leaders"] = {}
     n_done = 0
     for label, members in groups.items():
         # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
@@ -160,42 +190,42 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
             regs = _registrations(pairs[i], ids, cands[i], cache, params, None if leads else leader_best, stats,
                                   progress)
             if leads:
-                ranked_by_leader = [m for _, m in regs]
-                leader_best = regs[0][0].rmse if regs else np.inf
+                ranked_by_leader = [c.model_id for c in regs]
+                leader_best = regs[0].reg.rmse if regs else np.inf
                 if labels is not None:
-                    stats["leaders"][label] = (ranked_by_leader, leader_best)
+                    stats.leaders[label] = (ranked_by_leader, leader_best)
             cloud = clouds[i] if clouds is not None else None
             noise_i = noise if noise is None or np.ndim(noise) == 0 else float(noise[i])
             t_v = time.perf_counter()
             results[i] = _outcome(shapes[i], regs, cache, found[i], cloud, noise_i, pairs[i], params, spacings[i])
-            stats["verification_s"] += time.perf_counter() - t_v
+            stats.verification_s += time.perf_counter() - t_v
             n_done += 1
             if done is not None:
                 done(n_done, len(shapes))
-    stats["registration_s"] = time.perf_counter() - t - stats["verification_s"]
-    stats["n_trials_saved_by_clusters"] = sum(len(c) for c in cands) - stats["n_trials"]
+    stats.registration_s = time.perf_counter() - t - stats.verification_s
+    stats.n_trials_saved_by_clusters = sum(len(c) for c in cands) - stats.n_trials
     return results, stats
 
 
-def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, leader_best, stats: dict,
+def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, leader_best, stats: MatchStats,
                    progress=None) -> list:
     """The section registrations of one object to the models ``ids``, best (lowest RMSE) first, the best one
     polished. A member of a cluster (``leader_best``: the RMSE its leader reached) that fits those clearly worse
     than its leader did is not the same kind of car after all: it tries the rest of ``all_ids`` too."""
     regs = []
     for mid in ids:
-        regs.append((_trial(pair, cache, mid, params), mid))
-        stats["n_trials"] += 1
+        regs.append(Candidate(_trial(pair, cache, mid, params), mid))
+        stats.n_trials += 1
         if progress:
             progress(1)
-    regs.sort(key=lambda r: r[0].rmse)
-    if leader_best is not None and regs and regs[0][0].rmse > leader_best + params.share_margin:
+    regs.sort(key=lambda c: c.reg.rmse)
+    if leader_best is not None and regs and regs[0].reg.rmse > leader_best + params.share_margin:
         for mid in [m for m in all_ids if m not in ids]:
-            regs.append((_trial(pair, cache, mid, params), mid))
-            stats["n_trials"] += 1
-        regs.sort(key=lambda r: r[0].rmse)
+            regs.append(Candidate(_trial(pair, cache, mid, params), mid))
+            stats.n_trials += 1
+        regs.sort(key=lambda c: c.reg.rmse)
     if regs:  # the winner's pose to a few millimetres (shifts below the 2 cm field cell)
-        regs[0] = (cosco.polished(pair, cache.pair(regs[0][1]), regs[0][0], params), regs[0][1])
+        regs[0] = regs[0]._replace(reg=cosco.polished(pair, cache.pair(regs[0].model_id), regs[0].reg, params))
     return regs
 
 
@@ -310,15 +340,16 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
                 gap = np.array([near.length, near.width, near.height]) - shape.size.as_array()
                 reason = (f"no catalogue model within the size tolerance; the nearest, {near.name}, is "
                           f"{_size_gap_text(gap)} than the object, and none of the nearest fits it ({reason})")
-            return ObjectMatch(shape, None, reason, [m for _, m in regs],
+            return ObjectMatch(shape, None, reason, [c.model_id for c in regs],
                                rejected={"name": name, "rmse_m": round(best.rmse, 4), **best.verdict.as_dict(),
                                          **best.as_dict()},
                                reason_code="no_model_of_this_size" if found.outside else best.reason_code())
-        k = next(j for j, (_, mid) in enumerate(regs) if mid == decision.best.model_id)
+        k = next(j for j, c in enumerate(regs) if c.model_id == decision.best.model_id)
         if k > 0:  # the winner's pose polished (the first by RMSE already was)
-            regs[k] = (cosco.polished(obj_pair, cache.pair(regs[k][1]), regs[k][0], params), regs[k][1])
+            regs[k] = regs[k]._replace(reg=cosco.polished(obj_pair, cache.pair(regs[k].model_id), regs[k].reg,
+                                                          params))
         regs.insert(0, regs.pop(k))
-    reg, mid = regs[0]
+    reg, mid = regs[0].reg, regs[0].model_id
     row = cache.row(mid)
     m = decision.best.extra["transform"] if decision is not None else placement(shape.frame, cache.frame(mid), reg)
     front = m[:2, :2] @ np.array([1.0, 0.0])
@@ -334,7 +365,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
                       "rmse_m": round(others[0].rmse, 4), "score_m": round(others[0].score, 4),
                       "refined": bool(others[0].extra["refined"])}
     elif len(regs) > 1:
-        r2, m2 = regs[1]
+        r2, m2 = regs[1].reg, regs[1].model_id
         runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}
     rz = decision.best.extra["rz"] if decision is not None else reg.rz
     match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=rz, tz=reg.tz, du=reg.du, transform=m,
@@ -346,4 +377,4 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
                   ambiguous_with=[cache.row(a).name for a in decision.ambiguous_with] if decision else [],
                   outside_tolerance=mid in found.nearest,
                   evidence=decision.best.as_dict() if decision else None)
-    return ObjectMatch(shape, match, "", [m for _, m in regs])
+    return ObjectMatch(shape, match, "", [c.model_id for c in regs])

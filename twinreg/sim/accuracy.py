@@ -116,7 +116,7 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
                 oc.heading_err_deg = float(np.degrees(abs(np.angle(np.exp(1j * (m.heading - car.heading))))))
         out.append(oc)
     return out, {"detect_s": t1 - t0, "match_s": t2 - t1, "n_objects": len(det.objects),
-                 "n_trials": stats["n_trials"]}
+                 "n_trials": stats.n_trials}
 
 
 def car_objects(park, det) -> np.ndarray:

@@ -30,8 +30,8 @@ def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_
     results, stats = match_objects(shapes, parametric_catalogue, labels=labels, clouds=clouds, noise=noise)
     assert [r.match.name for r in results] == names
     assert all(r.match.verdict.accepted and r.match.confidence > 0.5 for r in results)
-    assert stats["n_trials"] < sum(len(r.candidates) for r in results) + stats["n_trials_saved_by_clusters"] + 1
-    assert stats["leaders"][0][0][0] == results[0].match.model_id
+    assert stats.n_trials < sum(len(r.candidates) for r in results) + stats.n_trials_saved_by_clusters + 1
+    assert stats.leaders[0][0][0] == results[0].match.model_id
     assert len(results[1].candidates) <= len(results[0].candidates)
     unverified, _ = match_objects(shapes, parametric_catalogue)
     assert [r.match.name for r in unverified] == names and all(r.match.verdict is None for r in unverified)
