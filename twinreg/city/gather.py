@@ -68,8 +68,10 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
         batches, members = match_batches(objects, tax.labels, noise, folder, params, indices, size=size,
                                          leaders=known, samples=samples)
 
-        def batch_done(name, result, members=members):
-            k = int(name[5:])
+        names = [f"batch{k}" for k in range(len(batches))]
+
+        def batch_done(name, result, members=members, number={n: k for k, n in enumerate(names)}):
+            k = number[name]
             res, st = result
             for i, r in zip(members[k], res):
                 outcomes[i] = r
@@ -79,7 +81,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
             if progress:
                 progress("matching", done[0], len(objects))
 
-        fails = eng.run(match_batch, batches, [f"batch{k}" for k in range(len(batches))], on_result=batch_done)
+        fails = eng.run(match_batch, batches, names, on_result=batch_done)
         if fails:
             raise EngineError(f"matching failed twice for {fails[0].name} ({fails[0].error})")
     timing["matching"] = time.perf_counter() - t  # the workers' own sums are in twin.json's matching.worker_s

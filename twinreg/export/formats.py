@@ -36,9 +36,8 @@ def _instances(outputs: list, offsets: list) -> list:
 
 def _light(outputs: list, models) -> dict:
     """The tiles' (and CityJSON's) lighter mesh of every model the objects show, by mesh key."""
-    meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
-    return {key: (*models.light_mesh(int(key[len("model"):]), TILE_MAX_TRIANGLES), rgb)
-            for key, (_, _, rgb) in meshes.items()}
+    meshes = {o.mesh_key: (o.model_id, o.mesh[2]) for o in outputs if o.model_id is not None}
+    return {key: (*models.light_mesh(model_id, TILE_MAX_TRIANGLES), rgb) for key, (model_id, rgb) in meshes.items()}
 
 
 def write_tile_formats(stage: Path, outputs: list, offsets: list, georef, groups: list, scans: list | None,

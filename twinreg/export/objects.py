@@ -28,7 +28,8 @@ def box_mesh(length: float, width: float, height: float):
 class ObjectOutput:
     """``doc`` (twin.json), ``kmz`` (placemark fields), ``mesh_key`` and ``mesh`` (vertices, faces, rgb in model
     coordinates), ``footprint`` and ``sections`` (report items), ``bearing`` (degrees clockwise from true north) of
-    the mesh's +X, ``scale`` (L, W, H) of a unit box (an object with no model) or None, and ``pose`` (4, 4), which
+    the mesh's +X, ``scale`` (L, W, H) of a unit box (an object with no model) or None, ``model_id`` the catalogue
+    model's id (None for a box; ``mesh_key`` names the mesh in files), and ``pose`` (4, 4), which
     takes the mesh into the object's local frame: :attr:`origin` and :attr:`placed` follow from it (the placed
     vertices are computed when asked: a city's objects would hold hundreds of kilobytes each)."""
 
@@ -41,6 +42,7 @@ class ObjectOutput:
     pose: np.ndarray
     bearing: float = 0.0
     scale: tuple | None = None
+    model_id: int | None = None
 
     @property
     def origin(self) -> np.ndarray:
@@ -172,4 +174,5 @@ def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, 
                  "front": ctr + 1.5 * np.array([np.cos(heading), np.sin(heading)]),
                  "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1]) + ("" if m else "?")}
     return ObjectOutput(doc, kmz, mesh_key, mesh, footprint, sections, pose, float(bearing),
-                        None if m is not None else (s.length, s.width, s.height))
+                        None if m is not None else (s.length, s.width, s.height),
+                        m.model_id if m is not None else None)
