@@ -200,14 +200,29 @@ def test_bad_inputs_leave_nothing_half_written(tmp_path, park, catalogue16):
 
 
 def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_path, monkeypatch):
+    """Without the helper process (TWINREG_NO_HELPER=1, or a helper that cannot start) this process draws the
+    same pictures, pixel for pixel, and no child process is started for them."""
+    import psutil
+    from matplotlib.image import imread
+
     from twinreg.geo.georef import georef_from_options
     from twinreg.pipeline import build_twin
 
+    georef = georef_from_options(53.35116, -6.261601)
+    build_twin(park["path"], catalogue16, georef, tmp_path / "helper")
     monkeypatch.setenv("TWINREG_NO_HELPER", "1")
-    twin = build_twin(park["path"], catalogue16, georef_from_options(53.35116, -6.261601), tmp_path / "out")
-    assert len(twin["objects"]) == 12
-    for name in ("topview.png", "heatmap.png", "dendrogram.png", "sections.png", "report.html"):
-        assert (tmp_path / "out" / name).stat().st_size > 1000
+    before = {p.pid for p in psutil.Process().children(recursive=True)}
+    started = []
+    monkeypatch.setattr("multiprocessing.context.ForkProcess.start",
+                        lambda self: started.append(self.name) or (_ for _ in ()).throw(OSError("no fork")))
+    twin = build_twin(park["path"], catalogue16, georef, tmp_path / "here")
+    assert len(twin["objects"]) == 12 and not started
+    assert {p.pid for p in psutil.Process().children(recursive=True)} <= before
+    for name in ("topview.png", "heatmap.png", "dendrogram.png", "sections.png", "confidence.png"):
+        a, b = imread(tmp_path / "helper" / name), imread(tmp_path / "here" / name)
+        assert a.shape == b.shape and np.array_equal(a, b), name
+    page = (tmp_path / "here" / "report.html").read_text()
+    assert all(f"src='{name}'" in page for name in ("topview.png", "sections.png", "confidence.png"))
 
 
 MAIN_PID = __import__("os").getpid()

@@ -158,7 +158,7 @@ def test_an_interrupted_run_resumes_with_the_same_twin(small_city, city_twin, pa
     root, _ = small_city
     out = tmp_path / "out"
     args = ["--library", parametric_catalogue.folder, "build-twin", root / "laz", "--cell", CELL, "--out", out,
-            "--workers", "1", "--json"]
+            "--classified-scan", "--workers", "1", "--json"]
     # Ctrl-C as in a terminal (a shell's background job would inherit SIGINT ignored), or the whole process group
     # (the command, its Dask scheduler and workers) killed at once
     p = _cli(*args, start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
@@ -183,6 +183,10 @@ def test_an_interrupted_run_resumes_with_the_same_twin(small_city, city_twin, pa
     twin = json.loads(stdout)
     assert twin["grid"]["n_cells_reused"] == done
     assert _strip(twin) == _strip(city_twin)
+    # the command's --classified-scan: the same classified files as the library's run, every one written
+    assert twin["classified_scan"]["files"] == city_twin["classified_scan"]["files"]
+    assert twin["classified_scan"]["n_points"] == city_twin["classified_scan"]["n_points"]
+    assert all((out / f).is_file() for f in twin["classified_scan"]["files"])
     assert not [p for p in out.rglob("*") if ".tmp-" in p.name]
 
 

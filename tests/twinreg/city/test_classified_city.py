@@ -5,9 +5,6 @@ together holding the scan once."""
 from __future__ import annotations
 
 import numpy as np
-from typer.testing import CliRunner
-
-from twinreg.cli import app
 from twinreg.export.classified import CAR, GROUND, NO_MODEL, OTHER
 
 
@@ -47,7 +44,3 @@ def test_every_cell_file_holds_its_objects_whole_with_their_class(small_city, ci
     assert abs(total - city_twin["n_points"]) <= 0.001 * city_twin["n_points"], (total, city_twin["n_points"])
     assert info["n_points"] == total
 
-
-def test_the_option_is_the_commands():
-    res = CliRunner().invoke(app, ["build-twin", "--help"])
-    assert "--classified-scan" in " ".join(res.output.split())

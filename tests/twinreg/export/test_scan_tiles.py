@@ -29,6 +29,12 @@ def test_tiles_by_one_sort_are_the_tiles_level_by_level(n, seed, monkeypatch):
         j = np.clip(np.floor((enu[sel, 1] - lo[1]) / size).astype(np.int64), 0, 2 ** d - 1)
         for ti, tj in sorted(set(zip(i.tolist(), j.tolist()))):
             want.append(((d, ti, tj), sel[(i == ti) & (j == tj)]))
-    assert depth >= (1 if n > 500 else 0)
+    # deep enough that every level is exercised: about 500 points a tile at the deepest level (4^depth tiles)
+    assert depth == {1: 0, 5000: 2, 400_000: 5}[n]
+    counts = np.bincount(level, minlength=depth + 1)
+    assert (counts > 0).all() or n == 1
+    if n >= 5000:  # level d holds a share of the points proportional to 4^d
+        share = 4.0 ** np.arange(depth + 1) / (4.0 ** np.arange(depth + 1)).sum()
+        assert np.allclose(counts / n, share, atol=0.02), (counts / n, share)
     assert tiles == [t for t, _ in want]
     assert all(np.array_equal(r, w) for r, (_, w) in zip(rows, want))

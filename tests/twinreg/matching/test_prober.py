@@ -16,8 +16,8 @@ def _mesh():
     return np.asarray(m.vertices), np.asarray(m.faces)
 
 
-_BODY = """
-import numpy as np, psutil, sys
+_CHILD = """
+import json, numpy as np, psutil, sys
 sys.path.insert(0, {root!r})
 from tests.twinreg.matching.test_prober import _mesh
 from twinreg.matching.acceptance import SurfaceIndex
@@ -26,37 +26,47 @@ from twinreg.matching.prober import Prober
 v, f = _mesh()
 pts = np.random.default_rng(0).uniform([-3, -2, -0.5], [3, 2, 2.5], (2000, 3))
 prober = Prober.start()  # open3d is not loaded here: the helper loads it
-assert prober is not None and prober.helper is not None
+seen = {{"started": prober is not None and prober.helper is not None}}
 pid = prober.helper.pid
 try:
     surface = prober.surface(7, lambda: (v, f))
     got = surface.distances(pts)
-    assert prober.helper is not None, "the helper did not answer"
+    seen["helper_answered"] = prober.helper is not None
     small = surface.distances(pts[:10])  # the mesh kept in the helper
-    assert prober.helper is not None and "open3d" not in sys.modules
+    seen["helper_kept_the_mesh"] = prober.helper is not None
+    seen["open3d_loaded_here"] = "open3d" in sys.modules
     want = SurfaceIndex(v, f).distances(pts)
-    np.testing.assert_array_equal(got, want)
-    np.testing.assert_array_equal(small, want[:10])
-    assert Prober.start() is None  # open3d is loaded here now: a helper would only load it again
+    seen["helper_vs_here"] = float(np.abs(got - want).max())
+    seen["kept_vs_here"] = float(np.abs(small - want[:10]).max())
+    seen["second_start"] = Prober.start() is not None  # open3d is loaded here now: a helper would load it again
     psutil.Process(pid).kill()
     psutil.Process(pid).wait(10)
-    np.testing.assert_array_equal(surface.distances(pts), want)  # answered here
-    assert prober.helper is None
+    seen["after_kill_vs_here"] = float(np.abs(surface.distances(pts) - want).max())  # answered here
+    seen["helper_dropped"] = prober.helper is None
 finally:
     prober.stop()
-assert not psutil.pid_exists(pid) or psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
-print("ok")
+seen["helper_gone"] = not psutil.pid_exists(pid) or psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+print(json.dumps(seen))
 """
 
 
 def test_helper_distances_are_open3ds_and_a_dead_helper_is_replaced():
     """Run as build-twin runs it: in a process where open3d is not loaded (a helper forked from a process that
-    has used open3d's thread pools may hang, which is why Prober.start declines there)."""
+    has used open3d's thread pools may hang, which is why Prober.start declines there). The child reports what it
+    saw as JSON; the assertions are made here."""
+    import json
     import subprocess
     import sys
     from pathlib import Path
 
     root = str(Path(__file__).resolve().parents[3])
-    done = subprocess.run([sys.executable, "-c", _BODY.format(root=root)], capture_output=True, text=True,
+    done = subprocess.run([sys.executable, "-c", _CHILD.format(root=root)], capture_output=True, text=True,
                           timeout=300, cwd=root)
-    assert done.returncode == 0 and done.stdout.strip().endswith("ok"), done.stderr[-2000:]
+    assert done.returncode == 0, done.stderr[-2000:]
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen["started"] and seen["helper_answered"] and seen["helper_kept_the_mesh"]
+    assert seen["open3d_loaded_here"] is False  # the distances came from the helper
+    assert seen["helper_vs_here"] == 0.0 and seen["kept_vs_here"] == 0.0
+    assert seen["second_start"] is False
+    assert seen["after_kill_vs_here"] == 0.0 and seen["helper_dropped"]
+    assert seen["helper_gone"]
