@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from tests.conftest import SHARED_DATA, keep_picture, need
-from tests.twinreg.viewer.test_viewer import CHROMIUM, ROOT
+from tests.twinreg.helpers import CHROMIUM, ROOT
 from twinreg.cli import app
 
 

@@ -1,7 +1,6 @@
 """build-twin end to end on a simulated car park of the shared cars, and the KMZ read back."""
 
 import io
-import json
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
@@ -11,37 +10,11 @@ import pytest
 from typer.testing import CliRunner
 
 from tests.conftest import catalogue_models
+from tests.twinreg.helpers import DUBLIN
 from twinreg.cli import app
 from twinreg.io.ply import write_ply
-from twinreg.sim.scan import car_park
 
 KML = "{http://www.opengis.net/kml/2.2}"
-DUBLIN = ("--lat", "53.351160", "--lon", "-6.261601")
-
-
-@pytest.fixture(scope="module")
-def park(catalogue16, tmp_path_factory):
-    """12 cars of 12 different shared models, 0.4-1.0 m apart, oblique passes, 2 cm noise, distractors; the scene
-    is shifted to Irish Grid-sized coordinates to exercise float64 precision."""
-    names = sorted(r.name for r in catalogue16.list())
-    models = catalogue_models(catalogue16, names)
-    scene = car_park(models, n_cars=12, seed=23, gaps=(0.4, 1.0))
-    offset = np.array([715_800.0, 734_600.0, 20.0])
-    path = tmp_path_factory.mktemp("park") / "park.ply"
-    write_ply(path, scene.points + offset)
-    return {"scene": scene, "names": names, "path": path, "offset": offset}
-
-
-@pytest.fixture(scope="module")
-def twin(park, catalogue16, tmp_path_factory):
-    out = tmp_path_factory.mktemp("twin") / "out"
-    res = CliRunner().invoke(app, ["build-twin", str(park["path"]), *DUBLIN, "--anchor",
-                                   str(park["offset"][0]), str(park["offset"][1]), "--library",
-                                   str(catalogue16.folder), "--out", str(out), "--json"])
-    assert res.exit_code == 0, res.output
-    doc = json.loads(res.stdout)
-    assert doc == json.loads((out / "twin.json").read_text())
-    return doc, out
 
 
 def _truth(park, obj):

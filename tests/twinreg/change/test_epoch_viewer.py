@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import keep_picture
-from tests.twinreg.viewer.test_viewer import CHROMIUM, ROOT, _chroma, _env
+from tests.twinreg.helpers import CHROMIUM, ROOT, chroma as _chroma, clean_env as _env
 from twinreg.change.compare import compare
 from twinreg.change.report import COLOURS
 

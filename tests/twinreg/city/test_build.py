@@ -134,7 +134,7 @@ def test_copc_tiles_read_by_bounds_give_the_same_twin(small_city, city_twin, par
     assert 40 < ha - hb < 46  # the tileset's origin: NAP to ellipsoidal in Amsterdam
     assert a == b
     # the same cars, higher on the ellipsoid where the heights are NAP: by the geoid's undulation at each car
-    from tests.twinreg.geo.test_vertical import _heights, _undulation
+    from tests.twinreg.helpers import tileset_heights as _heights, undulation as _undulation
 
     stated, flat = _heights(root / "out"), _heights(root / "out_copc")
     assert set(stated) == set(flat) == {o["id"] for o in twin["objects"]}
@@ -238,7 +238,7 @@ def test_the_citys_formats_have_a_tile_per_cell_and_its_crs(small_city, city_twi
     object once; CityJSON in the tiles' CRS (EPSG:28992) valid against the schema; GLBs valid."""
     import jsonschema
 
-    from tests.twinreg.export.test_formats import ROOT, _instances, _node
+    from tests.twinreg.helpers import ROOT, node_script as _node, tileset_instances as _instances
 
     root, _ = small_city
     out = root / "out"

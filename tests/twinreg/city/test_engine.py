@@ -47,7 +47,7 @@ def test_embedded_workers_start_with_the_allocator_settings():
 
 
 def test_a_broken_tile_fails_its_cells_only_and_a_rerun_resumes(tmp_path, parametric_catalogue):
-    from tests.twinreg.city.test_build import CELL
+    from tests.conftest import CELL
     from twinreg.city.build import build_city_twin
     from twinreg.errors import CityError, SceneReadError
     from twinreg.sim.city import simulate_city
@@ -117,7 +117,6 @@ def test_workers_leave_when_the_run_is_killed(tmp_path):
     import signal
     import subprocess
     import sys
-    import time
 
     import psutil
 

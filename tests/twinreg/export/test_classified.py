@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from tests.twinreg.test_twin import park, twin  # noqa: F401  (module fixtures)
 from twinreg.export.classified import CAR, GROUND, NO_MODEL, OTHER
 
 

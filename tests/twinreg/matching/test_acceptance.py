@@ -74,7 +74,7 @@ def test_real_cars_keep_their_models(street):
 def test_objects_without_a_model_are_scaled_boxes_in_the_tiles(street):
     """An object with no model is one instance of the unit box, scaled to its measured size, in a GLB the Khronos
     validator accepts; CityJSON and GeoJSON carry it too."""
-    from tests.twinreg.export.test_formats import _node
+    from tests.twinreg.helpers import node_script as _node
     from twinreg.export.gltf import accessor_array, read_glb
 
     doc, _, out = street

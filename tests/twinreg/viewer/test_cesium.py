@@ -11,11 +11,11 @@ import subprocess
 import pytest
 
 from tests.conftest import keep_picture
-from tests.twinreg.viewer.test_viewer import CHROMIUM, ROOT
+from tests.twinreg.helpers import CHROMIUM, ROOT
 
 
 def test_cesium_shows_the_scan_from_the_whole_city_to_street_level(small_city, city_twin):
-    from tests.twinreg.geo.test_vertical import _heights
+    from tests.twinreg.helpers import tileset_heights as _heights
 
     if not CHROMIUM.exists() or not (ROOT / "node_modules" / "cesium").is_dir():
         pytest.fail("chromium or the npm packages are missing: run `make install`")

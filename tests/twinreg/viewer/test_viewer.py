@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-import sys
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -18,16 +17,7 @@ import pytest
 
 from tests.conftest import keep_picture
 
-ROOT = Path(__file__).resolve().parents[3]
-BIN = Path(sys.executable).parent
-CHROMIUM = Path("/usr/bin/chromium")
-
-
-def _env() -> dict:
-    """The environment for the commands, without what an in-process CLI test may have left (--json, --library)."""
-    import os
-
-    return {k: v for k, v in os.environ.items() if k not in ("TWINREG_JSON", "TWINREG_LIBRARY")}
+from tests.twinreg.helpers import BIN, CHROMIUM, ROOT, chroma as _chroma, clean_env as _env
 
 
 @pytest.fixture(scope="module")
@@ -51,11 +41,6 @@ def served(demo_twin):
     finally:
         p.terminate()
         p.wait(timeout=30)
-
-
-def _chroma(rgb: np.ndarray) -> np.ndarray:
-    rgb = np.asarray(rgb, dtype=np.float64)
-    return rgb[..., :2] / np.maximum(rgb.sum(-1, keepdims=True), 1e-9)
 
 
 def test_the_viewer_shows_the_demo_cars_in_a_real_browser_offline(demo_twin, served):

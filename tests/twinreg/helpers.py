@@ -1,0 +1,91 @@
+"""Helpers several test modules share (fixtures are in conftest.py): constants, the Node.js scripts, reading a
+tileset's instances and heights back, the commands' environment."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twinreg.export.gltf import accessor_array, read_glb
+
+ROOT = Path(__file__).resolve().parents[2]
+NODE_MODULES = ROOT / "node_modules"
+BIN = Path(sys.executable).parent
+CHROMIUM = Path("/usr/bin/chromium")
+DUBLIN = ("--lat", "53.351160", "--lon", "-6.261601")
+
+
+def node_script(script: str, *args: str) -> list[dict]:
+    if not shutil.which("node") or not (NODE_MODULES / "gltf-validator").is_dir():
+        pytest.fail("node and the npm packages are missing: run `make install` (npm ci)")
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / script), *args], capture_output=True, text=True,
+                          timeout=600, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    return [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+
+
+def tileset_instances(out: Path) -> dict:
+    """object id -> (ECEF position, ECEF direction of the model's front) from the tileset."""
+    ts = json.loads((out / "tiles" / "tileset.json").read_text())
+    assert ts["asset"]["version"] == "1.1" and ts["root"]["refine"] == "ADD"
+    root = np.array(ts["root"]["transform"], dtype=np.float64).reshape(4, 4).T  # column-major
+    found = {}
+    for child in ts["root"]["children"]:
+        uri = child["content"]["uri"]
+        assert child["geometricError"] <= ts["root"]["geometricError"] <= ts["geometricError"]
+        if uri.endswith(".json"):
+            assert (out / "tiles" / uri).is_file()
+            continue
+        m = root @ np.array(child["transform"], dtype=np.float64).reshape(4, 4).T
+        box = np.array(child["boundingVolume"]["box"])
+        gltf, binary = read_glb((out / "tiles" / uri).read_bytes())
+        for node in gltf["nodes"]:
+            inst = node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]
+            t = accessor_array(gltf, binary, inst["TRANSLATION"]).astype(np.float64)
+            q = accessor_array(gltf, binary, inst["ROTATION"]).astype(np.float64)
+            zup = np.column_stack([t[:, 0], -t[:, 2], t[:, 1]])  # glTF Y-up -> the tile's Z-up
+            assert (np.abs(zup - box[:3]) <= np.abs(box[[3, 7, 11]]) + 1e-6).all()  # inside the tile's box
+            x, y, z, w = q.T  # the model's front, glTF +X, turned by each quaternion
+            front = np.column_stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)])
+            front = np.column_stack([front[:, 0], -front[:, 2], front[:, 1]])
+            for oid, p, d in zip(node["extras"]["ids"], zup, front):
+                found[oid] = ((m @ np.r_[p, 1.0])[:3], m[:3, :3] @ d)
+    return found
+
+
+def tileset_heights(out) -> dict:
+    from pyproj import Transformer
+
+    to_geo = Transformer.from_crs("EPSG:4978", "EPSG:4979", always_xy=True)
+    return {oid: np.array(to_geo.transform(*p)) for oid, (p, _) in tileset_instances(out).items()}
+
+
+def undulation(site: str, lon: float, lat: float) -> float:
+    if site == "nap":
+        import pyrdnap
+
+        return -pyrdnap.RDNAP2018v1().forward(lat, lon, 0.0)[2]
+    import pyproj.datadir
+    from pyproj import Transformer
+
+    pyproj.datadir.append_data_dir("/usr/share/proj")
+    return Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True, only_best=True).transform(lon, lat,
+                                                                                                         0.0)[2]
+
+
+def clean_env() -> dict:
+    """The environment for the commands, without what an in-process CLI test may have left (--json, --library)."""
+    import os
+
+    return {k: v for k, v in os.environ.items() if k not in ("TWINREG_JSON", "TWINREG_LIBRARY")}
+
+
+def chroma(rgb: np.ndarray) -> np.ndarray:
+    rgb = np.asarray(rgb, dtype=np.float64)
+    return rgb[..., :2] / np.maximum(rgb.sum(-1, keepdims=True), 1e-9)
