@@ -75,3 +75,51 @@ def objects_from_folder(folder, unit: str = "auto", params: CoscoParams = DEFAUL
         if progress:
             progress(1)
     return ObjectSet(names, shapes)
+
+
+def cluster_objects(path, unit: str = "auto", threshold: float | None = None, plot=None,
+                    params: CoscoParams = DEFAULT, progress=None) -> dict:
+    """``cluster``: the objects of a scene file (detected) or of a folder (one object per file), the paper's
+    dissimilarity matrix between them, their clusters at ``threshold`` (m; the paper's when None) and, with
+    ``plot`` (a folder), its heat map and dendrogram. Returns the command's JSON document. ``progress(stage,
+    done, total)`` is called as the sections and the matrix advance."""
+    path = Path(path)
+    threshold = params.cluster_threshold if threshold is None else threshold
+    if not path.exists():
+        raise SceneReadError(f"{path}: no such file or folder")
+    if path.is_dir():
+        total = sum(1 for _ in path.iterdir())
+        done = [0]
+
+        def step(k):
+            done[0] += k
+            if progress:
+                progress("sections", done[0], total)
+
+        objs = objects_from_folder(path, unit=unit, params=params, progress=step)
+    else:
+        objs = objects_from_scene(path, unit=unit, params=params)
+        if progress:
+            progress("detection and sections", 1, 1)
+    n = len(objs.shapes)
+    pairs, done_pairs = n * (n - 1) // 2, [0]
+
+    def pair_step(k):
+        done_pairs[0] += k
+        if progress:
+            progress("dissimilarity", done_pairs[0], pairs)
+
+    matrix = cosco.dissimilarity_matrix([s.sections for s in objs.shapes], progress=pair_step)
+    result = cosco.cluster(matrix, threshold=threshold)
+    doc = {"objects": [{"id": name, "cluster": int(c), "size": s.size.as_dict(),
+                        "symmetry": {"found": s.symmetry.found, "pcr": round(s.symmetry.pcr, 4)}}
+                       for name, c, s in zip(objs.names, result.labels, objs.shapes)],
+           "n_clusters": result.n_clusters, "threshold_m": threshold,
+           "dissimilarity": [[round(float(v), 5) for v in row] for row in matrix]}
+    if plot is not None:
+        from .report.plots import plot_dendrogram, plot_heatmap
+
+        plot = Path(plot)
+        doc["plots"] = [str(plot_heatmap(matrix, objs.names, plot / "heatmap.png")),
+                        str(plot_dendrogram(result.linkage, objs.names, threshold, plot / "dendrogram.png"))]
+    return doc

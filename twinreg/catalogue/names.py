@@ -95,3 +95,7 @@ def parse_ref(ref) -> tuple[str, str]:
     if text.startswith("name:"):
         return "name", text[5:]
     return ("either" if text.isdigit() else "name"), text
+
+
+#: the orders a listing of the catalogue offers (list-models --sort)
+SORT_KEYS = ("id", "name", "length", "width", "height", "make", "class")

@@ -30,7 +30,7 @@ from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, re
 from ..io.outdir import atomic_path
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
-from .names import check_name, is_sha256, parse_ref, printable, safe_auto_name
+from .names import SORT_KEYS, check_name, is_sha256, parse_ref, printable, safe_auto_name
 from .prepare import PreparedModel, file_sha256, prepare_model
 
 EDITABLE = ("name", "make", "model", "body_class", "tags")
@@ -132,6 +132,18 @@ class Catalogue:
         q = self.size_query(near, tol, body_class)
         with self.session() as s:
             return list(s.scalars(q))
+
+    def listing(self, near=None, tol: float | None = None, body_class: str | None = None, tags=(),
+                sort: str = "id") -> list[RefModel]:
+        """:meth:`list`, keeping the models that carry every tag of ``tags``, in the order ``sort`` (one of
+        :data:`SORT_KEYS`; names, makes and classes without regard to case)."""
+        if sort not in SORT_KEYS:
+            raise CatalogueError(f"--sort {sort}: not one of {', '.join(SORT_KEYS)}")
+        wanted = set(tags or ())
+        rows = [r for r in self.list(near=near, tol=tol, body_class=body_class) if wanted <= set(r.tags)]
+        key = {"class": lambda r: (r.body_class or "").lower(), "make": lambda r: (r.make or "").lower(),
+               "name": lambda r: r.name.lower()}.get(sort, lambda r: getattr(r, sort))
+        return sorted(rows, key=key)
 
     @staticmethod
     def size_query(near=None, tol: float = cosco.DEFAULT.size_tol, body_class: str | None = None):

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ._common import Command, command_app, JsonOpt, LibraryOpt, RunProgress, handled, info, library_folder, print_json
+from ._common import Command, JsonOpt, LibraryOpt, RunProgress, command_app, handled, info, library_folder, print_json
 
 app = command_app()
 

@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from ._common import Command, command_app, JsonOpt, LibraryOpt, RunProgress, handled, info, print_json
+from ._common import Command, JsonOpt, LibraryOpt, RunProgress, command_app, handled, info, print_json
 
 app = command_app()
 

@@ -8,7 +8,18 @@ from typing import Annotated, List, Optional
 
 import typer
 
-from ._common import Command, command_app, JsonOpt, LibraryOpt, err_console, handled, info, library_folder, open_catalogue, print_json
+from ._common import (
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    command_app,
+    err_console,
+    handled,
+    info,
+    library_folder,
+    open_catalogue,
+    print_json,
+)
 
 app = command_app()
 

@@ -13,7 +13,18 @@ from rich.text import Text
 from ..catalogue.duplicates import near_duplicate_report
 from ..catalogue.folder import import_folder, mesh_files
 from ..catalogue.names import printable
-from ._common import Command, command_app, JsonOpt, LibraryOpt, err_console, fail, handled, info, open_catalogue, out_console, print_json
+from ._common import (
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    command_app,
+    err_console,
+    handled,
+    info,
+    open_catalogue,
+    out_console,
+    print_json,
+)
 
 app = command_app()
 
@@ -107,7 +118,7 @@ def _table(rows) -> Table:
     return t
 
 
-SORT_KEYS = ("id", "name", "length", "width", "height", "make", "class")
+from ..catalogue.names import SORT_KEYS
 
 
 @app.command("list-models", cls=Command)
@@ -127,14 +138,8 @@ def list_models(
     json_: JsonOpt = False,
 ):
     """List (or size-query) the catalogue."""
-    if sort not in SORT_KEYS:
-        fail(f"--sort {sort}: not one of {', '.join(SORT_KEYS)}")
-    rows = open_catalogue(library, create=False).list(near=near, tol=tol, body_class=body_class)
-    wanted = set(tag or ())
-    rows = [r for r in rows if wanted <= set(r.tags)]
-    key = {"class": lambda r: (r.body_class or "").lower(), "make": lambda r: (r.make or "").lower(),
-           "name": lambda r: r.name.lower()}.get(sort, lambda r: getattr(r, sort))
-    rows = sorted(rows, key=key)
+    rows = open_catalogue(library, create=False).listing(near=near, tol=tol, body_class=body_class, tags=tag,
+                                                         sort=sort)
     if csv_:  # asked for on this command: it wins over a --json given for every command
         _print_csv(rows)
     elif json_:

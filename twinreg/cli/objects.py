@@ -6,13 +6,12 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
-from rich.progress import Progress
 
 import cosco
 
-from ..errors import SceneReadError, require_positive
-from ..objects import inspect_file, objects_from_folder, objects_from_scene, shape_json
-from ._common import Command, command_app, JsonOpt, err_console, handled, info, print_json
+from ..errors import require_positive
+from ..objects import cluster_objects, inspect_file, shape_json
+from ._common import Command, JsonOpt, RunProgress, command_app, handled, info, print_json
 
 app = command_app()
 
@@ -56,35 +55,12 @@ def cluster_cmd(
     json_: JsonOpt = False,
 ):
     """Dissimilarity matrix and hierarchical clustering of objects."""
-    threshold = require_positive("--threshold", threshold) or cosco.DEFAULT.cluster_threshold
-    if not scene.exists():
-        raise SceneReadError(f"{scene}: no such file or folder")
-    with Progress(console=err_console) as bar:
-        if scene.is_dir():
-            t = bar.add_task("sections", total=sum(1 for _ in scene.iterdir()))
-            objs = objects_from_folder(scene, unit=unit, progress=lambda k: bar.advance(t, k))
-        else:
-            t = bar.add_task("detection and sections", total=1)
-            objs = objects_from_scene(scene, unit=unit)
-            bar.advance(t)
-        n = len(objs.shapes)
-        t2 = bar.add_task("dissimilarity", total=n * (n - 1) // 2)
-        matrix = cosco.dissimilarity_matrix([s.sections for s in objs.shapes],
-                                            progress=lambda k: bar.advance(t2, k))
-    result = cosco.cluster(matrix, threshold=threshold)
-    doc = {"objects": [{"id": name, "cluster": int(c), "size": s.size.as_dict(),
-                        "symmetry": {"found": s.symmetry.found, "pcr": round(s.symmetry.pcr, 4)}}
-                       for name, c, s in zip(objs.names, result.labels, objs.shapes)],
-           "n_clusters": result.n_clusters, "threshold_m": threshold,
-           "dissimilarity": [[round(float(v), 5) for v in row] for row in matrix]}
-    if plot is not None:
-        from ..report.plots import plot_dendrogram, plot_heatmap
-
-        doc["plots"] = [str(plot_heatmap(matrix, objs.names, plot / "heatmap.png")),
-                        str(plot_dendrogram(result.linkage, objs.names, threshold, plot / "dendrogram.png"))]
+    threshold = require_positive("--threshold", threshold)
+    with RunProgress(scene.name) as bars:
+        doc = cluster_objects(scene, unit=unit, threshold=threshold, plot=plot, progress=bars.update)
     if json_:
         print_json(doc)
     else:
-        info(f"{n} objects, {result.n_clusters} clusters at {threshold * 100:.1f} cm")
+        info(f"{len(doc['objects'])} objects, {doc['n_clusters']} clusters at {doc['threshold_m'] * 100:.1f} cm")
         for o in doc["objects"]:
             info(f"  {o['id']}: cluster {o['cluster']}")

@@ -12,7 +12,18 @@ from cosco.params import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
 from ..io.outdir import check_replaceable
-from ._common import Command, command_app, JsonOpt, LibraryOpt, RunProgress, err_console, handled, info, open_catalogue, print_json
+from ._common import (
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    RunProgress,
+    command_app,
+    err_console,
+    handled,
+    info,
+    open_catalogue,
+    print_json,
+)
 
 app = command_app()
 
