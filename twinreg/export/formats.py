@@ -5,6 +5,7 @@ twin.glb (:mod:`.tiles3d`), CityJSON (:mod:`.cityjson`), GeoJSON (:mod:`.geojson
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -48,18 +49,55 @@ def write_tile_formats(stage: Path, outputs: list, offsets: list, georef, groups
                        tile_meshes=_light(outputs, models))
 
 
-def write_text_formats(stage: Path, instances: list, light: dict, docs: list, lonlat: list, georef, title: str,
-                       templates: bool, seq: bool, outputs: list, rings=None) -> None:
-    """The formats of the objects' records: twin.city.json (and twin.city.jsonl with ``seq``), twin.geojson (the
-    footprints' ``lonlat``), sections.json and twin.gpkg (the footprints' ``rings`` in the CRS's units)."""
+@dataclass
+class RecordView:
+    """What the formats of the objects' records are written from: the placed objects (``outputs``, their
+    ``docs``, tiles ``instances``, the models' ``light`` meshes), their footprints (``lonlat`` in WGS84, ``rings``
+    in the CRS's units or None), the run's ``georef`` and ``title``, and the options (CityJSON ``templates``,
+    CityJSONSeq ``seq``)."""
+
+    stage: Path
+    instances: list
+    light: dict
+    docs: list
+    lonlat: np.ndarray
+    georef: object
+    title: str
+    templates: bool
+    seq: bool
+    outputs: list
+    rings: np.ndarray | None = None
+
+
+def _cityjson(v: RecordView) -> None:
+    write_cityjson(v.stage / "twin.city.json", v.instances, v.light, v.docs, [d["heading_rad"] for d in v.docs],
+                   v.georef, v.title, v.templates, v.stage / "twin.city.jsonl" if v.seq else None)
+
+
+def _geojson(v: RecordView) -> None:
+    write_geojson(v.stage / "twin.geojson", v.docs, v.lonlat)
+
+
+def _sections(v: RecordView) -> None:
+    write_sections(v.stage / "sections.json", v.outputs)
+
+
+def _gpkg(v: RecordView) -> None:
     from .gpkg import write_gpkg
 
-    stage = Path(stage)
-    write_cityjson(stage / "twin.city.json", instances, light, docs, [d["heading_rad"] for d in docs], georef,
-                   title, templates, stage / "twin.city.jsonl" if seq else None)
-    write_geojson(stage / "twin.geojson", docs, lonlat)
-    write_sections(stage / "sections.json", outputs)
-    write_gpkg(stage / "twin.gpkg", docs, lonlat if rings is None else rings, gpkg_crs(georef))
+    write_gpkg(v.stage / "twin.gpkg", v.docs, v.lonlat if v.rings is None else v.rings, gpkg_crs(v.georef))
+
+
+#: the formats written from the objects' records, in order (a scene's on a thread, a city's in a forked child): a
+#: new format of the records is its module and one line here
+RECORD_FORMATS = (_cityjson, _geojson, _sections, _gpkg)
+
+
+def write_text_formats(view: RecordView) -> None:
+    """Every format of :data:`RECORD_FORMATS` from ``view``: twin.city.json (and twin.city.jsonl with ``seq``),
+    twin.geojson, sections.json and twin.gpkg."""
+    for write in RECORD_FORMATS:
+        write(view)
 
 
 def gpkg_crs(georef) -> str | None:
@@ -96,13 +134,13 @@ def start_text_formats(stage: Path, outputs: list, offsets: list, georef, title:
     if georef.crs and corners:
         flat = np.vstack(corners)
         rings = georef.to_crs_units(np.c_[flat, np.zeros(len(flat))])[:, :2]
-    args = (Path(stage), _instances(outputs, offsets), _light(outputs, models), docs, ll, georef, title, templates,
-            seq, outputs, rings)
+    view = RecordView(Path(stage), _instances(outputs, offsets), _light(outputs, models), docs, ll, georef, title,
+                      templates, seq, outputs, rings)
     if not fork:
-        return _Threaded(*args)
+        return _Threaded(view)
     from ..process.helpers import Forked
 
-    return Forked(write_text_formats, *args)
+    return Forked(write_text_formats, view)
 
 
 def _polyline(a, n: int = 80) -> list:
