@@ -1,0 +1,79 @@
+"""The stages a scene and a city share (twinreg/stages.py): the run's parameters checked, the catalogue checked,
+the taxonomy (the paper's matrix up to a size, the sparse graph beyond), and placing every object at once giving
+what placing each alone gives."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosco.params import DEFAULT
+from twinreg.errors import CatalogueError, ParameterError
+from twinreg.stages import checked_params, classify, place, require_models
+
+
+def test_checked_params_takes_the_users_window_and_refuses_nonsense():
+    p = checked_params(DEFAULT, 0.35, 0.1)
+    assert p.size_tol == 0.35 and p.size_spacing_k == 0.0 and p.cluster_threshold == 0.1
+    assert checked_params(DEFAULT, None, None) == DEFAULT
+    for tol, threshold in ((-0.1, None), (None, 0.0), (float("nan"), None)):
+        with pytest.raises(ParameterError):
+            checked_params(DEFAULT, tol, threshold)
+
+
+def test_require_models_says_what_is_missing(tmp_path, parametric_catalogue):
+    from twinreg.catalogue.repository import Catalogue
+
+    with pytest.raises(CatalogueError, match="the folder does not exist"):
+        require_models(Catalogue(tmp_path / "nowhere", create=False))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(CatalogueError, match="holds no catalogue"):
+        require_models(Catalogue(tmp_path / "empty", create=False))
+    require_models(parametric_catalogue)
+
+
+def _shapes(n: int):
+    import cosco
+    from tests.conftest import toy_car
+
+    rng = np.random.default_rng(0)
+    out = []
+    for k in range(n):
+        pts = toy_car(k % 3) * [1.0 + 0.2 * (k % 2), 1.0, 1.0]
+        out.append(cosco.describe_object(pts + [rng.uniform(0, 100), rng.uniform(0, 100), 0.0]))
+    return out
+
+
+def test_classify_full_matrix_up_to_the_limit_and_the_graph_beyond():
+    shapes = _shapes(6)
+    timing: dict = {}
+    full = classify(shapes, DEFAULT, timing)
+    assert full.method == "full" and full.matrix.shape == (6, 6) and {"matrix", "clustering"} <= set(timing)
+    sparse = classify(shapes, DEFAULT.with_(taxonomy_full_max=3), {})
+    assert sparse.method != "full" and len(sparse.labels) == 6
+    # the two lengths of car: the same groups either way
+    same = lambda labels: {(i, j) for i in range(6) for j in range(6) if labels[i] == labels[j]}  # noqa: E731
+    assert same(full.labels) == same(sparse.labels)
+
+
+def test_placing_all_at_once_is_placing_each_alone(parametric_catalogue):
+    """stages.place computes every object's lat/lon and bearing in two vectorised transformations; each record is
+    the one object_output gives for that object alone."""
+    from twinreg.export.objects import object_output
+    from twinreg.geo.georef import georef_from_options
+    from twinreg.matching.match import ModelCache, ObjectMatch, match_objects
+
+    shapes = _shapes(4)
+    models = ModelCache(parametric_catalogue, DEFAULT)
+    results, _ = match_objects(shapes, parametric_catalogue, cache=models)
+    results[-1] = ObjectMatch(shapes[-1], None, "refused for the test", [], reason_code="top_unseen")  # a box too
+    georef = georef_from_options(lat=53.35, lon=-6.26)
+    offsets = [np.array([715_800.0 + k, 734_600.0, 20.0]) for k in range(4)]
+    ids = [f"obj{k + 1}" for k in range(4)]
+    placed = place(ids, [s.n_points for s in shapes], results, [1, 1, 2, 2], offsets, georef, models)
+    for k, p in enumerate(placed):
+        alone = object_output(ids[k], shapes[k].n_points, results[k], [1, 1, 2, 2][k], offsets[k], georef, models)
+        assert p.doc == alone.doc and p.kmz == alone.kmz and p.mesh_key == alone.mesh_key
+        assert np.array_equal(p.pose, alone.pose)
+    assert [p.model_id is not None for p in placed] == [True, True, True, False]
+    assert placed[-1].doc["reason_code"] == "top_unseen" and placed[-1].doc["kind"] == "unknown"
