@@ -26,14 +26,16 @@ def _copy(src, dst, edit=None):
     return dst
 
 
-def _refused(args, out, *words):
+def _refused(args, out, *words, exists: bool = False):
+    """compare refuses in one line holding ``words``, exit 1; ``out`` does not exist after (or, ``exists``, was
+    there before and is left)."""
     r = runner.invoke(app, ["compare", *map(str, args), "--out", str(out)])
     assert r.exit_code == 1, r.output
     line = r.output.strip()
     assert line.startswith("error:") and "\n" not in line, line
     for w in words:
         assert w in line, line
-    assert not out.exists()
+    assert out.exists() == exists
     return line
 
 
@@ -278,20 +280,10 @@ def test_out_may_not_be_a_twin_or_inside_one_or_the_catalogue(surveys, tmp_path,
     before, after = surveys.twins["before"], surveys.twins["after150"]
     other = _copy(after, tmp_path / "other")
     state = sorted((p.name, p.stat().st_mtime_ns) for p in other.iterdir())
-    line = _refused_at([before, after], other, "holds a twin (written by twinreg build-twin)")
+    line = _refused([before, after], other, "holds a twin (written by twinreg build-twin)", exists=True)
     assert sorted((p.name, p.stat().st_mtime_ns) for p in other.iterdir()) == state and "--out" in line
-    _refused_at([before, after], after / "changes", "lies inside")
+    _refused([before, after], after / "changes", "lies inside")
     lib = parametric_catalogue.folder
     r = runner.invoke(app, ["compare", str(before), str(after), "--out", str(lib / "changes"), "--library",
                             str(lib)])
     assert r.exit_code == 1 and "lies inside" in r.output and not (lib / "changes").exists(), r.output
-
-
-def _refused_at(args, out, *words):
-    r = runner.invoke(app, ["compare", *map(str, args), "--out", str(out)])
-    assert r.exit_code == 1, r.output
-    line = r.output.strip()
-    assert line.startswith("error:") and "\n" not in line, line
-    for w in words:
-        assert w in line, line
-    return line
