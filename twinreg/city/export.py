@@ -81,28 +81,30 @@ def _date_warnings(sources, source) -> list[str]:
 
 def export_city(run: CityRun) -> dict:
     """Write a tiled run's twin (see the module's text); returns twin.json's document."""
-    out, protect, store, keys, sources, plan, georef = (run.out, run.protect, run.store, run.keys, run.sources,
-                                                        run.plan, run.georef)
-    results, objects, tax, outcomes, stats, models = (run.results, run.objects, run.tax, run.outcomes, run.stats,
-                                                      run.models)
-    catalogue, params, ply, timing, t_start, reused = (run.catalogue, run.params, run.ply, run.timing, run.t_start,
-                                                       run.reused)
-    from ..report.city import write_city_report
-
-    out = Path(out)
-    meshes, per_cell_ply = {}, {}
     t = time.perf_counter()
-    outs = place([o.id for o in objects], [o.n_points for o in objects], outcomes, tax.labels,
-                 [o.offset for o in objects], georef, models)
-    docs, kmz_objects = [item.doc for item in outs], [item.kmz for item in outs]
-    for o, item, label in zip(objects, outs, tax.labels):
-        meshes.setdefault(item.mesh_key, item.mesh)
-        if ply:
-            per_cell_ply.setdefault(o.cell, []).append((item.placed, item.faces, int(label)))
-    timing["records"] = time.perf_counter() - t
+    outs = place([o.id for o in run.objects], [o.n_points for o in run.objects], run.outcomes, run.tax.labels,
+                 [o.offset for o in run.objects], run.georef, run.models)
+    run.timing["records"] = time.perf_counter() - t
     by_cell: dict = {}
-    for d, o in zip(docs, objects):
-        by_cell.setdefault(o.cell, []).append(d)
+    for item, o in zip(outs, run.objects):
+        by_cell.setdefault(o.cell, []).append(item.doc)
+    twin = _document(run, [item.doc for item in outs], by_cell)
+    with staged_folder(Path(run.out), protect=run.protect, kind="twin") as stage:
+        _write_files(run, stage, twin, outs, by_cell)
+        run.timing["total"] = time.perf_counter() - run.t_start
+        twin["timing_s"] = {k: round(v, 4) for k, v in run.timing.items()}
+        (stage / "twin.json").write_text(json.dumps(twin, indent=2), encoding="utf-8")
+        # the finished cells go with the twin (a rerun with the same inputs reuses them); splits are dropped
+        run.store.prune({(r.name, run.keys[r.name]) for r in run.results})
+        if run.store.folder.is_dir():
+            os.replace(run.store.folder, stage / WORK)
+    return twin
+
+
+def _document(run: CityRun, docs: list[dict], by_cell: dict) -> dict:
+    """twin.json's document (without its files' entries and timings): the scan, the objects, the taxonomy, the
+    matching, the grid and a summary per cell."""
+    sources, results, plan = run.sources, run.results, run.plan
     cells = []
     for r in results:
         own = by_cell.get(r.name, [])
@@ -120,48 +122,53 @@ def export_city(run: CityRun) -> dict:
                        np.vstack([lo, hi]), sources=[s.path for s in sources], survey_date=when,
                        survey_date_source=source, warnings=_date_warnings(sources, source))
     grid = {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
-            "n_cells": plan.n_cells, "n_cells_reused": int(reused), "origin": [0.0, 0.0]}
-    twin = twin_document(scan, georef, docs, tax, params, MatchSummary(stats, catalogue.count(), worker_stages=True),
+            "n_cells": plan.n_cells, "n_cells_reused": int(run.reused), "origin": [0.0, 0.0]}
+    return twin_document(scan, run.georef, docs, run.tax, run.params,
+                         MatchSummary(run.stats, run.catalogue.count(), worker_stages=True),
                          tail={"grid": grid, "cells": cells})
-    folders = [{"name": r.name, "bounds": _cell_bounds(georef, plan.cells[r.name]),
-                "ids": [d["id"] for d in by_cell.get(r.name, [])]} for r in results if by_cell.get(r.name)]
-    with staged_folder(out, protect=protect, kind="twin") as stage:
-        t3 = time.perf_counter()
-        # the JSON formats (twin.city.json and .jsonl, GeoJSON, sections.json: a third of the export at 100M
-        # points) in a forked child while this process writes the KMZ, the report and the tiles
-        texts = start_text_formats(stage, outs, [o.offset for o in objects], georef, f"twinreg: {twin['scene']}",
-                                   models, templates=True, seq=True, fork=True)
-        try:
-            write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", kmz_objects, meshes, folders=folders)
-            if ply:
-                for name, parts in per_cell_ply.items():
-                    write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset), georef,
-                                   f"{twin['scene']}, cell {name}")
-            write_city_report(stage, twin, results, objects, outcomes, plan)
-            rows: dict = {}
-            for k, o in enumerate(objects):
-                rows.setdefault(o.cell, []).append(k)
-            for r in results:  # a kept cell's tiles are where this run's store keeps them, whatever its file says
-                if r.scan_tiles:
-                    r.scan_tiles = dict(r.scan_tiles, folder=str(store.scan_folder() / f"{r.name}-{keys[r.name]}"))
-            scans = [(r.name, r.scan_tiles) for r in results if r.scan_tiles]
-            twin["tiles"] = write_tile_formats(stage, outs, [o.offset for o in objects], georef,
-                                               [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
-                                               models)
-            texts.wait(timeout=TEXT_FORMATS_S + TEXT_FORMATS_S_PER_OBJECT * len(objects))
-        finally:
-            texts.stop()
-        timing["formats"] = time.perf_counter() - t3
-        if run.classified is not None:  # the cells' classified COPC files, written on the workers
-            os.replace(store.folder / CLASSIFIED, stage / CLASSIFIED)
-            twin["classified_scan"] = run.classified
-        twin["observation"] = observed.write(stage / observed.FILE, [r.observed for r in results if r.observed],
-                                             [o.shape.sections for o in objects])
-        timing["total"] = time.perf_counter() - t_start
-        twin["timing_s"] = {k: round(v, 4) for k, v in timing.items()}
-        (stage / "twin.json").write_text(json.dumps(twin, indent=2), encoding="utf-8")
-        # the finished cells go with the twin (a rerun with the same inputs reuses them); splits are dropped
-        store.prune({(r.name, keys[r.name]) for r in results})
-        if store.folder.is_dir():
-            os.replace(store.folder, stage / WORK)
-    return twin
+
+
+def _write_files(run: CityRun, stage: Path, twin: dict, outs: list, by_cell: dict) -> None:
+    """Every file of the twin but twin.json into ``stage``: the JSON formats in a forked child (a third of the
+    export at 100M points) while this process writes the KMZ (a folder a cell), the cells' PLY files, the report
+    and the tiles; then the classified scan the workers wrote and the observation record."""
+    from ..report.city import write_city_report
+
+    results, objects, georef, plan = run.results, run.objects, run.georef, run.plan
+    t = time.perf_counter()
+    offsets = [o.offset for o in objects]
+    texts = start_text_formats(stage, outs, offsets, georef, f"twinreg: {twin['scene']}", run.models,
+                               templates=True, seq=True, fork=True)
+    try:
+        meshes, per_cell_ply = {}, {}
+        for o, item, label in zip(objects, outs, run.tax.labels):
+            meshes.setdefault(item.mesh_key, item.mesh)
+            if run.ply:
+                per_cell_ply.setdefault(o.cell, []).append((item.placed, item.faces, int(label)))
+        folders = [{"name": r.name, "bounds": _cell_bounds(georef, plan.cells[r.name]),
+                    "ids": [d["id"] for d in by_cell.get(r.name, [])]} for r in results if by_cell.get(r.name)]
+        write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", [item.kmz for item in outs], meshes,
+                  folders=folders)
+        for name, parts in per_cell_ply.items():
+            write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset), georef,
+                           f"{twin['scene']}, cell {name}")
+        write_city_report(stage, twin, results, objects, run.outcomes, plan)
+        rows: dict = {}
+        for k, o in enumerate(objects):
+            rows.setdefault(o.cell, []).append(k)
+        for r in results:  # a kept cell's tiles are where this run's store keeps them, whatever its file says
+            if r.scan_tiles:
+                r.scan_tiles = dict(r.scan_tiles, folder=str(run.store.scan_folder() / f"{r.name}-{run.keys[r.name]}"))
+        scans = [(r.name, r.scan_tiles) for r in results if r.scan_tiles]
+        twin["tiles"] = write_tile_formats(stage, outs, offsets, georef,
+                                           [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
+                                           run.models)
+        texts.wait(timeout=TEXT_FORMATS_S + TEXT_FORMATS_S_PER_OBJECT * len(objects))
+    finally:
+        texts.stop()
+    run.timing["formats"] = time.perf_counter() - t
+    if run.classified is not None:  # the cells' classified COPC files, written on the workers
+        os.replace(run.store.folder / CLASSIFIED, stage / CLASSIFIED)
+        twin["classified_scan"] = run.classified
+    twin["observation"] = observed.write(stage / observed.FILE, [r.observed for r in results if r.observed],
+                                         [o.shape.sections for o in objects])

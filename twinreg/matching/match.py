@@ -229,6 +229,60 @@ def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, l
     return regs
 
 
+class _Scorer:
+    """One object's candidates scored on its points (:mod:`twinreg.matching.decision`): ``sample`` the points
+    judged (the same sample whether the cloud is all of the object's points, a scene, or already its sample, a city
+    cell) and their KD-tree, the object's measured size, the scan's noise and spacing."""
+
+    def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
+        from scipy.spatial import cKDTree
+
+        from .acceptance import sample_cloud
+
+        self.shape, self.cache, self.noise, self.spacing, self.params = shape, cache, noise, spacing, params
+        self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
+        self.tree = cKDTree(self.sample)
+        self.measured = shape.size.as_array()
+
+    def scored(self, reg, mid, m, points_in_model):
+        """The evidence of model ``mid`` placed by ``m`` (4, 4), the object's points in its frame."""
+        from .decision import evidence
+
+        cache = self.cache
+        top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
+        row = cache.row(mid)
+        # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
+        e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top, self.tree,
+                     np.array([row.length, row.width, row.height]), self.measured, self.noise, self.spacing,
+                     self.params, sink=float(self.shape.frame.ground_z - m[2, 3]))
+        e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)), refined=False)
+        return e
+
+    def screened(self, reg, mid):
+        """(evidence, the points in the model's frame) as the section registration placed the model, on the
+        ``refine_max_points`` points the refinement would use."""
+        from .acceptance import sample_cloud
+
+        m = placement(self.shape.frame, self.cache.frame(mid), reg)
+        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
+        in_model = (self.sample - m[:3, 3]) @ m[:3, :3]
+        return self.scored(reg, mid, m, sample_cloud(in_model, self.params.refine_max_points)), in_model
+
+    def refined(self, reg, mid, screen):
+        """The screened pose (its transform, the points in the model's frame) sharpened on the points: a turn
+        about the vertical and a shift (twinreg/matching/refine.py), scored on every point."""
+        from .acceptance import sample_cloud
+        from .refine import refine
+
+        e, in_model = screen
+        m = e.extra["transform"]
+        c = refine(sample_cloud(in_model, self.params.refine_max_points), self.cache.tree(mid),
+                   self.params.refine_reach, params=self.params)
+        e = self.scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
+        e.extra["refined"] = True
+        return e
+
+
 def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
     """Score the best ``accept_candidates`` registrations on all of the object's evidence
     (:mod:`twinreg.matching.decision`).
@@ -238,51 +292,16 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
     noise units of the best one's are refined and scored on every point. Refining lowers a score by about one
     noise unit at most, so a candidate further behind can neither win nor come close enough to change the
     confidence: it keeps its screened score (docs/METHOD.md, "Deciding between candidates")."""
-    from scipy.spatial import cKDTree
+    from .decision import decide
 
-    from .acceptance import sample_cloud
-    from .decision import decide, evidence
-    from .refine import refine
-
-    # the same sample whether the cloud is all of the object's points (a scene) or already its sample (a city cell)
-    sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
-    tree = cKDTree(sample)
-    measured = shape.size.as_array()
-
-    def scored(reg, mid, m, points_in_model):
-        top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
-        row = cache.row(mid)
-        # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
-        e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top, tree,
-                     np.array([row.length, row.width, row.height]), measured, noise, spacing, params,
-                     sink=float(shape.frame.ground_z - m[2, 3]))
-        e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)), refined=False)
-        return e
-
-    def screened(reg, mid):
-        m = placement(shape.frame, cache.frame(mid), reg)
-        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
-        in_model = (sample - m[:3, 3]) @ m[:3, :3]
-        return scored(reg, mid, m, sample_cloud(in_model, params.refine_max_points)), in_model
-
-    def refined(reg, mid, screen):
-        # the screened pose (its transform, the points in the model's frame) sharpened on the points: a turn about
-        # the vertical and a shift (twinreg/matching/refine.py)
-        e, in_model = screen
-        m = e.extra["transform"]
-        c = refine(sample_cloud(in_model, params.refine_max_points), cache.tree(mid), params.refine_reach,
-                   params=params)
-        e = scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
-        e.extra["refined"] = True
-        return e
-
+    scorer = _Scorer(shape, cache, cloud, noise, spacing, params)
     reach = params.decision_refine_sigma * noise
     candidates = regs[:params.accept_candidates]
-    screens = [screened(reg, mid) for reg, mid in candidates]
+    screens = [scorer.screened(reg, mid) for reg, mid in candidates]
     found = [e for e, _ in screens]
 
     def refine_at(j):
-        found[j] = refined(*candidates[j], screens[j])
+        found[j] = scorer.refined(*candidates[j], screens[j])
 
     best = min((e.score for e in found), default=np.inf)
     for j, e in enumerate(list(found)):
@@ -294,8 +313,8 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Cosc
             refine_at(k)
         reg, mid = candidates[k]
         turned_reg = cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
-        screen = screened(turned_reg, mid)
-        turned = refined(turned_reg, mid, screen) if screen[0].score <= found[k].score + reach else screen[0]
+        screen = scorer.screened(turned_reg, mid)
+        turned = scorer.refined(turned_reg, mid, screen) if screen[0].score <= found[k].score + reach else screen[0]
         if turned.score < found[k].score:
             found[k] = turned
     while True:  # the winner (or, with none acceptable, the best refused) is always one refined
