@@ -19,14 +19,14 @@ from .export.kmz import write_kmz
 from .export.tiles3d import scan_sample
 from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from .export.twin_ply import write_prj, write_twin_ply
-from .geo.georef import Georef, check_area, scene_georef
+from .geo.georef import Georef, scene_georef
 from .io import observed
 from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
 from .matching.match import ModelCache, match_objects
 from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
-from .stages import checked_params, classify, place, require_models
+from .stages import checked_params, classify, locate, place, require_models
 
 
 def _say(progress, msg):
@@ -102,10 +102,9 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     timing = {}
     params = checked_params(params, tol, threshold)
     scene_path = Path(scene_path)
-    from .io._files import checked_input
-    from .io.points import POINT_SUFFIXES
+    from .io.points import check_point_file
 
-    checked_input(scene_path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin", SceneReadError)
+    check_point_file(scene_path)
     check_replaceable(Path(out), protect=[scene_path, catalogue.folder], kind="twin")
     with locked(Path(out), "build-twin"):
         return _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
@@ -133,15 +132,15 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
            ply=True, date=None, templates=False, prober=None, tick=None) -> dict:
     _say(progress, "reading and detecting")
     given = georef is not None and georef.crs_source == "--crs"
+    located = {}
 
     def placed(scene):  # a scan that the CRS puts elsewhere on Earth is refused before its detection
-        check_area(scene_georef(georef, scene), scene.points.min(0), scene.points.max(0), str(scene_path))
+        located["georef"] = locate(scene_georef(georef, scene), scene.points.min(0), scene.points.max(0),
+                                   str(scene_path))
 
     det = detect_file(scene_path, unit=unit, params=params, crs=georef.crs if given else None,
                       override_crs=given and georef.override, on_read=placed)
-    georef = scene_georef(georef, det.scene)
-    centre = georef.centre_of(det.scene.points)
-    georef = georef.identified(centre["lon"], centre["lat"])
+    georef = located["georef"]
     timing.update(det.timing_s)
     targets = det.objects
     if not targets:
@@ -227,11 +226,10 @@ def _match_and_export(run: SceneRun) -> dict:
         meshes.setdefault(o.mesh_key, o.mesh)
     ply_parts = [(o.placed, o.faces, int(label)) for o, label in zip(outs, clusters.labels)]
 
-    when, source = survey_date(run.date, [(det.scene.survey_date, det.scene.survey_date_source)])
-    scan = ScanSummary(scene_path.name, len(det.scene.points), det.scene.n_outliers, det.scene.unit, offset, noise,
-                       det.scene.points, survey_date=when, survey_date_source=source,
-                       warnings=[det.scene.survey_date_warning] if det.scene.survey_date_warning and source ==
-                       det.scene.survey_date_source else [])
+    sc = det.scene
+    when, source, warnings = survey_date(run.date, [(sc.survey_date, sc.survey_date_source, sc.survey_date_warning)])
+    scan = ScanSummary(scene_path.name, len(sc.points), sc.n_outliers, sc.unit, offset, noise, sc.points,
+                       survey_date=when, survey_date_source=source, warnings=warnings)
     twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,

@@ -1,5 +1,6 @@
 """The stages a scene and a city both run, one copy: the run's parameters checked (:func:`checked_params`), the
-catalogue checked (:func:`require_models`), the objects' taxonomy (:func:`classify`). The per-scene pipeline
+catalogue checked (:func:`require_models`), the scan placed on Earth (:func:`locate`), the objects' taxonomy
+(:func:`classify`), every object placed (:func:`place`). The per-scene pipeline
 (:mod:`twinreg.pipeline`) runs them on one scene; the city engine (:mod:`twinreg.city`) maps them over cells and
 batches; the simulator's accuracy runs use them too. Nothing here imports the pipeline or the city engine."""
 
@@ -44,6 +45,19 @@ def require_models(catalogue) -> None:
     if catalogue.count() == 0:
         raise CatalogueError(f"the catalogue in {folder} is empty; add models with `twinreg add-model MESH` or "
                              "`twinreg import-models DIR`")
+
+
+def locate(georef, lo, hi, where: str):
+    """The georeference of a scan whose footprint is ``lo``-``hi`` (scene metres): refused when its CRS puts it
+    outside that CRS's area of use (:func:`~twinreg.geo.georef.check_area`, one line naming ``where``), else with
+    the CRS's code and the reference system identified where the scan is."""
+    import numpy as np
+
+    from .geo.georef import check_area
+
+    check_area(georef, lo, hi, where)
+    centre = georef.centre_of(np.array([np.asarray(lo, dtype=np.float64)[:3], np.asarray(hi, dtype=np.float64)[:3]]))
+    return georef.identified(centre["lon"], centre["lat"])
 
 
 def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances_of=None):

@@ -141,7 +141,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances;
     ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`)."""
     from ..io.outdir import check_replaceable, locked
-    from ..stages import checked_params
+    from ..stages import checked_params, locate, require_models
 
     t_start = time.perf_counter()
     timing: dict = {}
@@ -152,20 +152,13 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     sources = open_sources(paths, unit=unit, crs=crs, override_crs=bool(georef is not None and georef.override))
     georef = city_georef(georef, sources)
     p = plan(sources, cell, buffer, params.ground_reach)
-    from ..geo.georef import check_area
-
-    lo, hi = np.min([s.lo for s in sources], axis=0), np.max([s.hi for s in sources], axis=0)
-    check_area(georef, lo, hi, sources[0].path if len(sources) == 1 else f"{sources[0].path} and "
-               f"{len(sources) - 1} more tiles")
-    centre = georef.centre_of(np.array([lo, hi]))
-    georef = georef.identified(centre["lon"], centre["lat"])
+    georef = locate(georef, np.min([s.lo for s in sources], axis=0), np.max([s.hi for s in sources], axis=0),
+                    sources[0].path if len(sources) == 1 else f"{sources[0].path} and {len(sources) - 1} more tiles")
     if not p.cells:
         raise SceneReadError(f"{sources[0].path}: the tiles hold no points")
     out = Path(out)
     protect = [Path(s.path) for s in sources] + [catalogue.folder]
     check_replaceable(out, protect, kind="twin")
-    from ..stages import require_models
-
     require_models(catalogue)
     with locked(out, "build-twin"):
         return _locked_city(sources, georef, p, out, protect, catalogue, params, workers, scheduler, restart, ply,

@@ -70,15 +70,6 @@ class CityRun:
     classified: dict | None = None
 
 
-def _date_warnings(sources, source) -> list[str]:
-    """The tiles' survey-date warnings when the date came from their headers' creation dates (the first, and how
-    many tiles share it)."""
-    said = [s.date_warning for s in sources if s.date_warning and s.date_source == source]
-    if not said:
-        return []
-    return [said[0] + (f" ({len(said) - 1} more tiles likewise)" if len(said) > 1 else "")]
-
-
 def export_city(run: CityRun) -> dict:
     """Write a tiled run's twin (see the module's text); returns twin.json's document."""
     t = time.perf_counter()
@@ -115,12 +106,12 @@ def _document(run: CityRun, docs: list[dict], by_cell: dict) -> dict:
     lo = np.min([s.lo for s in sources], axis=0)
     hi = np.max([s.hi for s in sources], axis=0)
     names = [Path(s.path).name for s in sources]
-    when, source = survey_date(run.date, [(s.date, s.date_source) for s in sources])
+    when, source, warnings = survey_date(run.date, [(s.date, s.date_source, s.date_warning) for s in sources])
     scan = ScanSummary(names[0] if len(names) == 1 else f"{len(names)} tiles ({names[0]} ...)",
                        sum(r.n_points for r in results), sum(r.n_outliers for r in results), sources[0].unit,
                        np.asarray(plan.offset), float(np.median([r.noise for r in results if r.n_points])),
                        np.vstack([lo, hi]), sources=[s.path for s in sources], survey_date=when,
-                       survey_date_source=source, warnings=_date_warnings(sources, source))
+                       survey_date_source=source, warnings=warnings)
     grid = {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
             "n_cells": plan.n_cells, "n_cells_reused": int(run.reused), "origin": [0.0, 0.0]}
     return twin_document(scan, run.georef, docs, run.tax, run.params,

@@ -165,6 +165,8 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None, override
 
 def open_sources(paths, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> list[Source]:
     """Headers of every tile; tiles whose CRS or unit disagree are refused with one line naming two of them."""
+    from ..io.points import same_crs
+
     files = expand_paths(paths)
     bad = [f for f in files if f.suffix.lower() not in TILE_SUFFIXES]
     if bad:
@@ -173,7 +175,7 @@ def open_sources(paths, unit: str = "auto", crs: str | None = None, override_crs
     sources = [read_source(f, unit, crs, override_crs) for f in files]
     first = sources[0]
     for s in sources[1:]:
-        if not _same_crs(first.crs, s.crs):
+        if not same_crs(first.crs, s.crs):
             raise SceneReadError(f"{s.path}: its CRS ({s.crs_name or 'none stated'}) differs from that of "
                                  f"{first.path} ({first.crs_name or 'none stated'}); tiles of one run must share "
                                  "one CRS (reproject them, or pass --crs if the headers are wrong)")
@@ -181,16 +183,6 @@ def open_sources(paths, unit: str = "auto", crs: str | None = None, override_crs
             raise SceneReadError(f"{s.path}: its unit ({s.unit}) differs from that of {first.path} ({first.unit}); "
                                  "tiles of one run must share one unit")
     return sources
-
-
-def _same_crs(a: str | None, b: str | None) -> bool:
-    if a is None or b is None:
-        return a is None and b is None
-    if a == b:
-        return True
-    from pyproj import CRS
-
-    return CRS.from_user_input(a).equals(CRS.from_user_input(b), ignore_axis_order=True)
 
 
 def _xyz(points, source: Source) -> np.ndarray:

@@ -82,19 +82,28 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
     return doc
 
 
-def survey_date(given: str | None, files: list) -> tuple[str | None, str | None]:
-    """The survey's date and its source: ``--date`` when given, else from the files' ``(date, source)``: the best
-    source any file has (GPS time before a header's creation date), the earliest date when files differ; else
-    (None, None).
+def survey_date(given: str | None, files: list) -> tuple[str | None, str | None, list[str]]:
+    """The survey's date, its source and its warnings: ``--date`` when given, else from the files' ``(date,
+    source, warning)``: the best source any file has (GPS time before a header's creation date), the earliest date
+    when files differ; else (None, None). The warnings are those of the files whose date came from that source (the
+    first, and how many files share it).
 
-    >>> survey_date(None, [("2026-03-02", "GPS time"), (None, None), ("2026-03-01", "file header creation date")])
-    ('2026-03-02', 'GPS time')
-    >>> survey_date("2026-05-01", [("2026-03-02", "GPS time")])
-    ('2026-05-01', '--date')
+    >>> survey_date(None, [("2026-03-02", "GPS time", None), (None, None, None),
+    ...                    ("2026-03-01", "file header creation date", "made on the day")])
+    ('2026-03-02', 'GPS time', [])
+    >>> survey_date(None, [("2026-03-01", "file header creation date", "made on the day")] * 3)
+    ('2026-03-01', 'file header creation date', ['made on the day (2 more tiles likewise)'])
+    >>> survey_date("2026-05-01", [("2026-03-02", "GPS time", None)])
+    ('2026-05-01', '--date', [])
     """
     from ..io.points import DATE_SOURCES
 
     if given:
-        return given, "--date"
-    found = sorted((DATE_SOURCES.index(s), d, s) for d, s in files if d and s in DATE_SOURCES)
-    return (found[0][1], found[0][2]) if found else (None, None)
+        return given, "--date", []
+    found = sorted((DATE_SOURCES.index(s), d, s) for d, s, _ in files if d and s in DATE_SOURCES)
+    if not found:
+        return None, None, []
+    source = found[0][2]
+    said = [w for _, s, w in files if w and s == source]
+    warnings = [said[0] + (f" ({len(said) - 1} more tiles likewise)" if len(said) > 1 else "")] if said else []
+    return found[0][1], source, warnings

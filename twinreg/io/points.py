@@ -290,7 +290,7 @@ def crs_and_units(path: Path, unit: str, crs, header_crs, header_error, override
     info = None
     if crs:
         info = crs_info(crs, "--crs", where=f"--crs {crs}")
-        if header_crs is not None and not override and not _same_crs(info.crs, header_crs):
+        if header_crs is not None and not override and not same_crs(info.crs, header_crs):
             stated = crs_info(header_crs, "file header", where=f"{path}", error=SceneReadError)
             raise SceneReadError(f"{path}: --crs {crs} ({info.name}) differs from the CRS the file's header states "
                                  f"({stated.name}, {stated.crs}); drop --crs to use the header's, or add "
@@ -315,11 +315,21 @@ def crs_and_units(path: Path, unit: str, crs, header_crs, header_error, override
     return info, unit, scale, (info.vertical_unit_m if info is not None else scale)
 
 
-def _same_crs(a, b) -> bool:
-    """Whether two CRSs (pyproj input) are the same, axis order aside."""
+def same_crs(a, b) -> bool:
+    """Whether two CRSs (pyproj input, or None for none stated) are the same, axis order aside."""
+    if a is None or b is None:
+        return a is None and b is None
+    if a == b:
+        return True
     from pyproj import CRS
 
     return CRS.from_user_input(a).equals(CRS.from_user_input(b), ignore_axis_order=True)
+
+
+def check_point_file(path) -> tuple[Path, str]:
+    """``(path, lower-case suffix)`` of an existing, non-empty point file of a format :func:`read_points` reads, or
+    :class:`SceneReadError` naming the file and the fix (before anything else of a run is looked at)."""
+    return checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin", SceneReadError)
 
 
 def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> PointSet:
@@ -332,8 +342,7 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
     Raises :class:`SceneReadError` with one line naming the file for a missing, unreadable, truncated or empty file,
     a geographic CRS, or a CRS record that cannot be parsed (unless ``--unit`` or ``--crs`` say what it meant).
     """
-    path, suffix = checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin",
-                                 SceneReadError)
+    path, suffix = check_point_file(path)
     header_crs = header_error = None
     date = (None, None, None)
     if suffix in (".las", ".laz"):
