@@ -40,10 +40,7 @@ def _reference_system(georef) -> str | None:
     and EPSG registers the pair (RD New + NAP: 7415), else the horizontal CRS (its code identified from a WKT)."""
     from ..geo.georef import ogc_url
 
-    code = georef.reference_code or georef.crs_code
-    if code is None and georef.crs and georef.crs.upper().startswith("EPSG:"):
-        code = georef.crs
-    return ogc_url(code)
+    return ogc_url(georef.reference)
 
 
 def _extent(p: "_Placed") -> list[float]:

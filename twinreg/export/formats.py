@@ -104,7 +104,7 @@ def gpkg_crs(georef) -> str | None:
     """The CRS of twin.gpkg's layer: the compound or horizontal code, else the CRS's WKT (None: WGS84)."""
     if not georef.crs:
         return None
-    return georef.reference_code or georef.crs_code or georef.crs
+    return georef.reference or georef.crs
 
 
 class _Threaded:

@@ -80,6 +80,10 @@ def transformer(source: str, target: str):
     return Transformer.from_crs(source, target, always_xy=True)
 
 
+#: a CRS written as an EPSG code (``EPSG:28992``), not as WKT
+_EPSG_CODE = __import__("re").compile(r"^EPSG:[0-9]+$", __import__("re").IGNORECASE)
+
+
 @dataclass
 class Georef:
     """Scene -> WGS84. Build with :func:`georef_from_options`, then :func:`scene_georef` once the scene is read.
@@ -115,8 +119,24 @@ class Georef:
             doc.update(crs_name=self.crs_name, crs_source=self.crs_source, crs_unit_m=self.crs_unit_m,
                        vertical_unit_m=self.vertical_unit_m)
             if self.crs_code or self.reference_code:
-                doc.update(crs_code=self.crs_code, reference_system=ogc_url(self.reference_code or self.crs_code))
+                doc.update(crs_code=self.crs_code, reference_system=ogc_url(self.reference))
         return doc | self.heights.to_json()
+
+    @property
+    def reference(self) -> str | None:
+        """The authority code of the CRS the files' coordinates and heights are in, as the formats name it: the
+        compound code when the heights' datum is stated and registered (:meth:`identified`), else the horizontal
+        CRS's code; a CRS given as an EPSG code when it was not identified; None for a local frame or a WKT without
+        one.
+
+        >>> g = Georef(None, None, 0.0, (0.0, 0.0), "EPSG:28992", crs_code="EPSG:28992", reference_code="EPSG:7415")
+        >>> g.reference, Georef(None, None, 0.0, (0.0, 0.0), "EPSG:2157").reference
+        ('EPSG:7415', 'EPSG:2157')
+        """
+        code = self.reference_code or self.crs_code
+        if code is None and self.crs and _EPSG_CODE.match(self.crs):
+            code = self.crs
+        return code
 
     def to_crs_units(self, points) -> np.ndarray:
         """(n, 3) scene points (metres) in the CRS's own units (x, y divided by :attr:`crs_unit_m`, z by
@@ -363,4 +383,4 @@ def ogc_url(code: str | None) -> str | None:
     if not code or ":" not in code:
         return None
     auth, number = code.split(":", 1)
-    return f"https://www.opengis.net/def/crs/{auth}/0/{number}"
+    return f"https://www.opengis.net/def/crs/{auth.upper()}/0/{number}"
