@@ -29,6 +29,9 @@ def test_a_crs_in_feet_gives_feet_and_a_short_header(tmp_path):
     assert "comment crs EPSG:2994" in header and "crs_unit_m 0.3048" in header
     prj = write_prj(tmp_path / "twin.prj", g)
     assert prj.read_text().startswith("PROJCS[") and "Oregon" in prj.read_text()
+    from pyproj import CRS  # read back as GIS tools read a .prj: the same CRS
+
+    assert CRS.from_wkt(prj.read_text()).equals(CRS("EPSG:2994"), ignore_axis_order=True)
 
 
 def test_a_local_frame_keeps_its_metres_and_names_its_anchor(tmp_path):
