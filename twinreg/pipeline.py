@@ -14,11 +14,10 @@ from .catalogue.repository import Catalogue
 from .detect import describe_detected, detect_file, object_points
 from .errors import SceneReadError
 from .export.classified import scan_classes, write_classified
-from .export.formats import write_formats
-from .export.kmz import write_kmz
+from .export.formats import TwinFiles, write_twin
+from .export.sections import section_item
 from .export.tiles3d import scan_sample
 from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
-from .export.twin_ply import write_prj, write_twin_ply
 from .geo.georef import Georef, scene_georef
 from .io import observed
 from .io.outdir import check_replaceable, locked, staged_folder
@@ -217,14 +216,9 @@ def _match_and_export(run: SceneRun) -> dict:
 
     _say(progress, "export")
     t = time.perf_counter()
-    outs = place([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
-                 clusters.labels, [offset] * len(targets), georef, models)
-    objects, kmz_objects = [o.doc for o in outs], [o.kmz for o in outs]
-    footprints, section_items = [o.footprint for o in outs], [o.sections for o in outs]
-    meshes: dict = {}
-    for o in outs:
-        meshes.setdefault(o.mesh_key, o.mesh)
-    ply_parts = [(o.placed, o.faces, int(label)) for o, label in zip(outs, clusters.labels)]
+    placed = place([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
+                   clusters.labels, [offset] * len(targets), georef, models)
+    objects = [p.doc for p in placed]
 
     sc = det.scene
     when, source, warnings = survey_date(run.date, [(sc.survey_date, sc.survey_date_source, sc.survey_date_warning)])
@@ -232,28 +226,29 @@ def _match_and_export(run: SceneRun) -> dict:
                        survey_date=when, survey_date_source=source, warnings=warnings)
     twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
-                   {"scene_local": local, "is_ground": det.is_ground, "footprints": footprints, "hag": det.hag,
-                    "title": f"{scene_path.name}: {len(objects)} objects"}, section_items)
+                   {"scene_local": local, "is_ground": det.is_ground, "footprints": [p.footprint() for p in placed],
+                    "hag": det.hag, "title": f"{scene_path.name}: {len(objects)} objects"},
+                   [section_item(p) for p in placed])
     # the pictures are drawn by the helper process (already warm) and the KMZ written by the distance helper
     # (done with its queries) while this one writes the other files
     report = Pending(painter, write_report, *report_args)
-    kmz = Pending(run.prober.helper if run.prober else None, write_kmz, stage / "twin.kmz",
-                  f"twinreg: {scene_path.name}", kmz_objects, meshes)
-    if ply:
-        write_twin_ply(stage / "twin.ply", ply_parts, offset, georef, scene_path.name)
-        write_prj(stage / "twin.prj", georef)
     rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
-    twin["tiles"] = write_formats(stage, outs, [offset] * len(outs), georef, [("scene", list(range(len(outs))))],
-                                  [("scene", det.scene.points[rows], colours)], f"twinreg: {scene_path.name}", models,
-                                  templates=run.templates)
-    classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,
-                                [o["match"] is not None for o in objects])
-    write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
-    twin["observation"] = observed.write(stage / observed.FILE, [observed.raster(
-        det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
-        [s.sections for s in shapes])
+    files = TwinFiles(stage, scene_path.name, placed, georef, models, [("scene", list(range(len(placed))))],
+                      [("scene", det.scene.points[rows], colours)], ply="twin" if ply else None,
+                      templates=run.templates, helper=run.prober.helper if run.prober else None)
+
+    def scan_files():  # the classified scan and the observation record, while the formats finish
+        classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,
+                                    [o["match"] is not None for o in objects])
+        write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
+        return observed.write(stage / observed.FILE, [observed.raster(
+            det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
+            [s.sections for s in shapes])
+
+    observation = {}
+    twin |= write_twin(files, beside=lambda: observation.update(record=scan_files()))
+    twin["observation"] = observation["record"]
     # each job done there or, when its helper is missing, stuck or failed, here (the pictures within one deadline)
-    kmz.wait()
     deadline = time.monotonic() + HELPER_TIMEOUT_S
     for job in (taxonomy, report):
         if job is not None:

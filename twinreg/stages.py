@@ -83,17 +83,22 @@ def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances
 
 
 def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: list, georef, models) -> list:
-    """Place every object: its :class:`~twinreg.export.objects.ObjectOutput` (twin.json record, placemark, mesh,
-    footprint, sections) from its matching outcome, its taxonomy label and ``offsets`` (each (3,), its local frame
-    to the scene frame). Every object's lat/lon and bearing come from two vectorised transformations (one per
-    object took 8 s at 5,000 objects)."""
+    """Place every object: its :class:`~twinreg.export.objects.PlacedObject` (the mesh at its pose, where it is
+    on Earth, its twin.json record) from its matching outcome, its taxonomy label and ``offsets`` (each (3,), its
+    local frame to the scene frame). Every object's lat/lon and bearing come from two vectorised transformations
+    (one per object took 8 s at 5,000 objects)."""
     import numpy as np
 
-    from .export.objects import object_output, pose
+    from .export.objects import place_object, pose
+    from .export.twin_json import object_record
 
     poses = [pose(res) for res in outcomes]
     centres = np.array([c + np.asarray(off) for (c, _), off in zip(poses, offsets)]).reshape(-1, 3)
     lonlat, bearings = georef.placements(centres, [h for _, h in poses])
-    return [object_output(oid, n, res, int(label), np.asarray(off), georef, models,
-                          where=(float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k])))
-            for k, (oid, n, res, label, off) in enumerate(zip(ids, n_points, outcomes, labels, offsets))]
+    placed = []
+    for k, (oid, n, res, label, off) in enumerate(zip(ids, n_points, outcomes, labels, offsets)):
+        p = place_object(oid, n, res, int(label), np.asarray(off),
+                         (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k])), models)
+        p.doc = object_record(p, georef)
+        placed.append(p)
+    return placed

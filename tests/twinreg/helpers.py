@@ -89,3 +89,16 @@ def clean_env() -> dict:
 def chroma(rgb: np.ndarray) -> np.ndarray:
     rgb = np.asarray(rgb, dtype=np.float64)
     return rgb[..., :2] / np.maximum(rgb.sum(-1, keepdims=True), 1e-9)
+
+
+def toy_shapes(n: int) -> list:
+    """``n`` described toy cars (three designs, every other one 20 % longer) scattered over 100 m."""
+    import cosco
+    from tests.conftest import toy_car
+
+    rng = np.random.default_rng(0)
+    out = []
+    for k in range(n):
+        pts = toy_car(k % 3) * [1.0 + 0.2 * (k % 2), 1.0, 1.0]
+        out.append(cosco.describe_object(pts + [rng.uniform(0, 100), rng.uniform(0, 100), 0.0]))
+    return out

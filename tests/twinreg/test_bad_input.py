@@ -62,8 +62,7 @@ def test_a_failure_after_the_pictures_leaves_no_stage_behind(park, parametric_ca
     def broken(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(pipeline, "write_formats", broken, raising=False)
-    monkeypatch.setattr("twinreg.export.formats.write_formats", broken)
+    monkeypatch.setattr(pipeline, "write_twin", broken)
     out = tmp_path / "twin"
     res = _invoke("build-twin", park, "--lat", "53.35", "--lon", "-6.26", "--library", parametric_catalogue.folder,
                   "--out", out)

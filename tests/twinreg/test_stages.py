@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.twinreg.helpers import toy_shapes
 from cosco.params import DEFAULT
 from twinreg.errors import CatalogueError, ParameterError
 from twinreg.stages import checked_params, classify, place, require_models
@@ -32,20 +33,8 @@ def test_require_models_says_what_is_missing(tmp_path, parametric_catalogue):
     require_models(parametric_catalogue)
 
 
-def _shapes(n: int):
-    import cosco
-    from tests.conftest import toy_car
-
-    rng = np.random.default_rng(0)
-    out = []
-    for k in range(n):
-        pts = toy_car(k % 3) * [1.0 + 0.2 * (k % 2), 1.0, 1.0]
-        out.append(cosco.describe_object(pts + [rng.uniform(0, 100), rng.uniform(0, 100), 0.0]))
-    return out
-
-
 def test_classify_full_matrix_up_to_the_limit_and_the_graph_beyond():
-    shapes = _shapes(6)
+    shapes = toy_shapes(6)
     timing: dict = {}
     full = classify(shapes, DEFAULT, timing)
     assert full.method == "full" and full.matrix.shape == (6, 6) and {"matrix", "clustering"} <= set(timing)
@@ -58,12 +47,14 @@ def test_classify_full_matrix_up_to_the_limit_and_the_graph_beyond():
 
 def test_placing_all_at_once_is_placing_each_alone(parametric_catalogue):
     """stages.place computes every object's lat/lon and bearing in two vectorised transformations; each record is
-    the one object_output gives for that object alone."""
-    from twinreg.export.objects import object_output
+    the one an object placed alone gets (its own transformation)."""
+    from twinreg.export.kmz import placemark_fields
+    from twinreg.export.objects import place_object, pose
+    from twinreg.export.twin_json import object_record
     from twinreg.geo.georef import georef_from_options
     from twinreg.matching.match import ModelCache, ObjectMatch, match_objects
 
-    shapes = _shapes(4)
+    shapes = toy_shapes(4)
     models = ModelCache(parametric_catalogue, DEFAULT)
     results, _ = match_objects(shapes, parametric_catalogue, cache=models)
     results[-1] = ObjectMatch(shapes[-1], None, "refused for the test", [], reason_code="top_unseen")  # a box too
@@ -72,8 +63,12 @@ def test_placing_all_at_once_is_placing_each_alone(parametric_catalogue):
     ids = [f"obj{k + 1}" for k in range(4)]
     placed = place(ids, [s.n_points for s in shapes], results, [1, 1, 2, 2], offsets, georef, models)
     for k, p in enumerate(placed):
-        alone = object_output(ids[k], shapes[k].n_points, results[k], [1, 1, 2, 2][k], offsets[k], georef, models)
-        assert p.doc == alone.doc and p.kmz == alone.kmz and p.mesh_key == alone.mesh_key
+        centre, heading = pose(results[k])
+        ll, bearing = georef.placements((centre + offsets[k])[None], [heading])
+        alone = place_object(ids[k], shapes[k].n_points, results[k], [1, 1, 2, 2][k], offsets[k],
+                             (float(ll[0, 0]), float(ll[0, 1]), float(bearing[0])), models)
+        alone.doc = object_record(alone, georef)
+        assert p.doc == alone.doc and placemark_fields(p) == placemark_fields(alone) and p.mesh_key == alone.mesh_key
         assert np.array_equal(p.pose, alone.pose)
     assert [p.model_id is not None for p in placed] == [True, True, True, False]
     assert placed[-1].doc["reason_code"] == "top_unseen" and placed[-1].doc["kind"] == "unknown"

@@ -240,10 +240,10 @@ def test_a_stuck_helper_does_not_hang_build_twin(park, catalogue16, tmp_path, mo
     assert _children(earlier) == []  # the helper was stopped, not left behind
 
     # an export error while the helper is stuck: the error comes out at once, nothing is left behind
-    def broken_kmz(*args, **kwargs):
+    def broken_tiles(*args, **kwargs):
         raise ExportError("disk full (simulated)")
 
-    monkeypatch.setattr(pipeline, "write_kmz", broken_kmz)
+    monkeypatch.setattr("twinreg.export.formats.write_tiles", broken_tiles)
     before = sorted(p.name for p in (tmp_path / "out").iterdir())
     with pytest.raises(ExportError, match="disk full"):
         pipeline.build_twin(park["path"], catalogue16, georef, tmp_path / "out")

@@ -13,21 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..export.formats import start_text_formats, write_tile_formats
-from ..export.kmz import write_kmz
+from ..export.formats import TwinFiles, write_twin
 from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
-from ..export.twin_ply import write_twin_ply
 from ..io import observed
 from ..io.outdir import staged_folder
 from .classified import FOLDER as CLASSIFIED
 from ..stages import place
 from .resume import WORK
-
-#: how long the JSON formats may take in their child before this process writes them itself (s, and s an object:
-#: about 2 ms an object is usual)
-TEXT_FORMATS_S = 60.0
-TEXT_FORMATS_S_PER_OBJECT = 0.02
-
 
 def _cell_bounds(georef, cell) -> dict:
     corners = np.array([[cell.lo[0], cell.lo[1], 0.0], [cell.hi[0], cell.lo[1], 0.0], [cell.hi[0], cell.hi[1], 0.0],
@@ -119,44 +111,26 @@ def _document(run: CityRun, docs: list[dict], by_cell: dict) -> dict:
                          tail={"grid": grid, "cells": cells})
 
 
-def _write_files(run: CityRun, stage: Path, twin: dict, outs: list, by_cell: dict) -> None:
-    """Every file of the twin but twin.json into ``stage``: the JSON formats in a forked child (a third of the
-    export at 100M points) while this process writes the KMZ (a folder a cell), the cells' PLY files, the report
-    and the tiles; then the classified scan the workers wrote and the observation record."""
+def _write_files(run: CityRun, stage: Path, twin: dict, placed: list, by_cell: dict) -> None:
+    """Every file of the twin but twin.json into ``stage``: the twin's formats (:func:`~twinreg.export.formats.
+    write_twin`: the records' in a forked child, a third of the export at 100M points; a KMZ folder and PLY file a
+    cell) and the report; then the classified scan the workers wrote and the observation record."""
     from ..report.city import write_city_report
 
     results, objects, georef, plan = run.results, run.objects, run.georef, run.plan
     t = time.perf_counter()
-    offsets = [o.offset for o in objects]
-    texts = start_text_formats(stage, outs, offsets, georef, f"twinreg: {twin['scene']}", run.models,
-                               templates=True, seq=True, fork=True)
-    try:
-        meshes, per_cell_ply = {}, {}
-        for o, item, label in zip(objects, outs, run.tax.labels):
-            meshes.setdefault(item.mesh_key, item.mesh)
-            if run.ply:
-                per_cell_ply.setdefault(o.cell, []).append((item.placed, item.faces, int(label)))
-        folders = [{"name": r.name, "bounds": _cell_bounds(georef, plan.cells[r.name]),
-                    "ids": [d["id"] for d in by_cell.get(r.name, [])]} for r in results if by_cell.get(r.name)]
-        write_kmz(stage / "twin.kmz", f"twinreg: {twin['scene']}", [item.kmz for item in outs], meshes,
-                  folders=folders)
-        for name, parts in per_cell_ply.items():
-            write_twin_ply(stage / "ply" / f"{name}.ply", parts, np.asarray(plan.offset), georef,
-                           f"{twin['scene']}, cell {name}")
-        write_city_report(stage, twin, results, objects, run.outcomes, plan)
-        rows: dict = {}
-        for k, o in enumerate(objects):
-            rows.setdefault(o.cell, []).append(k)
-        for r in results:  # a kept cell's tiles are where this run's store keeps them, whatever its file says
-            if r.scan_tiles:
-                r.scan_tiles = dict(r.scan_tiles, folder=str(run.store.scan_folder() / f"{r.name}-{run.keys[r.name]}"))
-        scans = [(r.name, r.scan_tiles) for r in results if r.scan_tiles]
-        twin["tiles"] = write_tile_formats(stage, outs, offsets, georef,
-                                           [(r.name, rows[r.name]) for r in results if r.name in rows], scans,
-                                           run.models)
-        texts.wait(timeout=TEXT_FORMATS_S + TEXT_FORMATS_S_PER_OBJECT * len(objects))
-    finally:
-        texts.stop()
+    rows: dict = {}
+    for k, o in enumerate(objects):
+        rows.setdefault(o.cell, []).append(k)
+    for r in results:  # a kept cell's tiles are where this run's store keeps them, whatever its file says
+        if r.scan_tiles:
+            r.scan_tiles = dict(r.scan_tiles, folder=str(run.store.scan_folder() / f"{r.name}-{run.keys[r.name]}"))
+    cells = [r for r in results if r.name in rows]
+    files = TwinFiles(stage, twin["scene"], placed, georef, run.models, [(r.name, rows[r.name]) for r in cells],
+                      [(r.name, r.scan_tiles) for r in results if r.scan_tiles], ply="groups" if run.ply else None,
+                      regions={r.name: _cell_bounds(georef, plan.cells[r.name]) for r in cells}, templates=True,
+                      seq=True, fork=True)
+    twin |= write_twin(files, beside=lambda: write_city_report(stage, twin, results, objects, run.outcomes, plan))
     run.timing["formats"] = time.perf_counter() - t
     if run.classified is not None:  # the cells' classified COPC files, written on the workers
         os.replace(run.store.folder / CLASSIFIED, stage / CLASSIFIED)

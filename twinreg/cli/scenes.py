@@ -153,7 +153,7 @@ def build_twin_cmd(
          f"{twin['clustering']['n_clusters']} clusters, {twin['matching']['n_trials']} registration trials, "
          f"{twin['timing_s']['total']:.2f} s" + (f", {twin['grid']['n_cells']} cells" if tiled else ""))
     if len(twin["objects"]) <= 50:
-        from ..export.objects import trust_text
+        from ..export.twin_json import trust_text
 
         for o in twin["objects"]:
             m = o["match"]

@@ -1,6 +1,9 @@
-"""The twin's open formats, written together by the per-scene pipeline and the city engine: 3D Tiles and
-twin.glb (:mod:`.tiles3d`), CityJSON (:mod:`.cityjson`), GeoJSON (:mod:`.geojson`) and GeoPackage
-(:mod:`.gpkg`)."""
+"""The twin's files, written by one writer for a scene and a city (:func:`write_twin`) from the placed objects
+(:class:`~twinreg.export.objects.PlacedObject`): each format is its module and one line in a table. In this
+process (:data:`TWIN_FORMATS`): twin.kmz (:mod:`.kmz`; on a helper process when one is given), twin.ply
+(:mod:`.twin_ply`), 3D Tiles and twin.glb (:mod:`.tiles3d`). From the objects' records, on a thread or in a forked
+child (:data:`RECORD_FORMATS`): CityJSON (:mod:`.cityjson`), GeoJSON (:mod:`.geojson`), sections.json
+(:mod:`.sections`) and GeoPackage (:mod:`.gpkg`)."""
 
 from __future__ import annotations
 
@@ -10,48 +13,137 @@ from pathlib import Path
 
 import numpy as np
 
+from ..process.helpers import Forked, Pending
 from .cityjson import write_cityjson
 from .geojson import footprints_lonlat, write_geojson
+from .kmz import placemark_fields, write_kmz
+from .sections import write_sections
 from .tiles3d import TILE_MAX_TRIANGLES, instance_of, write_tiles
+from .twin_ply import write_prj, write_twin_ply
+
+#: how long the record formats may take in a forked child before this process writes them itself (s, and s an
+#: object: about 2 ms an object is usual)
+RECORD_FORMATS_S = 60.0
+RECORD_FORMATS_S_PER_OBJECT = 0.02
 
 
-def write_formats(stage: Path, outputs: list, offsets: list, georef, groups: list, scans: list | None,
-                  title: str, models, templates: bool = False, seq: bool = False) -> dict:
-    """``outputs``: the objects' :class:`~twinreg.export.objects.ObjectOutput`; ``offsets``: (3,) each, from
-    its local frame to the scene frame; ``groups``: (tile name, indices into outputs); ``scans``: (tile name,
-    (n, 3) scene points, (n, 3) uint8 colours), or None; ``models``: the matcher's
-    :class:`~twinreg.matching.match.ModelCache` (the tiles' lighter meshes); ``templates``: CityJSON with geometry
-    templates; ``seq``: also twin.city.jsonl (CityJSONSeq). Returns the tiles' summary."""
-    texts = start_text_formats(stage, outputs, offsets, georef, title, models, templates, seq)
+@dataclass
+class TwinFiles:
+    """What the twin's files are written from, and how. ``stage``: the folder; ``scene``: the scan's name (the
+    files' titles); ``placed``: the :class:`~twinreg.export.objects.PlacedObject` of every object; ``georef``;
+    ``models``: the matcher's :class:`~twinreg.matching.match.ModelCache` (the tiles' lighter meshes);
+    ``groups``: (name, indices into ``placed``) of the tiles' groups (a scene's one, a city's cells); ``scans``:
+    each group's scan sample (name, (n, 3) scene points, (n, 3) uint8 colours, or the name and a cell's written
+    tiles), or None; ``ply``: None, ``"twin"`` (twin.ply and twin.prj) or ``"groups"`` (``ply/<group>.ply``);
+    ``regions``: group name -> WGS84 bounds for a KMZ with a Folder and Region a group (None: one list);
+    ``templates``: CityJSON with geometry templates; ``seq``: also twin.city.jsonl; ``fork``: the record formats
+    in a forked child (a city's thousands of objects) instead of a thread; ``helper``: the helper process that
+    writes the KMZ (None: this one)."""
+
+    stage: Path
+    scene: str
+    placed: list
+    georef: object
+    models: object
+    groups: list
+    scans: list | None = None
+    ply: str | None = None
+    regions: dict | None = None
+    templates: bool = False
+    seq: bool = False
+    fork: bool = False
+    helper: object = None
+
+    @property
+    def title(self) -> str:
+        return f"twinreg: {self.scene}"
+
+
+def _kmz(f: TwinFiles):
+    meshes: dict = {}
+    for p in f.placed:
+        meshes.setdefault(p.mesh_key, p.mesh)
+    folders = None
+    if f.regions is not None:
+        folders = [{"name": name, "bounds": f.regions[name], "ids": [f.placed[k].id for k in rows]}
+                   for name, rows in f.groups if rows]
+    return Pending(f.helper, write_kmz, f.stage / "twin.kmz", f.title, [placemark_fields(p) for p in f.placed],
+                   meshes, folders)
+
+
+def _ply_parts(placed: list) -> tuple[list, np.ndarray]:
+    """(placed vertices, faces, label) of each object, in the first object's frame, and that frame's offset."""
+    base = np.asarray(placed[0].offset)
+    parts = []
+    for p in placed:
+        v = p.placed
+        if np.any(p.offset != base):
+            v = v + (p.offset - base)
+        parts.append((v, p.faces, int(p.label)))
+    return parts, base
+
+
+def _ply(f: TwinFiles):
+    if f.ply == "twin" and f.placed:
+        parts, base = _ply_parts(f.placed)
+        write_twin_ply(f.stage / "twin.ply", parts, base, f.georef, f.scene)
+        write_prj(f.stage / "twin.prj", f.georef)
+    elif f.ply == "groups":
+        for name, rows in f.groups:
+            if rows:
+                parts, base = _ply_parts([f.placed[k] for k in rows])
+                write_twin_ply(f.stage / "ply" / f"{name}.ply", parts, base, f.georef, f"{f.scene}, cell {name}")
+    return None
+
+
+def _tiles(f: TwinFiles):
+    meshes = {p.mesh_key: p.mesh for p in f.placed if p.scale is None}
+    return {"tiles": write_tiles(Path(f.stage), _instances(f.placed), meshes, f.georef, f.groups, f.scans,
+                                 tile_meshes=_light(f.placed, f.models))}
+
+
+#: the formats written in this process, in order, each ``(files) -> None``, a dict of twin.json's entries, or a
+#: job to ``wait()`` for (the KMZ on a helper): a new format is its module and one line here
+TWIN_FORMATS = (_kmz, _ply, _tiles)
+
+
+def write_twin(f: TwinFiles, beside=None) -> dict:
+    """Every file of the twin but twin.json, the report and the scan's: :data:`RECORD_FORMATS` on a thread (or
+    in a forked child) beside :data:`TWIN_FORMATS` here, then ``beside()`` (the caller's own files) while the
+    records' formats finish. Returns twin.json's entries the formats give (the tiles' summary)."""
+    texts = start_text_formats(f)
+    entries: dict = {}
     try:
-        summary = write_tile_formats(stage, outputs, offsets, georef, groups, scans, models)
-        texts.wait()
+        jobs = []
+        for write in TWIN_FORMATS:
+            got = write(f)
+            if isinstance(got, dict):
+                entries |= got
+            elif got is not None:
+                jobs.append(got)
+        if beside is not None:
+            beside()
+        for job in jobs:
+            job.wait()
+        texts.wait(timeout=RECORD_FORMATS_S + RECORD_FORMATS_S_PER_OBJECT * len(f.placed))
     finally:
         texts.stop()
-    return summary
+    return entries
 
 
-def _instances(outputs: list, offsets: list) -> list:
-    return [instance_of(o, np.asarray(off)) for o, off in zip(outputs, offsets)]
+def _instances(placed: list) -> list:
+    return [instance_of(p) for p in placed]
 
 
-def _light(outputs: list, models) -> dict:
+def _light(placed: list, models) -> dict:
     """The tiles' (and CityJSON's) lighter mesh of every model the objects show, by mesh key."""
-    meshes = {o.mesh_key: (o.model_id, o.mesh[2]) for o in outputs if o.model_id is not None}
+    meshes = {p.mesh_key: (p.model_id, p.mesh[2]) for p in placed if p.model_id is not None}
     return {key: (*models.light_mesh(model_id, TILE_MAX_TRIANGLES), rgb) for key, (model_id, rgb) in meshes.items()}
-
-
-def write_tile_formats(stage: Path, outputs: list, offsets: list, georef, groups: list, scans: list | None,
-                       models) -> dict:
-    """3D Tiles and twin.glb (:func:`write_formats`' arguments); returns the tiles' summary."""
-    meshes = {o.mesh_key: o.mesh for o in outputs if o.scale is None}
-    return write_tiles(Path(stage), _instances(outputs, offsets), meshes, georef, groups, scans,
-                       tile_meshes=_light(outputs, models))
 
 
 @dataclass
 class RecordView:
-    """What the formats of the objects' records are written from: the placed objects (``outputs``, their
+    """What the formats of the objects' records are written from: the placed objects (``placed``, their
     ``docs``, tiles ``instances``, the models' ``light`` meshes), their footprints (``lonlat`` in WGS84, ``rings``
     in the CRS's units or None), the run's ``georef`` and ``title``, and the options (CityJSON ``templates``,
     CityJSONSeq ``seq``)."""
@@ -65,7 +157,7 @@ class RecordView:
     title: str
     templates: bool
     seq: bool
-    outputs: list
+    placed: list
     rings: np.ndarray | None = None
 
 
@@ -79,7 +171,7 @@ def _geojson(v: RecordView) -> None:
 
 
 def _sections(v: RecordView) -> None:
-    write_sections(v.stage / "sections.json", v.outputs)
+    write_sections(v.stage / "sections.json", v.placed)
 
 
 def _gpkg(v: RecordView) -> None:
@@ -121,53 +213,22 @@ class _Threaded:
         self._pool.shutdown(wait=True)
 
 
-def start_text_formats(stage: Path, outputs: list, offsets: list, georef, title: str, models, templates: bool,
-                       seq: bool, fork: bool = False):
-    """Start :func:`write_text_formats` on a thread, or with ``fork`` in a forked child (a city's thousands of
-    objects: JSON encoding holds Python's lock, so a thread shares one core with the caller); returns what to
-    ``wait()`` for, and to ``stop()`` on every path (:class:`~twinreg.process.helpers.Forked`)."""
-    docs = [o.doc for o in outputs]
-    # pyproj's transformations and the catalogue's connection stay in this process and thread
-    corners = [np.asarray(o.footprint["corners"]) + np.asarray(off)[:2] for o, off in zip(outputs, offsets)]
-    ll = footprints_lonlat(corners, georef)
+def record_view(f: TwinFiles) -> RecordView:
+    """The :class:`RecordView` of ``f``'s objects (their footprints transformed here: pyproj's transformations
+    and the catalogue's connection stay in this process and thread)."""
+    corners = [np.asarray(p.footprint()["corners"]) + p.offset[:2] for p in f.placed]
+    ll = footprints_lonlat(corners, f.georef)
     rings = None
-    if georef.crs and corners:
+    if f.georef.crs and corners:
         flat = np.vstack(corners)
-        rings = georef.to_crs_units(np.c_[flat, np.zeros(len(flat))])[:, :2]
-    view = RecordView(Path(stage), _instances(outputs, offsets), _light(outputs, models), docs, ll, georef, title,
-                      templates, seq, outputs, rings)
-    if not fork:
-        return _Threaded(view)
-    from ..process.helpers import Forked
-
-    return Forked(write_text_formats, view)
+        rings = f.georef.to_crs_units(np.c_[flat, np.zeros(len(flat))])[:, :2]
+    return RecordView(Path(f.stage), _instances(f.placed), _light(f.placed, f.models), [p.doc for p in f.placed],
+                      ll, f.georef, f.title, f.templates, f.seq, f.placed, rings)
 
 
-def _polyline(a, n: int = 80) -> list:
-    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
-    a = a[np.linspace(0, len(a) - 1, min(n, len(a))).astype(int)] if len(a) else a
-    return np.round(a, 3).tolist()
-
-
-def write_sections(path: Path, outputs: list) -> Path:
-    """``sections.json``: each object's longitudinal and transverse sections ((u, z) and (v, z), metres) and
-    its model's, registered onto them, at most 80 points each (the viewer draws them on a click)."""
-    import json
-
-    # written an object at a time (the bytes ``json.dumps`` of the whole mapping gives; ids are unique), so that
-    # memory does not grow with the objects (each object's polylines are some 600 Python floats)
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("{")
-        for n, o in enumerate(outputs):
-            item = json.dumps(_section_item(o.sections), separators=(",", ":"))
-            fh.write(("," if n else "") + json.dumps(o.doc["id"]) + ":" + item)
-        fh.write("}")
-    return Path(path)
-
-
-def _section_item(s: dict) -> dict:
-    """One object's entry of sections.json: its polylines and, when matched, its model's."""
-    item = {"lon": _polyline(s["object"]["lon"]), "tra": _polyline(s["object"]["tra"])}
-    if s.get("model"):
-        item.update(model_lon=_polyline(s["model"]["lon"]), model_tra=_polyline(s["model"]["tra"]))
-    return item
+def start_text_formats(f: TwinFiles):
+    """Start :func:`write_text_formats` on a thread, or with ``f.fork`` in a forked child (JSON encoding holds
+    Python's lock, so a thread shares one core with the caller); returns what to ``wait()`` for, and to
+    ``stop()`` on every path (:class:`~twinreg.process.helpers.Forked`)."""
+    view = record_view(f)
+    return Forked(write_text_formats, view) if f.fork else _Threaded(view)

@@ -21,6 +21,25 @@ def _data(name: str, value) -> str:
     return f'<Data name="{escape(name)}"><value>{escape(str(value))}</value></Data>'
 
 
+def placemark_fields(p) -> dict:
+    """A :class:`~twinreg.export.objects.PlacedObject`'s placemark: id, lon, lat, alt, bearing, the mesh's key, a
+    description and the ExtendedData fields (from its twin.json record)."""
+    from .twin_json import trust_text
+
+    m, size = p.doc["match"], p.size
+    description = (f"{m['name']} ({m['make'] or ''} {m['model'] or ''}), RMSE {m['rmse_m'] * 100:.1f} cm"
+                   f"{trust_text(m)}" if m else f"unmatched: {p.outcome.reason}")
+    return {"id": p.id, "lon": p.lon, "lat": p.lat, "alt": 0.0, "bearing": p.bearing, "mesh": p.mesh_key,
+            "description": description,
+            "data": {"model": m["name"] if m else "none", "make": (m or {}).get("make") or "",
+                     "length_m": f"{size['length']:.2f}", "width_m": f"{size['width']:.2f}",
+                     "height_m": f"{size['height']:.2f}", "rmse_m": f"{m['rmse_m']:.4f}" if m else "",
+                     "cluster": int(p.label),
+                     "confidence": "" if not m or m["confidence"] is None else f"{m['confidence']:.2f}",
+                     "ambiguous_with": ", ".join(m["ambiguous_with"]) if m else "",
+                     "outside_tolerance": str(bool(m and m["outside_tolerance"])).lower()}}
+
+
 def placemark(obj: dict, href: str) -> str:
     """One Placemark: obj has id, lon, lat, alt, bearing and the ExtendedData fields."""
     ext = "".join(_data(k, v) for k, v in obj["data"].items())

@@ -1,10 +1,13 @@
-"""Each object of a twin as the exports carry it: its twin.json record, its KMZ placemark, its placed mesh (the
-model's, or a box of its measured size when no model fits), its footprint for the top view and its sections for
-the report. Shared by the per-scene pipeline and the city engine."""
+"""Each object of a twin placed: :class:`PlacedObject`, the one typed object every format derives its view from
+(twin.json's record: :func:`~twinreg.export.twin_json.object_record`; the KMZ placemark:
+:func:`~twinreg.export.kmz.placemark_fields`; the 3D formats' instance: :func:`~twinreg.export.tiles3d.instance_of`;
+the report's footprint and sections: :meth:`PlacedObject.footprint`, :func:`~twinreg.export.sections.section_item`).
+Shared by the per-scene pipeline and the city engine. A new property of an object (its kind, its fused shape) is
+a field here, not a branch in two orchestrators."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -13,6 +16,9 @@ from cosco.footprint import min_area_rectangle
 from cosco.frames import yaw_pose
 
 from .twin_ply import cluster_color
+
+#: the colour of an object with no model (its box), everywhere it is drawn
+BOX_RGB = (0.9, 0.2, 0.2)
 
 
 def box_mesh(length: float, width: float, height: float):
@@ -25,24 +31,37 @@ def box_mesh(length: float, width: float, height: float):
 
 
 @dataclass
-class ObjectOutput:
-    """``doc`` (twin.json), ``kmz`` (placemark fields), ``mesh_key`` and ``mesh`` (vertices, faces, rgb in model
-    coordinates), ``footprint`` and ``sections`` (report items), ``bearing`` (degrees clockwise from true north) of
-    the mesh's +X, ``scale`` (L, W, H) of a unit box (an object with no model) or None, ``model_id`` the catalogue
-    model's id (None for a box; ``mesh_key`` names the mesh in files), and ``pose`` (4, 4), which
-    takes the mesh into the object's local frame: :attr:`origin` and :attr:`placed` follow from it (the placed
-    vertices are computed when asked: a city's objects would hold hundreds of kilobytes each)."""
+class PlacedObject:
+    """One object of the twin where it stands: its ``id``, ``n_points`` and taxonomy ``label``; its matching
+    ``outcome`` (:class:`~twinreg.matching.match.ObjectMatch`); ``offset`` (3,), its local frame to the scene
+    frame; the mesh drawn for it (``mesh_key`` names it in files; ``mesh`` is (vertices, faces, rgb) in model
+    coordinates, front +X) and ``pose`` (4, 4), which takes the mesh into the object's local frame; ``centre``
+    (3,, local frame) and ``heading`` (rad) of what is placed, its ``size`` (m), ``lon``/``lat`` (WGS84) and
+    ``bearing`` (degrees clockwise from true north of the mesh's +X); ``outline`` (the mesh's plan hull, model
+    coordinates); ``model_id`` and the catalogue ``model`` row (None for a box; ``scale`` (L, W, H) of the unit
+    box then); ``model_sections``, the model's sections registered onto the object's; ``doc``, its twin.json
+    record (:func:`~twinreg.export.twin_json.object_record`)."""
 
-    doc: dict
-    kmz: dict
+    id: str
+    n_points: int
+    label: int
+    outcome: object
+    offset: np.ndarray
     mesh_key: str
     mesh: tuple
-    footprint: dict
-    sections: dict
     pose: np.ndarray
-    bearing: float = 0.0
-    scale: tuple | None = None
+    centre: np.ndarray
+    heading: float
+    size: dict
+    lon: float
+    lat: float
+    bearing: float
+    outline: np.ndarray
     model_id: int | None = None
+    model: object = None
+    scale: tuple | None = None
+    model_sections: dict = field(default_factory=dict)
+    doc: dict = field(default_factory=dict)
 
     @property
     def origin(self) -> np.ndarray:
@@ -55,8 +74,25 @@ class ObjectOutput:
 
     @property
     def placed(self) -> np.ndarray:
-        """(n, 3) the mesh's vertices placed (object's local frame)."""
+        """(n, 3) the mesh's vertices placed (object's local frame; computed when asked: a city's objects would
+        hold hundreds of kilobytes each)."""
         return _place(self.mesh[0], self.pose)
+
+    @property
+    def match(self):
+        """The decided :class:`~twinreg.matching.match.Match`, or None."""
+        return self.outcome.match
+
+    def footprint(self) -> dict:
+        """The top view's item: the placed mesh's minimum-area rectangle (``corners``, local frame), its
+        ``color``, ``centre``, a ``front`` point 1.5 m ahead and a short ``label`` (``?`` when no model fits)."""
+        rect = min_area_rectangle(_place(self.outline, self.pose)[:, :2])
+        ctr = np.asarray(self.centre)[:2]
+        oid = self.id
+        return {"corners": rect.corners(), "color": cluster_color(self.label) / 255.0, "centre": ctr,
+                "front": ctr + 1.5 * np.array([np.cos(self.heading), np.sin(self.heading)]),
+                "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1])
+                + ("" if self.match is not None else "?")}
 
 
 def _place(vertices, pose: np.ndarray) -> np.ndarray:
@@ -81,98 +117,30 @@ def pose(res) -> tuple[np.ndarray, float]:
     return np.asarray(res.shape.centroid, dtype=np.float64), float(res.shape.heading)
 
 
-def trust_text(match_doc: dict) -> str:
-    """How sure a match is, in words: its confidence, the models it cannot be told from, outside tolerance.
-
-    >>> trust_text({"confidence": 0.12, "ambiguous_with": ["ford_mondeo_2015"], "outside_tolerance": False})
-    '; confidence 0.12; ambiguous with ford_mondeo_2015'
-    """
-    out = ""
-    if match_doc.get("confidence") is not None:
-        out += f"; confidence {match_doc['confidence']:.2f}"
-    if match_doc.get("ambiguous_with"):
-        out += "; ambiguous with " + ", ".join(match_doc["ambiguous_with"])
-    if match_doc.get("outside_tolerance"):
-        out += "; outside the size tolerance"
-    return out
-
-
-def object_output(oid: str, n_points: int, res, label: int, offset: np.ndarray, georef, models,
-                  where=None) -> ObjectOutput:
-    """The exports of one matched (or unmatched) object. ``res``: its :class:`~twinreg.matching.match.ObjectMatch`;
-    ``offset``: (3,) added to the object's local frame gives the scene frame; ``models``: the matcher's
-    :class:`~twinreg.matching.match.ModelCache` (rows, twin meshes and sections read once per model). ``where``:
-    ``(lon, lat, bearing)`` computed for many objects at once (:meth:`~twinreg.geo.georef.Georef.placements`), or
-    None to compute them here."""
+def place_object(oid: str, n_points: int, res, label: int, offset: np.ndarray, where: tuple,
+                 models) -> PlacedObject:
+    """One matched (or unmatched) object placed. ``res``: its :class:`~twinreg.matching.match.ObjectMatch`;
+    ``offset``: (3,) added to the object's local frame gives the scene frame; ``where``: ``(lon, lat, bearing)``
+    (:meth:`~twinreg.geo.georef.Georef.placements`, computed for many objects at once); ``models``: the matcher's
+    :class:`~twinreg.matching.match.ModelCache` (rows, twin meshes and sections read once per model). Its
+    ``doc`` is left empty (:func:`twinreg.stages.place` fills it)."""
     shape, m = res.shape, res.match
-    rgb = cluster_color(label)
+    lon, lat, bearing = where
+    common = dict(id=oid, n_points=int(n_points), label=int(label), outcome=res,
+                  offset=np.asarray(offset, dtype=np.float64), lon=float(lon), lat=float(lat), bearing=float(bearing))
     if m is not None:
         row, (mv, mf) = models.row(m.model_id), models.mesh(m.model_id)
-        pose = np.asarray(m.transform, dtype=np.float64)
-        outline = models.outline(m.model_id)  # the mesh's plan hull: its footprint placed, not every vertex
-        heading, centre_local = m.heading, m.centre
-        size = {"length": row.length, "width": row.width, "height": row.height}
-        mesh_key, mesh = f"model{m.model_id}", (mv, mf, tuple(rgb / 255.0))
-        match_doc = {"model_id": m.model_id, "name": m.name, "make": row.make, "model": row.model,
-                     "rmse_m": round(m.rmse, 4), "rz": round(m.rz, 6), "tz": round(m.tz, 4), "du": round(m.du, 4),
-                     "n_candidates": m.n_candidates, "n_trials": m.n_trials, "runner_up": m.runner_up,
-                     "confidence": None if m.confidence is None else round(m.confidence, 3),
-                     "margin_sigma": None if m.margin_sigma is None else round(m.margin_sigma, 2),
-                     "ambiguous_with": list(m.ambiguous_with), "outside_tolerance": bool(m.outside_tolerance),
-                     "evidence": m.evidence,
-                     "verification": m.verdict.as_dict() if m.verdict is not None else None}
         reg = cosco.Registration(m.rmse, m.rz, m.tz, m.du)
-        sections = {"title": f"{oid}: {m.name} ({m.rmse * 100:.1f} cm)",
-                    "object": {"lon": shape.sections.longitudinal, "tra": shape.sections.transverse},
-                    "model": _registered_sections(models.geometry(m.model_id).sections, reg)}
-    else:
-        s = shape.size
-        bv, faces = box_mesh(s.length, s.width, s.height)
-        pose = yaw_pose(shape.heading, shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0])
-        outline = bv
-        heading, centre_local, size = shape.heading, shape.centroid, s.as_dict()
-        mesh_key, mesh = f"box_{oid}", (bv, faces, (0.9, 0.2, 0.2))
-        match_doc = None
-        sections = {"title": f"{oid}: no match ({res.reason})",
-                    "object": {"lon": shape.sections.longitudinal, "tra": shape.sections.transverse}}
-    centre_scene = np.asarray(centre_local) + offset
-    if where is None:
-        ll, b = georef.placements(centre_scene[None], [heading])
-        lon, lat, bearing = float(ll[0, 0]), float(ll[0, 1]), float(b[0])
-    else:
-        lon, lat, bearing = where
-    doc = {"id": oid, "n_points": int(n_points), "centroid": [float(v) for v in centre_scene],
-           "position_crs": [float(v) for v in georef.to_crs_units(centre_scene)[0]],
-           "heading_rad": float(heading), "size": {k: round(float(v), 3) for k, v in size.items()},
-           "measured_size": shape.size.as_dict(),
-           "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4)},
-           "cluster": int(label), "kind": "car" if match_doc else "unknown", "match": match_doc,
-           "lat": float(lat), "lon": float(lon),
-           "bearing_deg": round(bearing, 3)}
-    if match_doc is None:
-        doc["reason"] = res.reason
-        doc["reason_code"] = res.reason_code
-        if res.rejected:
-            doc["rejected_model"] = res.rejected
-    description = (f"{match_doc['name']} ({match_doc['make'] or ''} {match_doc['model'] or ''}), RMSE "
-                   f"{match_doc['rmse_m'] * 100:.1f} cm{trust_text(match_doc)}" if match_doc
-                   else f"unmatched: {res.reason}")
-    kmz = {"id": oid, "lon": lon, "lat": lat, "alt": 0.0, "bearing": bearing, "mesh": mesh_key,
-           "description": description,
-           "data": {"model": match_doc["name"] if match_doc else "none",
-                    "make": (match_doc or {}).get("make") or "",
-                    "length_m": f"{size['length']:.2f}", "width_m": f"{size['width']:.2f}",
-                    "height_m": f"{size['height']:.2f}",
-                    "rmse_m": f"{match_doc['rmse_m']:.4f}" if match_doc else "", "cluster": int(label),
-                    "confidence": "" if not match_doc or match_doc["confidence"] is None
-                    else f"{match_doc['confidence']:.2f}",
-                    "ambiguous_with": ", ".join(match_doc["ambiguous_with"]) if match_doc else "",
-                    "outside_tolerance": str(bool(match_doc and match_doc["outside_tolerance"])).lower()}}
-    rect = min_area_rectangle(_place(outline, pose)[:, :2])
-    ctr = np.asarray(centre_local)[:2]
-    footprint = {"corners": rect.corners(), "color": rgb / 255.0, "centre": ctr,
-                 "front": ctr + 1.5 * np.array([np.cos(heading), np.sin(heading)]),
-                 "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1]) + ("" if m else "?")}
-    return ObjectOutput(doc, kmz, mesh_key, mesh, footprint, sections, pose, float(bearing),
-                        None if m is not None else (s.length, s.width, s.height),
-                        m.model_id if m is not None else None)
+        return PlacedObject(**common, mesh_key=f"model{m.model_id}",
+                            mesh=(mv, mf, tuple(cluster_color(label) / 255.0)),
+                            pose=np.asarray(m.transform, dtype=np.float64), centre=np.asarray(m.centre),
+                            heading=float(m.heading),
+                            size={"length": row.length, "width": row.width, "height": row.height},
+                            outline=models.outline(m.model_id), model_id=m.model_id, model=row,
+                            model_sections=_registered_sections(models.geometry(m.model_id).sections, reg))
+    s = shape.size
+    bv, faces = box_mesh(s.length, s.width, s.height)
+    return PlacedObject(**common, mesh_key=f"box_{oid}", mesh=(bv, faces, BOX_RGB),
+                        pose=yaw_pose(shape.heading, shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]),
+                        centre=np.asarray(shape.centroid), heading=float(shape.heading), size=s.as_dict(),
+                        outline=bv, scale=(s.length, s.width, s.height))

@@ -51,17 +51,18 @@ class Instance:
     props: dict
 
 
-def instance_of(out, offset) -> Instance:
-    """An :class:`Instance` from an :class:`~twinreg.export.objects.ObjectOutput`."""
-    doc = out.doc
+def instance_of(p) -> Instance:
+    """The :class:`Instance` of a :class:`~twinreg.export.objects.PlacedObject` (its origin in the scene
+    frame)."""
+    doc = p.doc
     m = doc["match"]
     props = {"id": doc["id"], "model": m["name"] if m else "", "make": (m or {}).get("make") or "",
              "matched": m is not None,
              "confidence": float(c) if (c := (m or {}).get("confidence")) is not None else -1.0,
              "length": doc["size"]["length"], "width": doc["size"]["width"], "height": doc["size"]["height"],
              "cluster": float(doc["cluster"])}
-    return Instance(doc["id"], "box" if out.scale is not None else out.mesh_key, np.asarray(out.origin) + offset,
-                    out.bearing, out.scale, props)
+    return Instance(doc["id"], "box" if p.scale is not None else p.mesh_key, np.asarray(p.origin) + p.offset,
+                    p.bearing, p.scale, props)
 
 
 #: model colours (matplotlib's tab10 without its red, kept for objects with no model, and its grey, the scan's

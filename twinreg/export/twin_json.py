@@ -107,3 +107,55 @@ def survey_date(given: str | None, files: list) -> tuple[str | None, str | None,
     said = [w for _, s, w in files if w and s == source]
     warnings = [said[0] + (f" ({len(said) - 1} more tiles likewise)" if len(said) > 1 else "")] if said else []
     return found[0][1], source, warnings
+
+
+def match_record(p) -> dict | None:
+    """A placed object's ``match`` in twin.json (None when no model fits): the model, the registration, the
+    confidence and its evidence, the verification."""
+    m = p.match
+    if m is None:
+        return None
+    return {"model_id": m.model_id, "name": m.name, "make": p.model.make, "model": p.model.model,
+            "rmse_m": round(m.rmse, 4), "rz": round(m.rz, 6), "tz": round(m.tz, 4), "du": round(m.du, 4),
+            "n_candidates": m.n_candidates, "n_trials": m.n_trials, "runner_up": m.runner_up,
+            "confidence": None if m.confidence is None else round(m.confidence, 3),
+            "margin_sigma": None if m.margin_sigma is None else round(m.margin_sigma, 2),
+            "ambiguous_with": list(m.ambiguous_with), "outside_tolerance": bool(m.outside_tolerance),
+            "evidence": m.evidence, "verification": m.verdict.as_dict() if m.verdict is not None else None}
+
+
+def object_record(p, georef) -> dict:
+    """A :class:`~twinreg.export.objects.PlacedObject`'s record in twin.json's ``objects`` (field by field:
+    docs/OUTPUTS.md)."""
+    res, match = p.outcome, match_record(p)
+    shape = res.shape
+    centre_scene = np.asarray(p.centre) + p.offset
+    doc = {"id": p.id, "n_points": int(p.n_points), "centroid": [float(v) for v in centre_scene],
+           "position_crs": [float(v) for v in georef.to_crs_units(centre_scene)[0]],
+           "heading_rad": float(p.heading), "size": {k: round(float(v), 3) for k, v in p.size.items()},
+           "measured_size": shape.size.as_dict(),
+           "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4)},
+           "cluster": int(p.label), "kind": "car" if match else "unknown", "match": match,
+           "lat": float(p.lat), "lon": float(p.lon), "bearing_deg": round(p.bearing, 3)}
+    if match is None:
+        doc["reason"] = res.reason
+        doc["reason_code"] = res.reason_code
+        if res.rejected:
+            doc["rejected_model"] = res.rejected
+    return doc
+
+
+def trust_text(match_doc: dict) -> str:
+    """How sure a match is, in words: its confidence, the models it cannot be told from, outside tolerance.
+
+    >>> trust_text({"confidence": 0.12, "ambiguous_with": ["ford_mondeo_2015"], "outside_tolerance": False})
+    '; confidence 0.12; ambiguous with ford_mondeo_2015'
+    """
+    out = ""
+    if match_doc.get("confidence") is not None:
+        out += f"; confidence {match_doc['confidence']:.2f}"
+    if match_doc.get("ambiguous_with"):
+        out += "; ambiguous with " + ", ".join(match_doc["ambiguous_with"])
+    if match_doc.get("outside_tolerance"):
+        out += "; outside the size tolerance"
+    return out

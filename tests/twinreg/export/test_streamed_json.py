@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from twinreg.export.formats import write_sections
+from twinreg.export.sections import write_sections
 from twinreg.export.geojson import PROPERTIES, write_geojson
 
 
@@ -54,26 +54,33 @@ def _expected_polyline(a, n: int = 80) -> list:
     return [[round(float(u), 3), round(float(z), 3)] for u, z in a[rows]]
 
 
+def _placed(doc: dict, lon, tra, model: dict | None) -> SimpleNamespace:
+    """What sections.json reads of a placed object: its id, its shape's sections, its match and its model's
+    registered sections."""
+    shape = SimpleNamespace(sections=SimpleNamespace(longitudinal=lon, transverse=tra))
+    match = SimpleNamespace(name="m", rmse=0.02) if model is not None else None
+    return SimpleNamespace(id=doc["id"], outcome=SimpleNamespace(shape=shape, reason="no model of this size"),
+                           match=match, model_sections=model or {})
+
+
 def test_sections_written_an_object_at_a_time_are_the_whole_document(tmp_path):
     rng = np.random.default_rng(4)
     for n in (0, 1, 5):
-        outputs = []
+        placed = []
         for k, doc in enumerate(_docs(n, rng)):
-            sections = {"object": {"lon": rng.normal(size=(200, 2)), "tra": rng.normal(size=(30, 2))}}
-            if k % 2:
-                sections["model"] = {"lon": rng.normal(size=(90, 2)), "tra": rng.normal(size=(10, 2))}
-            outputs.append(SimpleNamespace(doc=doc, sections=sections))
-        path = write_sections(tmp_path / f"{n}.json", outputs)
+            model = {"lon": rng.normal(size=(90, 2)), "tra": rng.normal(size=(10, 2))} if k % 2 else None
+            placed.append(_placed(doc, rng.normal(size=(200, 2)), rng.normal(size=(30, 2)), model))
+        path = write_sections(tmp_path / f"{n}.json", placed)
         text = path.read_text(encoding="utf-8")
         back = json.loads(text)
         assert text == json.dumps(back, separators=(",", ":"))
-        assert list(back) == [o.doc["id"] for o in outputs]
-        for o in outputs:
-            item = back[o.doc["id"]]
-            assert item["lon"] == _expected_polyline(o.sections["object"]["lon"])
-            assert item["tra"] == _expected_polyline(o.sections["object"]["tra"])
-            if "model" in o.sections:
-                assert item["model_lon"] == _expected_polyline(o.sections["model"]["lon"])
-                assert item["model_tra"] == _expected_polyline(o.sections["model"]["tra"])
+        assert list(back) == [p.id for p in placed]
+        for p in placed:
+            item = back[p.id]
+            assert item["lon"] == _expected_polyline(p.outcome.shape.sections.longitudinal)
+            assert item["tra"] == _expected_polyline(p.outcome.shape.sections.transverse)
+            if p.match is not None:
+                assert item["model_lon"] == _expected_polyline(p.model_sections["lon"])
+                assert item["model_tra"] == _expected_polyline(p.model_sections["tra"])
             else:
                 assert set(item) == {"lon", "tra"}
