@@ -76,7 +76,7 @@ def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise
-    from twinreg.matching.match import match_objects
+    from twinreg.matching.match import Evidence, match_objects
     from twinreg.stages import classify
     from twinreg.sim.accuracy import car_objects, density_passes
     from twinreg.sim.scan import car_park
@@ -103,11 +103,11 @@ def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
         for n in sizes:
             cat = clone_catalogue(base, tmp / f"c{n}", n)
             t = time.perf_counter()
-            match_objects(shapes, cat, labels=labels, clouds=clouds, noise=noise)
+            match_objects(shapes, cat, labels=labels, evidence=Evidence(clouds, noise))
             t_first = time.perf_counter() - t
             # as a catalogue in use runs: the decimated meshes cached by the first run
             t = time.perf_counter()
-            res, stats = match_objects(shapes, cat, labels=labels, clouds=clouds, noise=noise)
+            res, stats = match_objects(shapes, cat, labels=labels, evidence=Evidence(clouds, noise))
             t_match = time.perf_counter() - t
             right = sum(r.match is not None and t is not None and r.match.name.split("-v")[0] == t
                         for r, t in zip(res, truth))

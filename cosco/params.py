@@ -123,6 +123,9 @@ class CoscoParams:
         Dendrogram cut (m of RMSE); the paper used 6.5 cm.
     linkage : str
         scipy linkage method.
+    cluster_share : int
+        A member of a cluster registers first to its leader's best ``cluster_share`` models and its own nearest
+        ``cluster_share`` by descriptor (0: every candidate, as a leader does).
 
     Matching (paper 4.3):
 
@@ -243,6 +246,7 @@ class CoscoParams:
 
     cluster_threshold: float = 0.065
     linkage: str = "average"
+    cluster_share: int = 4
 
     size_tol: float = 0.20
     size_spacing_k: float = 1.5

@@ -22,7 +22,7 @@ from .geo.georef import Georef, scene_georef
 from .io import observed
 from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
-from .matching.match import ModelCache, match_objects
+from .matching.match import Evidence, ModelCache, match_objects
 from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
 from .stages import checked_params, classify, locate, place, require_models
@@ -207,7 +207,7 @@ def _match_and_export(run: SceneRun) -> dict:
     noise = scene_noise(det.hag, det.is_ground)
     models = ModelCache(catalogue, params, prober=run.prober)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
-                                   clouds=[object_points(det, o) for o in targets], noise=noise, cache=models,
+                                   evidence=Evidence([object_points(det, o) for o in targets], noise), cache=models,
                                    done=(lambda k, n: run.tick("matching", k, n)) if run.tick else None)
     timing["prefilter"] = stats.prefilter_s
     timing["model_prep"] = stats.model_prep_s

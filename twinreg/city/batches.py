@@ -132,11 +132,12 @@ def _models(folder: str, params: CoscoParams):
 
 def match_batch(batch: MatchBatch):
     """``(outcomes, stats)`` of :func:`~twinreg.matching.match.match_objects` on the batch."""
-    from ..matching.match import match_objects
+    from ..matching.match import Evidence, match_objects
 
     cat, cache = _models(batch.folder, batch.params)
-    return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params, clouds=batch_clouds(batch),
-                         noise=batch.noise, cache=cache, spacings=batch.spacings, leaders=batch.leaders)
+    return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params,
+                         evidence=Evidence(batch_clouds(batch), batch.noise, batch.spacings), cache=cache,
+                         leaders=batch.leaders)
 
 
 def leader_indices(labels: np.ndarray) -> np.ndarray:

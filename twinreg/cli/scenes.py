@@ -63,63 +63,85 @@ def detect(
             info(f"written to {out}")
 
 
+# build-twin's options
+LatOpt = Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")]
+LonOpt = Annotated[Optional[float], typer.Option(help="WGS84 longitude of the anchor point.")]
+AltOpt = Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")]
+AnchorOpt = Annotated[Optional[tuple[float, float]], typer.Option(
+    help="Scene X Y at --lat/--lon (default 0 0).")]
+CrsOpt = Annotated[Optional[str], typer.Option(
+    help="The scene's projected CRS, e.g. EPSG:2157 [default: the CRS a LAS/LAZ header states; a different one "
+         "only with --override-crs].", show_default=False)]
+OverrideCrsOpt = Annotated[bool, typer.Option(
+    "--override-crs", help="--crs replaces the CRS the file's header states (the header is wrong).")]
+VerticalCrsOpt = Annotated[Optional[str], typer.Option(
+    "--vertical-crs", help="The datum of the scan's heights (and of --alt), e.g. EPSG:5709 (NAP), EPSG:5703 "
+                           "(NAVD88) [default: a compound CRS's in the header; else unknown, taken as "
+                           "ellipsoidal].", show_default=False)]
+TolOpt = Annotated[Optional[float], typer.Option(
+    help=f"Size tolerance (m) of the catalogue prefilter: the window is then exactly +-TOL (default: "
+         f"{DEFAULT.size_tol} m, models up to {DEFAULT.size_spacing_k} point spacings longer and wider "
+         "too).")]
+ThresholdOpt = Annotated[Optional[float], typer.Option(
+    help=f"Cluster threshold (m) [default: {DEFAULT.cluster_threshold}].")]
+OutOpt = Annotated[Optional[Path], typer.Option(help="Output folder (default exports/<scene name>).")]
+CellOpt = Annotated[Optional[float], typer.Option(
+    help="Tiled runs: cell side (m) [default: about 6M points a cell at the tiles' density].",
+    show_default=False)]
+BufferOpt = Annotated[Optional[float], typer.Option(
+    help="Tiled runs: metres read around each cell [default: 10].", show_default=False)]
+WorkersOpt = Annotated[Optional[int], typer.Option(
+    help="Tiled runs: Dask worker processes of the embedded cluster [default: the cores].",
+    show_default=False)]
+SchedulerOpt = Annotated[Optional[str], typer.Option(
+    help="Tiled runs: an existing Dask scheduler, tcp://HOST:PORT (inputs, catalogue and OUT at the same "
+         "paths on its workers).", show_default=False)]
+RestartOpt = Annotated[bool, typer.Option(
+    "--restart", help="Tiled runs: ignore the cells a previous run finished.")]
+DateOpt = Annotated[Optional[datetime], typer.Option(
+    "--date", formats=["%Y-%m-%d"], help="The survey's date, YYYY-MM-DD [default: the LAS/LAZ header's "
+                                         "creation date]; written to twin.json as survey_date.",
+    show_default=False)]
+CityjsonTemplatesOpt = Annotated[bool, typer.Option(
+    "--cityjson-templates", help="A scene's twin.city.json with one geometry template per model (smaller; for "
+                                 "tools that read templates) instead of explicit geometry (opens everywhere). A "
+                                 "city's always has templates, and twin.city.jsonl the explicit geometry.")
+]
+ClassifiedScanOpt = Annotated[bool, typer.Option(
+    "--classified-scan", help="Tiled runs: also write the scan with each point's class and object as COPC, "
+                              "classified/<cell>.copc.laz (for QGIS, PDAL, Potree; about 3 bytes a point). "
+                              "A scene always writes scan.copc.laz.")]
+PlyOpt = Annotated[Optional[bool], typer.Option(
+    "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
+                           "--ply writes ply/<cell>.ply].", show_default=False)]
+
+
 @app.command("build-twin", cls=Command)
 @handled
 def build_twin_cmd(
     paths: Annotated[list[Path], typer.Argument(metavar="PATH",
         help="Scene points (PLY, PCD, LAS, LAZ, XYZ/TXT, KITTI .bin), or LAS/LAZ/COPC tiles: files, a folder or a "
              "quoted glob.", show_default=False)],
-    lat: Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")] = None,
-    lon: Annotated[Optional[float], typer.Option(help="WGS84 longitude of the anchor point.")] = None,
-    alt: Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")] = 0.0,
-    anchor: Annotated[Optional[tuple[float, float]], typer.Option(
-        help="Scene X Y at --lat/--lon (default 0 0).")] = None,
-    crs: Annotated[Optional[str], typer.Option(
-        help="The scene's projected CRS, e.g. EPSG:2157 [default: the CRS a LAS/LAZ header states; a different one "
-             "only with --override-crs].", show_default=False)] = None,
-    override_crs: Annotated[bool, typer.Option(
-        "--override-crs", help="--crs replaces the CRS the file's header states (the header is wrong).")] = False,
-    vertical_crs: Annotated[Optional[str], typer.Option(
-        "--vertical-crs", help="The datum of the scan's heights (and of --alt), e.g. EPSG:5709 (NAP), EPSG:5703 "
-                               "(NAVD88) [default: a compound CRS's in the header; else unknown, taken as "
-                               "ellipsoidal].", show_default=False)] = None,
+    lat: LatOpt = None,
+    lon: LonOpt = None,
+    alt: AltOpt = 0.0,
+    anchor: AnchorOpt = None,
+    crs: CrsOpt = None,
+    override_crs: OverrideCrsOpt = False,
+    vertical_crs: VerticalCrsOpt = None,
     unit: UnitOpt = "auto",
-    tol: Annotated[Optional[float], typer.Option(
-        help=f"Size tolerance (m) of the catalogue prefilter: the window is then exactly +-TOL (default: "
-             f"{DEFAULT.size_tol} m, models up to {DEFAULT.size_spacing_k} point spacings longer and wider "
-             "too).")] = None,
-    threshold: Annotated[Optional[float], typer.Option(
-        help=f"Cluster threshold (m) [default: {DEFAULT.cluster_threshold}].")] = None,
-    out: Annotated[Optional[Path], typer.Option(help="Output folder (default exports/<scene name>).")] = None,
-    cell: Annotated[Optional[float], typer.Option(
-        help="Tiled runs: cell side (m) [default: about 6M points a cell at the tiles' density].",
-        show_default=False)] = None,
-    buffer: Annotated[Optional[float], typer.Option(
-        help="Tiled runs: metres read around each cell [default: 10].", show_default=False)] = None,
-    workers: Annotated[Optional[int], typer.Option(
-        help="Tiled runs: Dask worker processes of the embedded cluster [default: the cores].",
-        show_default=False)] = None,
-    scheduler: Annotated[Optional[str], typer.Option(
-        help="Tiled runs: an existing Dask scheduler, tcp://HOST:PORT (inputs, catalogue and OUT at the same "
-             "paths on its workers).", show_default=False)] = None,
-    restart: Annotated[bool, typer.Option(
-        "--restart", help="Tiled runs: ignore the cells a previous run finished.")] = False,
-    date: Annotated[Optional[datetime], typer.Option(
-        "--date", formats=["%Y-%m-%d"], help="The survey's date, YYYY-MM-DD [default: the LAS/LAZ header's "
-                                             "creation date]; written to twin.json as survey_date.",
-        show_default=False)] = None,
-    cityjson_templates: Annotated[bool, typer.Option(
-        "--cityjson-templates", help="A scene's twin.city.json with one geometry template per model (smaller; for "
-                                     "tools that read templates) instead of explicit geometry (opens everywhere). A "
-                                     "city's always has templates, and twin.city.jsonl the explicit geometry.")
-    ] = False,
-    classified_scan: Annotated[bool, typer.Option(
-        "--classified-scan", help="Tiled runs: also write the scan with each point's class and object as COPC, "
-                                  "classified/<cell>.copc.laz (for QGIS, PDAL, Potree; about 3 bytes a point). "
-                                  "A scene always writes scan.copc.laz.")] = False,
-    ply: Annotated[Optional[bool], typer.Option(
-        "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
-                               "--ply writes ply/<cell>.ply].", show_default=False)] = None,
+    tol: TolOpt = None,
+    threshold: ThresholdOpt = None,
+    out: OutOpt = None,
+    cell: CellOpt = None,
+    buffer: BufferOpt = None,
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
+    restart: RestartOpt = False,
+    date: DateOpt = None,
+    cityjson_templates: CityjsonTemplatesOpt = False,
+    classified_scan: ClassifiedScanOpt = False,
+    ply: PlyOpt = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -139,31 +161,15 @@ def build_twin_cmd(
                            classified_scan=classified_scan)
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
-    tiled = "grid" in twin
-    for warning in twin.get("warnings", []):
-        info(f"warning: {warning}")
-    if twin["georef"].get("vertical_source") is None:
-        info("warning: the vertical datum of the scan's heights is unknown, so the 3D exports take them as "
-             "ellipsoidal (off by the geoid, up to 100 m); give it with --vertical-crs EPSG:NNNN (e.g. 5709 NAP)")
+    from ..export.summary import twin_summary, warnings_of
+
+    for line in warnings_of(twin):
+        info(line)
     if json_:
         print_json(twin)
         return
-    matched = sum(1 for o in twin["objects"] if o["match"])
-    info(f"{twin['scene']}: {len(twin['objects'])} objects, {matched} matched, "
-         f"{twin['clustering']['n_clusters']} clusters, {twin['matching']['n_trials']} registration trials, "
-         f"{twin['timing_s']['total']:.2f} s" + (f", {twin['grid']['n_cells']} cells" if tiled else ""))
-    if len(twin["objects"]) <= 50:
-        from ..export.twin_json import trust_text
-
-        for o in twin["objects"]:
-            m = o["match"]
-            what = (f"{m['name']} ({m['rmse_m'] * 100:.1f} cm{trust_text(m)})" if m
-                    else f"no match: {o.get('reason', '')}")
-            info(f"  {o['id']}: {what}, bearing {o['bearing_deg']:.1f} deg")
-    from ..export.summary import files_written, outcomes
-
-    info("objects: " + "; ".join(outcomes(twin["objects"])))
-    info(f"written to {out}: " + ", ".join(files_written(out)))
+    for line in twin_summary(twin, out):
+        info(line)
 
 
 @app.command("demo", cls=Command)

@@ -34,7 +34,7 @@ def _scan_one(folder: str, k: int, density: float, scans: int, seed: int) -> lis
     """The models (names, or None) that ``scans`` simulated scans of model ``k`` were matched to."""
     import cosco
 
-    from ..matching.match import ModelCache, match_objects
+    from ..matching.match import Evidence, ModelCache, match_objects
     from ..sim.accuracy import density_passes
     from ..sim.scan import pose_matrix, scan_meshes, transform
     from ..catalogue.repository import Catalogue
@@ -66,7 +66,7 @@ def _scan_one(folder: str, k: int, density: float, scans: int, seed: int) -> lis
             out.append(None)
             continue
         shape = cosco.describe_object(pts, DEFAULT, ground_z=0.0)
-        res, _ = match_objects([shape], cat, clouds=[pts], noise=0.02, cache=cache)
+        res, _ = match_objects([shape], cat, evidence=Evidence([pts], 0.02), cache=cache)
         out.append(res[0].match.name if res[0].match is not None else None)
     return out
 

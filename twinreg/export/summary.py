@@ -45,3 +45,38 @@ def files_written(out) -> list[str]:
         else:
             lines.append(entry.name)
     return lines
+
+
+#: a twin with more objects than this lists none of them one by one at the end of its run
+LISTED_OBJECTS = 50
+
+
+def warnings_of(twin: dict) -> list[str]:
+    """The twin's warnings as its run says them (the survey date's, then an unknown vertical datum's)."""
+    lines = [f"warning: {w}" for w in twin.get("warnings", [])]
+    if twin["georef"].get("vertical_source") is None:
+        lines.append("warning: the vertical datum of the scan's heights is unknown, so the 3D exports take them as "
+                     "ellipsoidal (off by the geoid, up to 100 m); give it with --vertical-crs EPSG:NNNN (e.g. 5709 "
+                     "NAP)")
+    return lines
+
+
+def twin_summary(twin: dict, out) -> list[str]:
+    """The lines a build-twin run ends with: the counts and time, each object (up to :data:`LISTED_OBJECTS`), the
+    objects by outcome and the files written into ``out``."""
+    from .twin_json import trust_text
+
+    objects = twin["objects"]
+    matched = sum(1 for o in objects if o["match"])
+    lines = [f"{twin['scene']}: {len(objects)} objects, {matched} matched, {twin['clustering']['n_clusters']} "
+             f"clusters, {twin['matching']['n_trials']} registration trials, {twin['timing_s']['total']:.2f} s"
+             + (f", {twin['grid']['n_cells']} cells" if "grid" in twin else "")]
+    if len(objects) <= LISTED_OBJECTS:
+        for o in objects:
+            m = o["match"]
+            what = (f"{m['name']} ({m['rmse_m'] * 100:.1f} cm{trust_text(m)})" if m
+                    else f"no match: {o.get('reason', '')}")
+            lines.append(f"  {o['id']}: {what}, bearing {o['bearing_deg']:.1f} deg")
+    lines.append("objects: " + "; ".join(outcomes(objects)))
+    lines.append(f"written to {out}: " + ", ".join(files_written(out)))
+    return lines

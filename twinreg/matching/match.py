@@ -129,86 +129,109 @@ def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams):
     return cosco.register_sections(obj_pair, cache.pair(model_id), params)
 
 
+@dataclass
+class Evidence:
+    """The points an object's best candidates are verified against (:mod:`twinreg.matching.acceptance`):
+    ``clouds``, each object's points ((n, 3) metres, the frame of its shape); ``noise``, the scan's range noise (m),
+    one value or one per object (a city's tiles); ``spacings``, each object's point spacing (m) when ``clouds``
+    are samples of the objects' points, else None (measured on the clouds)."""
+
+    clouds: list
+    noise: object
+    spacings: list | None = None
+
+    def noise_of(self, i: int):
+        return self.noise if self.noise is None or np.ndim(self.noise) == 0 else float(self.noise[i])
+
+
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
-                  params: CoscoParams = DEFAULT, share: int = 4, progress=None, clouds: list | None = None,
-                  noise=None, cache: ModelCache | None = None, spacings: list | None = None,
-                  leaders: dict | None = None, done=None) -> tuple[list[ObjectMatch], dict]:
+                  params: CoscoParams = DEFAULT, evidence: Evidence | None = None, cache: ModelCache | None = None,
+                  leaders: dict | None = None, done=None) -> tuple[list[ObjectMatch], MatchStats]:
     """Match every object; returns the per-object outcomes and statistics (trials, timings); ``done(k, n)`` is
     called as each of the n objects is decided.
 
-    labels : cluster label per object (objects of one cluster share work), or None. clouds : each object's points
-    ((n, 3) metres, the frame of its shape) and noise : the scan's range noise (m), to verify the best candidates
-    against all the points (:mod:`twinreg.matching.acceptance`); without them the lowest RMSE wins unverified. noise may
-    be one value or one per object (tiles of a city); spacings : each object's point spacing (m) when ``clouds``
-    are samples of the objects' points, else None (measured on the clouds). leaders : ``{label: (ranking,
-    best RMSE)}`` of clusters whose leader was matched in another call (``stats.leaders`` of that call): all
-    the objects given for those labels are members, so one cluster's members can be matched in several batches
-    with exactly the outcome of one call. cache : a
-    :class:`ModelCache` to fill (the export then reuses the models' rows, meshes and sections), or None.
+    labels : cluster label per object (objects of one cluster share work), or None. evidence : the points to
+    verify the best candidates with (:class:`Evidence`); without it the lowest RMSE wins unverified. leaders :
+    ``{label: (ranking, best RMSE)}`` of clusters whose leader was matched in another call (``stats.leaders`` of
+    that call): all the objects given for those labels are members, so one cluster's members can be matched in
+    several batches with exactly the outcome of one call. cache : a :class:`ModelCache` to fill (the export then
+    reuses the models' rows, meshes and sections), or None.
     """
-    from cosco.segment import point_spacing
-
-    cache = ModelCache(catalogue, params) if cache is None else cache
-    stats = MatchStats()
-    pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
-    t = time.perf_counter()
-    index = cache.size_index()
-    total_models = len(index)
-    if spacings is None:
-        spacings = [point_spacing(np.asarray(c)) if c is not None and len(c) >= 3 else 0.0
-                    for c in (clouds if clouds is not None else [None] * len(shapes))]
-    found = [index.candidates(s, spacings[i], params) for i, s in enumerate(shapes)]
-    cands = [f.all for f in found]
-    cache.add_rows(catalogue.rows(sorted({m for c in cands for m in c} - set(cache.known()))))
-    stats.prefilter_s = time.perf_counter() - t
-    stats.n_pairs_without_prefilter = total_models * len(shapes)
-    stats.n_without_window = sum(f.outside for f in found)
-
+    m = _Matcher(shapes, catalogue, params, evidence, ModelCache(catalogue, params) if cache is None else cache)
     # the distance fields of a model are built the first time it is tried (counted in the registration time): a
-    # member of a cluster tries only a few of its candidates
-
-    # order: per cluster, the leader (its first object) first: it tries every candidate; then the members
+    # member of a cluster tries only a few of its candidates. Order: per cluster, the leader (its first object)
+    # first: it tries every candidate; then the members
     groups: dict[int, list[int]] = {}
     for i in range(len(shapes)):
         groups.setdefault(int(labels[i]) if labels is not None else -1 - i, []).append(i)
-    results: list[ObjectMatch | None] = [None] * len(shapes)
     t = time.perf_counter()
-    n_done = 0
     for label, members in groups.items():
-        # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
         known = leaders is not None and labels is not None and label in leaders
-        ranked_by_leader, leader_best = (list(leaders[label][0]), float(leaders[label][1])) if known else ([], np.inf)
-        for k, i in enumerate(members):
-            leads = k == 0 and not known
-            ids = cands[i]
-            if not leads and share and ranked_by_leader:
-                # the leader's favourites, and this object's own nearest by descriptor (a cluster may hold two
-                # kinds of car that the leader's ranking alone would not tell apart)
-                own = [m for m in ids[:share] if m not in ranked_by_leader[:share]]
-                preferred = [m for m in ranked_by_leader[:share] if m in ids] + own
-                ids = preferred or ids
-            regs = _registrations(pairs[i], ids, cands[i], cache, params, None if leads else leader_best, stats,
-                                  progress)
-            if leads:
-                ranked_by_leader = [c.model_id for c in regs]
-                leader_best = regs[0].reg.rmse if regs else np.inf
-                if labels is not None:
-                    stats.leaders[label] = (ranked_by_leader, leader_best)
-            cloud = clouds[i] if clouds is not None else None
-            noise_i = noise if noise is None or np.ndim(noise) == 0 else float(noise[i])
-            t_v = time.perf_counter()
-            results[i] = _outcome(shapes[i], regs, cache, found[i], cloud, noise_i, pairs[i], params, spacings[i])
-            stats.verification_s += time.perf_counter() - t_v
-            n_done += 1
+        # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
+        ranking = (list(leaders[label][0]), float(leaders[label][1])) if known else None
+        for i in members:
+            ranking = m.match(i, ranking)
+            if labels is not None and not known:
+                m.stats.leaders.setdefault(label, ranking)
             if done is not None:
-                done(n_done, len(shapes))
-    stats.registration_s = time.perf_counter() - t - stats.verification_s
-    stats.n_trials_saved_by_clusters = sum(len(c) for c in cands) - stats.n_trials
-    return results, stats
+                done(m.n_done, len(shapes))
+    m.stats.registration_s = time.perf_counter() - t - m.stats.verification_s
+    m.stats.n_trials_saved_by_clusters = sum(len(c) for c in m.cands) - m.stats.n_trials
+    return m.results, m.stats
 
 
-def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, leader_best, stats: MatchStats,
-                   progress=None) -> list:
+class _Matcher:
+    """One call's state: the objects' section pairs, their prefiltered candidates (``found``, ``cands``), the
+    model cache, the statistics and the outcomes so far."""
+
+    def __init__(self, shapes, catalogue, params: CoscoParams, evidence: Evidence | None, cache: ModelCache):
+        from cosco.segment import point_spacing
+
+        self.shapes, self.params, self.evidence, self.cache = shapes, params, evidence, cache
+        self.stats = MatchStats()
+        self.pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
+        t = time.perf_counter()
+        index = cache.size_index()
+        clouds = evidence.clouds if evidence is not None else [None] * len(shapes)
+        spacings = evidence.spacings if evidence is not None else None
+        self.spacings = spacings if spacings is not None else [
+            point_spacing(np.asarray(c)) if c is not None and len(c) >= 3 else 0.0 for c in clouds]
+        self.found = [index.candidates(s, self.spacings[i], params) for i, s in enumerate(shapes)]
+        self.cands = [f.all for f in self.found]
+        cache.add_rows(catalogue.rows(sorted({m for c in self.cands for m in c} - set(cache.known()))))
+        self.stats.prefilter_s = time.perf_counter() - t
+        self.stats.n_pairs_without_prefilter = len(index) * len(shapes)
+        self.stats.n_without_window = sum(f.outside for f in self.found)
+        self.results: list[ObjectMatch | None] = [None] * len(shapes)
+        self.n_done = 0
+
+    def match(self, i: int, ranking: tuple | None) -> tuple:
+        """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member tries its leader's
+        favourites first (``ranking``: the leader's models best first and its best RMSE). Returns the ranking
+        the cluster's members follow."""
+        ids, share = self.cands[i], self.params.cluster_share
+        if ranking is not None and share and ranking[0]:
+            # the leader's favourites, and this object's own nearest by descriptor (a cluster may hold two kinds
+            # of car that the leader's ranking alone would not tell apart)
+            led = ranking[0][:share]
+            preferred = [m for m in led if m in ids] + [m for m in ids[:share] if m not in led]
+            ids = preferred or ids
+        regs = _registrations(self.pairs[i], ids, self.cands[i], self.cache, self.params,
+                              None if ranking is None else ranking[1], self.stats)
+        if ranking is None:
+            ranking = ([c.model_id for c in regs], regs[0].reg.rmse if regs else np.inf)
+        ev = self.evidence
+        t_v = time.perf_counter()
+        self.results[i] = _outcome(self.shapes[i], regs, self.cache, self.found[i],
+                                   ev.clouds[i] if ev is not None else None, ev.noise_of(i) if ev is not None else None,
+                                   self.pairs[i], self.params, self.spacings[i])
+        self.stats.verification_s += time.perf_counter() - t_v
+        self.n_done += 1
+        return ranking
+
+
+def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, leader_best,
+                   stats: MatchStats) -> list:
     """The section registrations of one object to the models ``ids``, best (lowest RMSE) first, the best one
     polished. A member of a cluster (``leader_best``: the RMSE its leader reached) that fits those clearly worse
     than its leader did is not the same kind of car after all: it tries the rest of ``all_ids`` too."""
@@ -216,8 +239,6 @@ def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, l
     for mid in ids:
         regs.append(Candidate(_trial(pair, cache, mid, params), mid))
         stats.n_trials += 1
-        if progress:
-            progress(1)
     regs.sort(key=lambda c: c.reg.rmse)
     if leader_best is not None and regs and regs[0].reg.rmse > leader_best + params.share_margin:
         for mid in [m for m in all_ids if m not in ids]:

@@ -81,7 +81,7 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
     from ..detect import describe_detected, detect_points, object_points
     from ..io.points import PointSet
     from ..matching.acceptance import scene_noise
-    from ..matching.match import match_objects
+    from ..matching.match import Evidence, match_objects
     from ..stages import classify
     from .scan import car_park
 
@@ -95,8 +95,8 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
     tax = classify(shapes, params, {})
     t1 = time.perf_counter()
     results, stats = match_objects(shapes, catalogue, labels=tax.labels, params=params,
-                                   clouds=[object_points(det, o) for o in det.objects],
-                                   noise=scene_noise(det.hag, det.is_ground))
+                                   evidence=Evidence([object_points(det, o) for o in det.objects],
+                                                     scene_noise(det.hag, det.is_ground)))
     t2 = time.perf_counter()
     classes = {r.name: body_class(r.body_class) for r in rows}
     owner = car_objects(park, det)

@@ -235,7 +235,7 @@ def test_a_real_catalogue_at_the_initial_revision_is_upgraded_and_matches(tmp_pa
     import shutil
 
     from twinreg.catalogue.db import current_revision, head_revision, make_engine, upgrade
-    from twinreg.matching.match import match_objects
+    from twinreg.matching.match import Evidence, match_objects
     from twinreg.sim.scan import pose_matrix, scan_meshes, transform
 
     src, _ = small_catalogue
@@ -262,7 +262,7 @@ def test_a_real_catalogue_at_the_initial_revision_is_upgraded_and_matches(tmp_pa
     assert geo.sections.longitudinal_fine is None and len(geo.points) > 1000
     scan = scan_meshes([(transform(geo.mesh_vertices, pose_matrix(30.0, -4.0, 2.0)), geo.mesh_faces)], seed=3)
     shape = __import__("cosco").describe_object(scan.points, ground_z=0.0)
-    (res,), _ = match_objects([shape], cat, clouds=[scan.points], noise=0.02)
+    (res,), _ = match_objects([shape], cat, evidence=Evidence([scan.points], 0.02))
     assert res.match is not None and res.match.name == "demo_sedan", res.reason
     assert np.hypot(*(res.match.centre[:2] - [30.0, -4.0])) < 0.05
     assert abs(np.angle(np.exp(1j * (res.match.heading - 2.0)))) < np.radians(1.0)

@@ -21,3 +21,29 @@ def test_files_written_name_the_top_level_and_count_folders(tmp_path):
     (tmp_path / ".cells").mkdir()
     (tmp_path / ".cells" / "c.npz").write_text("x")
     assert files_written(tmp_path) == ["tiles/ (3 files)", "twin.json"]
+
+
+def _twin(n_objects: int, vertical: str | None) -> dict:
+    objects = [{"id": f"obj{k}", "match": {"name": "golf", "rmse_m": 0.031, "confidence": 0.97, "ambiguous_with": [],
+                                          "outside_tolerance": False} if k % 2 else None,
+                "reason": "no catalogue model of this size", "reason_code": "no_model_of_this_size",
+                "bearing_deg": 12.0 * k} for k in range(n_objects)]
+    return {"scene": "park.laz", "objects": objects, "clustering": {"n_clusters": 2}, "matching": {"n_trials": 9},
+            "timing_s": {"total": 3.25}, "georef": {"vertical_source": vertical}, "warnings": ["made on the day"]}
+
+
+def test_a_run_ends_with_its_counts_objects_outcomes_and_files(tmp_path):
+    from twinreg.export.summary import LISTED_OBJECTS, twin_summary, warnings_of
+
+    (tmp_path / "twin.json").write_text("{}")
+    lines = twin_summary(_twin(3, "--vertical-crs"), tmp_path)
+    assert lines[0] == "park.laz: 3 objects, 1 matched, 2 clusters, 9 registration trials, 3.25 s"
+    assert lines[1] == "  obj0: no match: no catalogue model of this size, bearing 0.0 deg"
+    assert lines[2] == "  obj1: golf (3.1 cm; confidence 0.97), bearing 12.0 deg"
+    assert lines[-2].startswith("objects: 1 with a model (1 at confidence 0.5 or more); 2 without")
+    assert lines[-1] == f"written to {tmp_path}: twin.json"
+    many = twin_summary(_twin(LISTED_OBJECTS + 1, "--vertical-crs") | {"grid": {"n_cells": 4}}, tmp_path)
+    assert len(many) == 3 and many[0].endswith(", 4 cells")  # too many to list one by one
+    assert warnings_of(_twin(1, "--vertical-crs")) == ["warning: made on the day"]
+    unknown = warnings_of(_twin(1, None))
+    assert len(unknown) == 2 and "--vertical-crs" in unknown[1]

@@ -11,6 +11,7 @@ def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
     from twinreg.matching import match_objects
+    from twinreg.matching.match import Evidence
     from twinreg.matching.acceptance import scene_noise
     from twinreg.sim.scan import _ground_mesh, ground_height, pose_matrix, scan_meshes, transform
 
@@ -27,7 +28,7 @@ def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_
     clouds = [object_points(det, det.objects[k]) for k in order]
     noise = scene_noise(det.hag, det.is_ground)
     labels = np.array([0, 0, 1])
-    results, stats = match_objects(shapes, parametric_catalogue, labels=labels, clouds=clouds, noise=noise)
+    results, stats = match_objects(shapes, parametric_catalogue, labels=labels, evidence=Evidence(clouds, noise))
     assert [r.match.name for r in results] == names
     assert all(r.match.verdict.accepted and r.match.confidence > 0.5 for r in results)
     assert stats.n_trials < sum(len(r.candidates) for r in results) + stats.n_trials_saved_by_clusters + 1
@@ -45,6 +46,7 @@ def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, m
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
     from twinreg.matching import match_objects
+    from twinreg.matching.match import Evidence
     from twinreg.matching.acceptance import scene_noise
     from twinreg.sim.scan import _ground_mesh, ground_height, pose_matrix, scan_meshes, transform
 
@@ -66,10 +68,10 @@ def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, m
         return original(*args, **kwargs)
 
     monkeypatch.setattr(refine_module, "refine", counted)
-    all_refined, _ = match_objects(shapes, parametric_catalogue, clouds=clouds, noise=noise,
+    all_refined, _ = match_objects(shapes, parametric_catalogue, evidence=Evidence(clouds, noise),
                                    params=DEFAULT.with_(decision_refine_sigma=1e9))
     n_all, calls[0] = calls[0], 0
-    screened, _ = match_objects(shapes, parametric_catalogue, clouds=clouds, noise=noise)
+    screened, _ = match_objects(shapes, parametric_catalogue, evidence=Evidence(clouds, noise))
     assert calls[0] < n_all
     for a, b in zip(all_refined, screened):
         assert a.match.name == b.match.name and a.match.ambiguous_with == b.match.ambiguous_with

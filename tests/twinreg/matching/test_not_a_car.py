@@ -42,13 +42,13 @@ def outcomes(request, catalogue16):
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise
-    from twinreg.matching.match import match_objects
+    from twinreg.matching.match import Evidence, match_objects
 
     scan, truth = _scene(catalogue16, request.param, seed=int(request.param))
     det = detect_points(PointSet(path=None, points=scan.points, offset=np.zeros(3), unit="m"))
     shapes = describe_detected(det)
-    results, _ = match_objects(shapes, catalogue16, clouds=[object_points(det, o) for o in det.objects],
-                               noise=scene_noise(det.hag, det.is_ground))
+    results, _ = match_objects(shapes, catalogue16, evidence=Evidence([object_points(det, o) for o in det.objects],
+                                                                      scene_noise(det.hag, det.is_ground)))
     found: dict = {}
     for r in results:
         c = r.shape.centroid
