@@ -117,6 +117,13 @@ class CoscoParams:
     car_length, car_width, car_height, car_area : (min, max)
         The size filter of the target class (m, m, m, m^2 of footprint); the paper kept 1-20 m^2 of surface.
 
+    Levels of symmetry (cosco/levels.py): the points on voxels of ``level_voxel`` m or the plan extent over
+    ``level_cells``, at most ``level_max_points``; a point maps onto another within ``level_tol`` m or
+    ``level_tol_spacing`` point spacings; the rotational axis through the lowest ``level_base_share`` of the
+    points; mirror planes tried every ``level_step`` rad through the plan box's centre, the best one and the one
+    across it then moved along their normals by up to ``level_offset_share`` of the extent in ``level_offsets``
+    steps each way; a level holds when ``level_share`` of the points map.
+
     Clustering (paper 3.3):
 
     cluster_threshold : float
@@ -243,6 +250,17 @@ class CoscoParams:
     car_width: tuple = (1.0, 3.0)
     car_height: tuple = (0.9, 3.3)
     car_area: tuple = (1.0, 20.0)
+
+    level_voxel: float = 0.03
+    level_cells: int = 60
+    level_max_points: int = 3000
+    level_tol: float = 0.03
+    level_tol_spacing: float = 1.5
+    level_base_share: float = 0.2
+    level_step: float = math.pi / 60
+    level_share: float = 0.8
+    level_offsets: int = 5
+    level_offset_share: float = 0.03
 
     cluster_threshold: float = 0.065
     linkage: str = "average"

@@ -15,6 +15,7 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
 CARS = SHARED_DATA / "cars"
 DALES = SHARED_DATA / "dales_objects"
+FURNITURE = SHARED_DATA / "street_furniture"
 
 UNIT_WORDS = {"centimetres": "cm", "metres": "m", "inches": "in"}
 
@@ -54,6 +55,22 @@ def manifest_rows() -> list[dict]:
 @pytest.fixture(scope="session")
 def cars() -> list[dict]:
     return manifest_rows()
+
+
+def furniture_rows() -> list[dict]:
+    """MANIFEST.csv of the shared street furniture: each model's ``path`` (the whole, for the bus shelter),
+    ``category`` and ``scale`` (model.sdf's, which makes the lamp post and the cone life-size)."""
+    rows = list(csv.DictReader(open(need(FURNITURE) / "MANIFEST.csv", newline="")))
+    for r in rows:
+        r["path"] = FURNITURE / r["file"]
+        r["scale"] = float(r["sdf_scale"])
+    return rows
+
+
+@pytest.fixture(scope="session")
+def furniture() -> dict:
+    """The shared furniture's manifest rows by folder (slug)."""
+    return {r["slug"]: r for r in furniture_rows()}
 
 
 @pytest.fixture(scope="session")

@@ -49,7 +49,7 @@ MAX_RATIO = 200
 MAX_MANIFEST_BYTES = 16 * 1024 ** 2
 _EXT = re.compile(r"\.[a-z0-9]{1,10}")
 #: plausible sizes of a catalogue model (m)
-SIZE_RANGE = (0.2, 30.0)
+SIZE_RANGE = (0.005, 400.0)  # a stop sign is 2 cm thin, a building hundreds of metres long
 
 
 def model_files(sha: str, stored_ext: str) -> tuple[str, str]:
@@ -316,6 +316,16 @@ def check_row(row) -> tuple[str, str]:
         raise ValueError("its tags or parameters are not JSON") from exc
     if not isinstance(tags, list) or not all(isinstance(t, str) and name_problem(t) is None for t in tags):
         raise ValueError("its tags are not a list of plain words")
+    from .categories import check_category
+
+    try:
+        if check_category(row.category) != row.category:
+            raise ValueError
+    except (ValueError, CatalogueError) as exc:
+        raise ValueError(f"its category {printable(str(row.category))[:60]!r} is not a lower-case word") from exc
+    if row.source not in ("mesh", "scan") or row.sym_level not in (None, "none", "mirror", "two_mirrors",
+                                                                   "rotational"):
+        raise ValueError("its source or level of symmetry is not one a catalogue writes")
     return stored, mesh
 
 

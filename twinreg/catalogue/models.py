@@ -57,6 +57,10 @@ class RefModel(Base):
     model: Mapped[str | None] = mapped_column(String(200))
     body_class: Mapped[str | None] = mapped_column(String(50), index=True)
     tags_json: Mapped[str] = mapped_column(Text, default="[]")
+    #: the model's kind (:mod:`twinreg.catalogue.categories`) and where it comes from (``mesh``: a CAD file;
+    #: ``scan``: a scanned object)
+    category: Mapped[str] = mapped_column(String(40), default="car", server_default="car", index=True)
+    source: Mapped[str] = mapped_column(String(10), default="mesh", server_default="mesh")
 
     sha256: Mapped[str] = mapped_column(String(64), unique=True)
     source_name: Mapped[str] = mapped_column(String(500))
@@ -82,6 +86,8 @@ class RefModel(Base):
     sym_pcr: Mapped[float] = mapped_column(Float)
     sym_rmse: Mapped[float] = mapped_column(Float)
     sym_heading: Mapped[float] = mapped_column(Float)
+    #: the level of symmetry (:mod:`cosco.levels`): none, mirror, two_mirrors, rotational
+    sym_level: Mapped[str | None] = mapped_column(String(20), nullable=True)
 
     sample_spacing: Mapped[float] = mapped_column(Float)
     n_points: Mapped[int] = mapped_column(Integer)
@@ -113,12 +119,12 @@ class RefModel(Base):
     def to_dict(self) -> dict:
         """The contract's JSON shape, plus provenance."""
         return {
-            "id": self.id, "name": self.name, "make": self.make, "model": self.model, "body_class": self.body_class,
-            "tags": self.tags,
+            "id": self.id, "name": self.name, "category": self.category or "car", "source": self.source or "mesh",
+            "make": self.make, "model": self.model, "body_class": self.body_class, "tags": self.tags,
             "size": {"length": round(self.length, 3), "width": round(self.width, 3), "height": round(self.height, 3)},
             "mesh_size": {"length": round(self.mesh_length, 3), "width": round(self.mesh_width, 3),
                           "height": round(self.mesh_height, 3)},
-            "symmetry": {"found": bool(self.sym_found), "pcr": round(self.sym_pcr, 4)},
+            "symmetry": {"found": bool(self.sym_found), "pcr": round(self.sym_pcr, 4), "level": self.sym_level},
             "n_points": self.n_points, "sample_spacing_m": self.sample_spacing, "sha256": self.sha256,
             "source_name": self.source_name, "unit": self.unit, "unit_source": self.unit_source,
             "up": self.up_axis, "front": self.front_axis, "n_faces": self.n_faces,

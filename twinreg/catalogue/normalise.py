@@ -79,17 +79,20 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, n: int = 6000, seed
     return t[:, 0] + r1[:, None] * (t[:, 1] - t[:, 0]) + r2[:, None] * (t[:, 2] - t[:, 0])
 
 
-def infer_unit(longest: float) -> tuple[str, float] | None:
-    """The unit that makes ``longest`` (file units) a plausible car length, or None.
+def infer_unit(longest: float, sizes: tuple = (*PLAUSIBLE_LENGTH, 4.5)) -> tuple[str, float] | None:
+    """The unit that makes ``longest`` (file units) a plausible length (``sizes``: smallest, largest, typical;
+    a car's by default), or None.
 
     >>> infer_unit(461.8), infer_unit(157.5), infer_unit(4.6), infer_unit(0.02)
     (('cm', 0.01), ('in', 0.0254), ('m', 1.0), None)
+    >>> infer_unit(93.1, (0.3, 1.5, 0.8))  # a hydrant in centimetres
+    ('cm', 0.01)
     """
     best = None
     for name, scale in UNITS.items():
         length = longest * scale
-        if PLAUSIBLE_LENGTH[0] <= length <= PLAUSIBLE_LENGTH[1]:
-            score = abs(np.log(length / 4.5))
+        if sizes[0] <= length <= sizes[1]:
+            score = abs(np.log(length / sizes[2]))
             if best is None or score < best[0]:
                 best = (score, name, scale)
     return None if best is None else (best[1], best[2])
@@ -156,41 +159,53 @@ def _check_axis(value: str, allowed, option: str) -> str:
     return v
 
 
-def normalise(mesh: LoadedMesh, unit: str = "auto", up: str = "auto", front: str = "auto") -> NormalisedMesh:
-    """Scale, rotate and place a loaded car mesh (see the module docstring).
+def normalise(mesh: LoadedMesh, unit: str = "auto", up: str = "auto", front: str = "auto", category: str = "car",
+              factor: float = 1.0) -> NormalisedMesh:
+    """Scale, rotate and place a loaded mesh of a ``category`` (see the module docstring); ``factor`` multiplies
+    after the unit (``--scale``: Gazebo's model.sdf scales some models).
 
-    Raises :class:`UnitError` when the resulting length is not a plausible car length.
+    Raises :class:`UnitError` when the resulting size is not plausible for the category.
     """
+    from .categories import is_vehicle, size_range
+
     notes: list[str] = []
     used = np.unique(mesh.faces)
     raw = mesh.vertices
-    longest = float(np.ptp(raw[used], axis=0).max())
+    longest = float(np.ptp(raw[used], axis=0).max()) * factor
+    vehicle = category == "car"
+    sizes = (*PLAUSIBLE_LENGTH, 4.5) if vehicle else size_range(category)
+    accepted = ACCEPTED_LENGTH if vehicle else (sizes[0] * 0.8, sizes[1] * 1.25)
+    what = "car length" if vehicle else f"{category} size"
 
     unit = unit.lower()
     if unit != "auto":
         if unit not in UNITS:
             raise UnitError(f"{mesh.path}: unknown --unit '{unit}'; use one of auto, {', '.join(UNITS)}")
         unit_name, scale, source = unit, UNITS[unit], "--unit"
-    elif mesh.unit_meter and PLAUSIBLE_LENGTH[0] <= longest * mesh.unit_meter <= PLAUSIBLE_LENGTH[1]:
+    elif mesh.unit_meter and sizes[0] <= longest * mesh.unit_meter <= sizes[1]:
         scale = float(mesh.unit_meter)
         unit_name = next((k for k, v in UNITS.items() if abs(v - scale) < 1e-9), f"{scale:g} m")
         source = mesh.unit_source or "file"
     else:
-        guess = infer_unit(longest)
+        guess = infer_unit(longest, sizes)
         if guess is None:
-            raise UnitError(f"{mesh.path}: longest extent {longest:g} file units is not a car length in any of "
-                            f"{', '.join(UNITS)}; pass --unit")
+            raise UnitError(f"{mesh.path}: longest extent {longest:g} file units is not a {what} in any of "
+                            f"{', '.join(UNITS)}; pass --unit" + ("" if factor == 1.0 else f" (after --scale {factor:g})"))
         unit_name, scale = guess
-        source = "inferred from a plausible car length"
+        source = f"inferred from a plausible {what}"
         if mesh.unit_meter:
             source += f" (file says {mesh.unit_meter:g} m, which gives {longest * mesh.unit_meter:.2f} m)"
     notes.append(f"unit {unit_name} ({source})")
+    if factor != 1.0:
+        notes.append(f"scale x{factor:g} (--scale)")
     length_m = longest * scale
-    if not ACCEPTED_LENGTH[0] <= length_m <= ACCEPTED_LENGTH[1]:
-        hint = infer_unit(longest)
-        fix = f"pass --unit {hint[0]}" if hint else "check the file's unit and pass --unit"
-        raise UnitError(f"{mesh.path}: a {length_m:.4g} m long car is implausible "
-                        f"(expected {ACCEPTED_LENGTH[0]}-{ACCEPTED_LENGTH[1]} m); {fix}")
+    if not accepted[0] <= length_m <= accepted[1]:
+        hint = infer_unit(longest, sizes)
+        fix = f"pass --unit {hint[0]}" if hint else "check the file's unit and pass --unit or --scale"
+        noun = "car" if vehicle else category
+        raise UnitError(f"{mesh.path}: a {length_m:.4g} m long {noun} is implausible "
+                        f"(expected {accepted[0]:g}-{accepted[1]:g} m); {fix}")
+    scale *= factor
 
     verts = raw * scale
     samples = surface_samples(verts, mesh.faces)
@@ -208,7 +223,10 @@ def normalise(mesh: LoadedMesh, unit: str = "auto", up: str = "auto", front: str
     r_up = UP_ROTATIONS[up_name]
 
     front = front.lower()
-    if front == "auto":
+    if front == "auto" and not is_vehicle(category):
+        front_name = "+x"
+        notes.append(f"front +x (the file's: a {category}'s front is not told from its shape)")
+    elif front == "auto":
         front_name, why = detect_front(samples @ r_up.T)
         notes.append(why)
     else:

@@ -34,6 +34,9 @@ class PreparedModel:
     mesh_size: np.ndarray
     spacing: float
     glass_fraction: float
+    category: str = "car"
+    source: str = "mesh"
+    level: object = None
 
 
 def file_sha256(path: Path) -> str:
@@ -45,25 +48,30 @@ def file_sha256(path: Path) -> str:
 
 
 def prepare_model(path, unit: str = "auto", up: str = "auto", front: str = "auto",
-                  spacing: float = SAMPLE_SPACING, params: CoscoParams = DEFAULT) -> PreparedModel:
-    """Load and measure one CAD car. Raises a :class:`~twinreg.errors.TwinregError` subclass on bad input."""
+                  spacing: float = SAMPLE_SPACING, params: CoscoParams = DEFAULT, category: str = "car",
+                  factor: float = 1.0) -> PreparedModel:
+    """Load and measure one CAD model of a ``category`` (``factor``: a scale after the unit). Raises a
+    :class:`~twinreg.errors.TwinregError` subclass on bad input."""
+    from cosco.levels import symmetry_level
+
     path = Path(path)
     loaded = load_mesh(path)
-    mesh = normalise(loaded, unit=unit, up=up, front=front)
+    mesh = normalise(loaded, unit=unit, up=up, front=front, category=category, factor=factor)
     used = np.unique(mesh.faces)
     mesh_size = np.ptp(mesh.vertices[used], axis=0)
     points = visible_surface(mesh.vertices, mesh.faces, spacing, drop_faces=mesh.glass)
     if len(points) < 50:
-        raise MeshLoadError(f"{path}: only {len(points)} surface points were visible; is the mesh a closed car body?")
+        raise MeshLoadError(f"{path}: only {len(points)} surface points were visible; is the mesh a closed surface?")
     points = cosco.voxel_downsample(points, spacing)[0]
     shape = cosco.describe_object(points, params, ground_z=0.0, front_hint=0.0)
     size = shape.size
-    if not 0.8 <= size.width <= 3.5 or not 0.5 <= size.height <= 4.0:
+    if category == "car" and (not 0.8 <= size.width <= 3.5 or not 0.5 <= size.height <= 4.0):
         raise UnitError(f"{path}: measured {size.length:.2f} x {size.width:.2f} x {size.height:.2f} m is not a car; "
                         "check --unit and --up")
     area = _face_areas(mesh.vertices, mesh.faces)
     glass_fraction = float(area[mesh.glass].sum() / max(area.sum(), 1e-12))
-    return PreparedModel(path, file_sha256(path), mesh, points, shape, mesh_size, spacing, glass_fraction)
+    return PreparedModel(path, file_sha256(path), mesh, points, shape, mesh_size, spacing, glass_fraction, category,
+                         "mesh", symmetry_level(points, params))
 
 
 def _face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

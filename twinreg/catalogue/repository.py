@@ -33,7 +33,7 @@ from .models import RefModel, pack, unpack
 from .names import SORT_KEYS, check_name, is_sha256, parse_ref, printable, safe_auto_name
 from .prepare import PreparedModel, file_sha256, prepare_model
 
-EDITABLE = ("name", "make", "model", "body_class", "tags")
+EDITABLE = ("name", "make", "model", "body_class", "tags", "category")
 # large columns, loaded only when a model's arrays are needed (a size query over thousands of rows stays light)
 BLOBS = ("points", "section_longitudinal", "section_transverse", "section_longitudinal_fine",
          "section_transverse_fine")
@@ -123,30 +123,37 @@ class Catalogue:
         with self.session() as s:
             return int(s.scalar(select(func.count(RefModel.id))))
 
-    def list(self, near=None, tol: float | None = None, body_class: str | None = None) -> list[RefModel]:
+    def list(self, near=None, tol: float | None = None, body_class: str | None = None,
+             category: str | None = None) -> list[RefModel]:
         """All models, or those whose L, W and H are each within ``tol`` (m, default the matcher's
-        ``CoscoParams.size_tol``) of ``near`` (one indexed query)."""
+        ``CoscoParams.size_tol``) of ``near`` (one indexed query), of ``category`` when given."""
         tol = require_positive("--tol", tol) or cosco.DEFAULT.size_tol
+        if category is not None:
+            from .categories import check_category
+
+            category = check_category(category)
         if not self.exists:
             return []
-        q = self.size_query(near, tol, body_class)
+        q = self.size_query(near, tol, body_class, category)
         with self.session() as s:
             return list(s.scalars(q))
 
     def listing(self, near=None, tol: float | None = None, body_class: str | None = None, tags=(),
-                sort: str = "id") -> list[RefModel]:
+                sort: str = "id", category: str | None = None) -> list[RefModel]:
         """:meth:`list`, keeping the models that carry every tag of ``tags``, in the order ``sort`` (one of
         :data:`SORT_KEYS`; names, makes and classes without regard to case)."""
         if sort not in SORT_KEYS:
             raise CatalogueError(f"--sort {sort}: not one of {', '.join(SORT_KEYS)}")
         wanted = set(tags or ())
-        rows = [r for r in self.list(near=near, tol=tol, body_class=body_class) if wanted <= set(r.tags)]
+        rows = [r for r in self.list(near=near, tol=tol, body_class=body_class, category=category)
+                if wanted <= set(r.tags)]
         key = {"class": lambda r: (r.body_class or "").lower(), "make": lambda r: (r.make or "").lower(),
                "name": lambda r: r.name.lower()}.get(sort, lambda r: getattr(r, sort))
         return sorted(rows, key=key)
 
     @staticmethod
-    def size_query(near=None, tol: float = cosco.DEFAULT.size_tol, body_class: str | None = None):
+    def size_query(near=None, tol: float = cosco.DEFAULT.size_tol, body_class: str | None = None,
+                   category: str | None = None):
         """The SELECT of :meth:`list` (large columns deferred), for reuse and for checking its query plan."""
         q = select(RefModel)
         conds = []
@@ -157,6 +164,8 @@ class Catalogue:
                       RefModel.height.between(height - tol, height + tol)]
         if body_class:  # "sedan" finds "sedan/liftback" and "Sedan (fastback)"
             conds.append(func.lower(RefModel.body_class).contains(body_class.lower(), autoescape=True))
+        if category is not None:
+            conds.append(RefModel.category == category)
         if conds:
             q = q.where(and_(*conds))
         return q.options(*(defer(getattr(RefModel, b)) for b in BLOBS)).order_by(RefModel.id)
@@ -309,7 +318,8 @@ class Catalogue:
                         shape = prep.shape
                         desc = descriptor(shape.size.as_array(), shape.sections.longitudinal)
                         row = RefModel(
-                            name=final_name, make=make, model=model, body_class=body_class,
+                            name=final_name, category=prep.category, source=prep.source, make=make, model=model,
+                            body_class=body_class,
                             tags_json=json.dumps(sorted(set(tags))), sha256=sha, source_name=prep.path.name,
                             stored_file=str(stored), mesh_file=str(mesh_file), n_faces=len(prep.mesh.faces),
                             unit=prep.mesh.unit, unit_scale=prep.mesh.scale, unit_source=prep.mesh.unit_source,
@@ -319,6 +329,7 @@ class Catalogue:
                             mesh_height=float(prep.mesh_size[2]),
                             sym_found=shape.symmetry.found, sym_pcr=shape.symmetry.pcr,
                             sym_rmse=float(shape.symmetry.rmse), sym_heading=shape.heading,
+                            sym_level=prep.level.level if prep.level is not None else None,
                             sample_spacing=prep.spacing, n_points=len(prep.points), points=pack(prep.points),
                             section_longitudinal=pack(shape.sections.longitudinal),
                             section_transverse=pack(shape.sections.transverse), section_res=shape.sections.res,
@@ -337,8 +348,14 @@ class Catalogue:
                 return row
 
     def add(self, path, name=None, make=None, model=None, body_class=None, tags=(), unit="auto", up="auto",
-            front="auto") -> RefModel:
-        """Load, normalise, measure and store one mesh file. See :func:`prepare_model`."""
+            front="auto", category=None, scale: float = 1.0) -> RefModel:
+        """Load, normalise, measure and store one mesh file of a ``category`` (``car`` when None; ``scale``: a
+        factor after the unit). See :func:`prepare_model`."""
+        from .categories import check_category
+
+        category = check_category(category)
+        if not (np.isfinite(scale) and 1e-4 <= scale <= 1e4):
+            raise CatalogueError(f"--scale {scale:g}: give a factor between 0.0001 and 10000")
         path = Path(path)
         if self.exists and path.is_file():  # refuse a duplicate before the costly part
             sha = file_sha256(path)
@@ -347,7 +364,7 @@ class Catalogue:
             if existing is not None:
                 raise DuplicateModelError(f"{path}: same content as model {existing.id} "
                                           f"'{existing.name}' already in the catalogue")
-        prep = prepare_model(path, unit=unit, up=up, front=front)
+        prep = prepare_model(path, unit=unit, up=up, front=front, category=category, factor=float(scale))
         return self.add_prepared(prep, name=name, make=make, model=model, body_class=body_class, tags=tags)
 
     def update(self, ref, **fields) -> RefModel:
@@ -362,6 +379,10 @@ class Catalogue:
                     raise CatalogueError(f"'{key}' cannot be edited; editable: {', '.join(EDITABLE)}")
                 if key == "name":
                     check_name(value)
+                if key == "category":
+                    from .categories import check_category
+
+                    value = check_category(value)
                 if key == "tags":
                     row.tags_json = json.dumps(sorted(set(value)))
                 else:

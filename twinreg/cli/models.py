@@ -32,13 +32,17 @@ RefArg = Annotated[str, typer.Argument(
     help="The model: id:N, name:TEXT, or an id (digits) or unique name.", show_default=False)]
 UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|in|ft (auto: the file's unit, else inferred).")]
 UpOpt = Annotated[str, typer.Option("--up", help="auto|+x|-x|+y|-y|+z|-z: the file's up axis.")]
+CategoryOpt = Annotated[Optional[str], typer.Option(
+    "--category", help="The model's kind, lower-case: car, van, lamp_post, traffic_sign, hydrant, bin, barrier, cone, "
+                       "tree, shelter... [default: car].", show_default=False)]
 FrontOpt = Annotated[str, typer.Option(
     "--front", help="auto|+x|-x|+y|-y: the car's front, in the file's axes once up is Z.")]
 
 
 def _summary(row) -> str:
-    return (f"added model {row.id} '{row.name}': {row.length:.2f} x {row.width:.2f} x {row.height:.2f} m, "
-            f"symmetry {'found' if row.sym_found else 'not found'} (PCR {row.sym_pcr:.2f}), {row.n_points} points; "
+    return (f"added model {row.id} '{row.name}' ({row.category}): {row.length:.2f} x {row.width:.2f} x "
+            f"{row.height:.2f} m, symmetry {row.sym_level or ('found' if row.sym_found else 'not found')} (PCR "
+            f"{row.sym_pcr:.2f}), {row.n_points} points; "
             f"{row.notes}")
 
 
@@ -50,7 +54,10 @@ def add_model(
     make: Annotated[Optional[str], typer.Option(help="Manufacturer.")] = None,
     model: Annotated[Optional[str], typer.Option(help="Model name.")] = None,
     body_class: Annotated[Optional[str], typer.Option("--body-class", help="e.g. hatchback, sedan, SUV.")] = None,
+    category: CategoryOpt = None,
     unit: UnitOpt = "auto",
+    scale: Annotated[float, typer.Option(
+        "--scale", help="A factor after the unit (Gazebo's model.sdf scales some models, e.g. 3).")] = 1.0,
     up: UpOpt = "auto",
     front: FrontOpt = "auto",
     tag: Annotated[Optional[List[str]], typer.Option("--tag", metavar="TAG", help="A tag (repeatable).")] = None,
@@ -61,7 +68,7 @@ def add_model(
     cat = open_catalogue(library)
     with err_console.status(f"measuring {mesh.name}"):
         row = cat.add(mesh, name=name, make=make, model=model, body_class=body_class, tags=tag or (), unit=unit,
-                      up=up, front=front)
+                      up=up, front=front, category=category, scale=scale)
         dups, warning = near_duplicate_report(cat, row)
     if warning:  # a warning, not a failure: the model is stored
         info(warning)
@@ -107,14 +114,16 @@ def import_models(
 
 def _table(rows) -> Table:
     t = Table(title=None, header_style="bold")
-    for col, just in (("id", "right"), ("name", "left"), ("make", "left"), ("model", "left"), ("class", "left"),
-                      ("L m", "right"), ("W m", "right"), ("H m", "right"), ("sym", "center"), ("PCR", "right"),
-                      ("points", "right")):
+    for col, just in (("id", "right"), ("name", "left"), ("category", "left"), ("make", "left"), ("model", "left"),
+                      ("class", "left"), ("L m", "right"), ("W m", "right"), ("H m", "right"), ("symmetry", "left"),
+                      ("PCR", "right"), ("points", "right")):
         t.add_column(col, justify=just)
     for r in rows:
-        text = (Text(printable(x)) for x in (r.name, r.make or "", (r.model or "")[:30], r.body_class or ""))
-        t.add_row(str(r.id), *text, f"{r.length:.2f}", f"{r.width:.2f}", f"{r.height:.2f}",
-                  "yes" if r.sym_found else "no", f"{r.sym_pcr:.2f}", str(r.n_points))
+        text = (Text(printable(x)) for x in (r.name, r.category or "car", r.make or "", (r.model or "")[:30],
+                                             r.body_class or ""))
+        sym = r.sym_level or ("yes" if r.sym_found else "no")
+        t.add_row(str(r.id), *text, f"{r.length:.2f}", f"{r.width:.2f}", f"{r.height:.2f}", sym,
+                  f"{r.sym_pcr:.2f}", str(r.n_points))
     return t
 
 
@@ -132,6 +141,8 @@ def list_models(
         "--body-class", "--class", help="Only models whose body class contains this (any case): sedan, SUV.")] = None,
     tag: Annotated[Optional[List[str]], typer.Option("--tag", metavar="TAG", help="Only models with this tag (repeatable: all).")
                    ] = None,
+    category: Annotated[Optional[str], typer.Option(
+        "--category", help="Only models of this kind (car, lamp_post, ...).", show_default=False)] = None,
     sort: Annotated[str, typer.Option("--sort", help=f"Order: {', '.join(SORT_KEYS)}.")] = "id",
     csv_: Annotated[bool, typer.Option("--csv", help="Print CSV (the JSON fields, sizes flattened).")] = False,
     library: LibraryOpt = None,
@@ -139,7 +150,7 @@ def list_models(
 ):
     """List (or size-query) the catalogue."""
     rows = open_catalogue(library, create=False).listing(near=near, tol=tol, body_class=body_class, tags=tag,
-                                                         sort=sort)
+                                                         sort=sort, category=category)
     if csv_:  # asked for on this command: it wins over a --json given for every command
         _print_csv(rows)
     elif json_:
@@ -155,7 +166,7 @@ def _print_csv(rows) -> None:
     import sys
 
     cols = ["id", "name", "make", "model", "body_class", "tags", "length", "width", "height", "symmetry_found",
-            "pcr", "n_points", "sha256", "source_name", "unit", "up", "front"]
+            "pcr", "n_points", "sha256", "source_name", "unit", "up", "front", "category", "source", "symmetry_level"]
     w = csv.writer(sys.stdout, lineterminator="\n")
     w.writerow(cols)
     for r in rows:
@@ -163,7 +174,7 @@ def _print_csv(rows) -> None:
         w.writerow([d["id"], d["name"], d["make"] or "", d["model"] or "", d["body_class"] or "", ";".join(d["tags"]),
                     d["size"]["length"], d["size"]["width"], d["size"]["height"], d["symmetry"]["found"],
                     d["symmetry"]["pcr"], d["n_points"], d["sha256"], d["source_name"], d["unit"], d["up"],
-                    d["front"]])
+                    d["front"], d["category"], d["source"], d["symmetry"]["level"] or ""])
 
 
 @app.command("show-model", cls=Command)
@@ -204,13 +215,14 @@ def update_model(
     make: Annotated[Optional[str], typer.Option()] = None,
     model: Annotated[Optional[str], typer.Option()] = None,
     body_class: Annotated[Optional[str], typer.Option("--body-class")] = None,
+    category: CategoryOpt = None,
     tag: Annotated[Optional[List[str]], typer.Option("--tag", metavar="TAG", help="Replace the tags (repeatable).")] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
     """Edit a model's name, make, model, body class or tags."""
     row = open_catalogue(library, create=False).update(
-        ref, name=name, make=make, model=model, body_class=body_class, tags=tag)
+        ref, name=name, make=make, model=model, body_class=body_class, tags=tag, category=category)
     if json_:
         print_json(row.to_dict())
     else:

@@ -34,7 +34,7 @@ def bundle(catalogue16, tmp_path_factory):
     res = CliRunner().invoke(app, ["export-library", str(path), "--library", str(catalogue16.folder), "--json"])
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
-    assert doc["n_models"] == 16 and doc["schema_revision"] == "0004_profile"
+    assert doc["n_models"] == 16 and doc["schema_revision"] == "0005_category"
     return path
 
 

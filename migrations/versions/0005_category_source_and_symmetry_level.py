@@ -1,0 +1,45 @@
+"""every model's category (its kind: car, lamp_post, hydrant...), source (a CAD mesh or a scanned object) and level
+of symmetry
+
+Revision ID: 0005_category
+Revises: 0004_profile
+Create Date: 2026-12-03 12:30:00
+"""
+from typing import Sequence, Union
+
+import numpy as np
+import sqlalchemy as sa
+from alembic import op
+
+revision: str = '0005_category'
+down_revision: Union[str, None] = '0004_profile'
+branch_labels: Union[str, Sequence[str], None] = None
+depends_on: Union[str, Sequence[str], None] = None
+
+
+def _unpack(blob: bytes) -> np.ndarray:
+    shape = tuple(np.frombuffer(blob[:8], dtype="<i4"))
+    return np.frombuffer(blob[8:], dtype="<f4").reshape(shape).astype(np.float64)
+
+
+def upgrade() -> None:
+    from cosco.levels import symmetry_level
+
+    with op.batch_alter_table('ref_models', schema=None) as batch_op:
+        batch_op.add_column(sa.Column('category', sa.String(length=40), nullable=False, server_default='car'))
+        batch_op.add_column(sa.Column('source', sa.String(length=10), nullable=False, server_default='mesh'))
+        batch_op.add_column(sa.Column('sym_level', sa.String(length=20), nullable=True))
+        batch_op.create_index(batch_op.f('ix_ref_models_category'), ['category'], unique=False)
+    # every model so far is a car from a mesh; its level of symmetry from the surface points it holds
+    conn = op.get_bind()
+    for mid, blob in conn.execute(sa.text("SELECT id, points FROM ref_models")).fetchall():
+        level = symmetry_level(_unpack(blob)).level
+        conn.execute(sa.text("UPDATE ref_models SET sym_level = :l WHERE id = :i"), {"l": level, "i": mid})
+
+
+def downgrade() -> None:
+    with op.batch_alter_table('ref_models', schema=None) as batch_op:
+        batch_op.drop_index(batch_op.f('ix_ref_models_category'))
+        batch_op.drop_column('sym_level')
+        batch_op.drop_column('source')
+        batch_op.drop_column('category')
