@@ -4,6 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 NPM_STAMP := node_modules/.installed-stamp
+BENCH_STAMP := $(VENV)/.bench-stamp
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: demo test install bench bench-all clean
@@ -53,12 +54,17 @@ demo: $(STAMP) $(NPM_STAMP)
 test: $(STAMP) $(NPM_STAMP) /usr/bin/chromium /usr/bin/CloudCompare
 	TWINREG_REQUIRE_SHARED_DATA=1 $(BIN)/python -m pytest
 
+# the benches' baselines (scikit-learn's random forest)
+$(BENCH_STAMP): $(STAMP)
+	$(BIN)/python -m pip install -q -e ".[test,bench]"
+	@touch $(BENCH_STAMP)
+
 # the quick benches (minutes); the long ones are listed with their commands
-bench: $(STAMP) $(NPM_STAMP)
+bench: $(STAMP) $(NPM_STAMP) $(BENCH_STAMP)
 	$(BIN)/python bench/run.py
 
 # every bench, the long ones too (about an hour on 2 cores)
-bench-all: $(STAMP) $(NPM_STAMP)
+bench-all: $(STAMP) $(NPM_STAMP) $(BENCH_STAMP)
 	$(BIN)/python bench/run.py --long
 
 clean:

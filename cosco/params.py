@@ -124,6 +124,12 @@ class CoscoParams:
     across it then moved along their normals by up to ``level_offset_share`` of the extent in ``level_offsets``
     steps each way; a level holds when ``level_share`` of the points map.
 
+    Kinds (twinreg/recognition/kinds.py): an object's distance to a reference sums the absolute log ratios of
+    their sizes (each at least ``kind_min_size`` m; the length weighted by ``kind_length_weight``) and
+    ``kind_level_penalty`` when their levels of symmetry differ; the ``kind_k`` nearest vote by 1 / (distance +
+    ``kind_vote_floor``); farther than ``kind_unknown_distance`` the kind is unknown. Tuned on the even-numbered
+    DALES objects (docs/PERFORMANCE.md).
+
     Clustering (paper 3.3):
 
     cluster_threshold : float
@@ -261,6 +267,13 @@ class CoscoParams:
     level_share: float = 0.8
     level_offsets: int = 5
     level_offset_share: float = 0.03
+
+    kind_min_size: float = 0.1
+    kind_length_weight: float = 1.0
+    kind_level_penalty: float = 0.6
+    kind_k: int = 2
+    kind_vote_floor: float = 0.05
+    kind_unknown_distance: float = 2.5
 
     cluster_threshold: float = 0.065
     linkage: str = "average"

@@ -77,3 +77,69 @@ def prepare_model(path, unit: str = "auto", up: str = "auto", front: str = "auto
 def _face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     tri = vertices[faces]
     return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+
+
+#: the suffixes of a scanned object (a PLY is a scan when it has no faces)
+SCAN_SUFFIXES = frozenset({".xyz", ".txt", ".csv", ".pts", ".las", ".laz", ".pcd"})
+
+
+def is_scan_file(path: Path) -> bool:
+    """Whether ``path`` holds a scanned object's points rather than a mesh (a PLY without faces)."""
+    suffix = path.suffix.lower()
+    if suffix in SCAN_SUFFIXES:
+        return True
+    if suffix != ".ply":
+        return False
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    end = head.find(b"end_header")
+    header = head[:end if end >= 0 else len(head)].decode("ascii", "replace").split("\n")
+    faces = [ln.split() for ln in header if ln.startswith("element face")]
+    return not faces or (len(faces[0]) >= 3 and faces[0][2] == "0")
+
+
+def prepare_scan(path, category: str, unit: str = "auto", params: CoscoParams = DEFAULT) -> PreparedModel:
+    """A scanned object (one object's points: XYZ, PLY points, LAS/LAZ) as a catalogue reference: its points
+    placed as a model is (footprint centred, lowest point z = 0, its frame's heading along +X), its sections, size
+    and level of symmetry measured as any object's, and, for the exports, the convex hull of its points as its
+    mesh. Raises a :class:`~twinreg.errors.TwinregError` subclass on bad input (too few points, an implausible
+    size for the kind)."""
+    from cosco.arrays import check_object
+    from cosco.levels import symmetry_level
+
+    from ..io.points import read_points
+    from .categories import size_range
+    from .normalise import NormalisedMesh
+
+    path = Path(path)
+    ps = read_points(path, unit=unit)
+    try:
+        pts = check_object(ps.points, min_points=params.seg_min_points)
+    except ValueError as exc:
+        raise MeshLoadError(f"{path}: {exc}; a scanned reference needs one object's points") from exc
+    shape = cosco.describe_object(pts, params)
+    local = shape.frame.to_local(pts)
+    local[:, 2] -= local[:, 2].min()
+    lo, hi = local[:, :2].min(0), local[:, :2].max(0)
+    local[:, :2] -= (lo + hi) / 2
+    longest = float(np.ptp(local, axis=0).max())
+    small, large, _ = size_range(category)
+    if not small * 0.5 <= longest <= large * 1.5:  # a scan may miss part of the object, never double it
+        raise UnitError(f"{path}: a {longest:.3g} m {category} is implausible (expected {small:g}-{large:g} m); "
+                        "check --unit and that the file holds one object")
+    shape = cosco.describe_object(local, params, ground_z=0.0, front_hint=0.0)
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    try:
+        hull = trimesh.convex.convex_hull(local)  # outward-facing triangles
+        vertices, faces = np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64)
+    except Exception as exc:  # qhull's error: all the points in one plane
+        raise MeshLoadError(f"{path}: its points lie in one plane; a scanned reference needs some depth") from exc
+    spacing = float(np.median(cKDTree(local).query(local, k=2)[0][:, 1]))
+    mesh = NormalisedMesh(vertices, faces, np.zeros(len(faces), dtype=bool), ps.unit, 1.0,
+                          "--unit" if unit != "auto" else "the file's", "+z", "+x", np.eye(4),
+                          [f"a scan of {len(pts)} points; its mesh the convex hull of its points"])
+    return PreparedModel(path, file_sha256(path), mesh, local, shape, np.ptp(vertices, axis=0), spacing, 0.0,
+                         category, "scan", symmetry_level(local, params))
+

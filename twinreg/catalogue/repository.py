@@ -31,7 +31,7 @@ from ..io.outdir import atomic_path
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
 from .names import SORT_KEYS, check_name, is_sha256, parse_ref, printable, safe_auto_name
-from .prepare import PreparedModel, file_sha256, prepare_model
+from .prepare import is_scan_file, prepare_scan, PreparedModel, file_sha256, prepare_model
 
 EDITABLE = ("name", "make", "model", "body_class", "tags", "category")
 # large columns, loaded only when a model's arrays are needed (a size query over thousands of rows stays light)
@@ -364,7 +364,10 @@ class Catalogue:
             if existing is not None:
                 raise DuplicateModelError(f"{path}: same content as model {existing.id} "
                                           f"'{existing.name}' already in the catalogue")
-        prep = prepare_model(path, unit=unit, up=up, front=front, category=category, factor=float(scale))
+        if path.is_file() and is_scan_file(path):
+            prep = prepare_scan(path, category, unit=unit)
+        else:
+            prep = prepare_model(path, unit=unit, up=up, front=front, category=category, factor=float(scale))
         return self.add_prepared(prep, name=name, make=make, model=model, body_class=body_class, tags=tags)
 
     def update(self, ref, **fields) -> RefModel:

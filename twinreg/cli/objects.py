@@ -11,7 +11,17 @@ import cosco
 
 from ..errors import require_positive
 from ..objects import cluster_objects, inspect_file, shape_json
-from ._common import Command, JsonOpt, RunProgress, command_app, handled, info, print_json
+from ._common import (
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    RunProgress,
+    command_app,
+    handled,
+    info,
+    open_catalogue,
+    print_json,
+)
 
 app = command_app()
 
@@ -64,3 +74,30 @@ def cluster_cmd(
         info(f"{len(doc['objects'])} objects, {doc['n_clusters']} clusters at {doc['threshold_m'] * 100:.1f} cm")
         for o in doc["objects"]:
             info(f"  {o['id']}: cluster {o['cluster']}")
+
+
+@app.command("classify", cls=Command)
+@handled
+def classify_cmd(
+    objects: Annotated[list[Path], typer.Argument(
+        metavar="OBJECT", help="Object files, one object each (PLY, PCD, LAS, LAZ, XYZ); a folder stands for its "
+                               "point files.", show_default=False)],
+    unit: UnitOpt = "auto",
+    min_confidence: Annotated[Optional[float], typer.Option(
+        "--min-confidence", help="Below this confidence no model is claimed (match null, candidates listed) "
+                                 "[default: 0.5].", show_default=False)] = None,
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """The kind, type and (when the scan decides it) model of objects given one per file."""
+    from ..recognition.classify import classify_files
+    from ..recognition.summary import classify_lines
+
+    cat = open_catalogue(library, create=False)
+    with RunProgress(f"{len(objects)} paths") as bars:
+        items = classify_files(objects, cat, unit=unit, min_confidence=min_confidence, progress=bars.update)
+    if json_:
+        print_json(items)
+        return
+    for line in classify_lines(items):
+        info(line)

@@ -135,7 +135,7 @@ def object_record(p, georef) -> dict:
            "heading_rad": float(p.heading), "size": {k: round(float(v), 3) for k, v in p.size.items()},
            "measured_size": shape.size.as_dict(),
            "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4)},
-           "cluster": int(p.label), "kind": "car" if match else "unknown", "match": match,
+           "cluster": int(p.label), "kind": (p.model.category or "car") if match else "unknown", "match": match,
            "lat": float(p.lat), "lon": float(p.lon), "bearing_deg": round(p.bearing, 3)}
     if match is None:
         doc["reason"] = res.reason

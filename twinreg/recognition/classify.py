@@ -1,0 +1,147 @@
+"""``twinreg classify``: the kind, the type and (when the scan decides it) the model of objects given one per
+file. Each object is described as any object is (its COSCO shape and level of symmetry); its kind comes from the
+catalogue's nearest references (:mod:`.kinds`); its type from the taxonomy of all the objects given (objects of
+one design share a type whether or not a reference exists); its model from the matcher, claimed only when the
+model is of that kind and its confidence reaches the floor (``--min-confidence``); below it ``match`` is null and
+``candidates`` lists the near references."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import cosco
+from cosco.levels import symmetry_level
+from cosco.params import DEFAULT, CoscoParams
+
+from ..errors import ParameterError, SceneReadError
+from .kinds import UNKNOWN, References, recognise_kind
+
+#: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
+#: scan's noise on)
+OBJECT_NOISE_M = 0.03
+#: the models' confidence below which no model is claimed, unless --min-confidence says otherwise (provisional:
+#: the calibration of issue 35 chooses it)
+MIN_CONFIDENCE = 0.5
+
+
+@dataclass
+class GivenObject:
+    """One object file read and described: its ``path``, ``points`` and COSCO ``shape``, its ``level`` of
+    symmetry (:class:`cosco.levels.Level`)."""
+
+    path: Path
+    points: np.ndarray
+    shape: cosco.ObjectShape
+    level: object
+
+
+def object_files(paths) -> list[Path]:
+    """The point files of ``paths``: files as given, a folder's point files (not its sub-folders) sorted; a path
+    that is neither, or a folder without point files, is refused naming it."""
+    from ..io.points import POINT_SUFFIXES
+
+    files: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted((f for f in p.iterdir() if f.is_file() and f.suffix.lower() in POINT_SUFFIXES),
+                           key=lambda f: (len(f.stem), f.stem))
+            if not found:
+                raise SceneReadError(f"{p}: no point files ({', '.join(sorted(POINT_SUFFIXES))})")
+            files += found
+        elif p.is_file():
+            files.append(p)
+        else:
+            raise SceneReadError(f"{p}: no such file or folder")
+    return files
+
+
+def read_object(path: Path, unit: str = "auto", params: CoscoParams = DEFAULT) -> GivenObject:
+    """One object's file read and described; a degenerate object is refused naming its file."""
+    from ..io.points import read_points
+
+    ps = read_points(path, unit=unit)
+    try:
+        shape = cosco.describe_object(ps.points, params)
+    except ValueError as exc:
+        raise SceneReadError(f"{path}: {exc}; classify takes one object's points a file") from exc
+    return GivenObject(path, ps.points, shape, symmetry_level(ps.points, params))
+
+
+def classify_objects(objects: list[GivenObject], catalogue, min_confidence: float | None = None,
+                     params: CoscoParams = DEFAULT, progress=None) -> list[dict]:
+    """Each object's item as ``classify --json`` prints it (docs/CONTRACT.md). ``progress(stage, done, total)``
+    as the objects are matched."""
+    from ..matching.match import Evidence, ModelCache, match_objects
+    from ..stages import classify
+
+    floor = MIN_CONFIDENCE if min_confidence is None else float(min_confidence)
+    if not 0.0 <= floor <= 1.0:
+        raise ParameterError(f"--min-confidence {floor:g}: give a confidence between 0 and 1")
+    refs = References.of(catalogue.list()) if catalogue.exists else References.of([])
+    shapes = [o.shape for o in objects]
+    tax = classify(shapes, params, {}) if len(shapes) > 1 else None
+    labels = tax.labels if tax is not None else np.ones(len(shapes), dtype=int)
+    kinds = [recognise_kind(o.shape.size.as_array(), o.level.level, refs, params) for o in objects]
+    outcomes = [None] * len(objects)
+    cache = None
+    if len(refs):
+        cache = ModelCache(catalogue, params)
+        done = (lambda k, n: progress("matching", k, n)) if progress else None
+        outcomes, _ = match_objects(shapes, catalogue, labels=labels, params=params,
+                                    evidence=Evidence([o.points for o in objects], OBJECT_NOISE_M), cache=cache, done=done)
+    return [_item(o, k, int(label), res, refs, cache, floor, params)
+            for o, k, label, res in zip(objects, kinds, labels, outcomes)]
+
+
+def _item(o: GivenObject, kind, label: int, res, refs: References, cache, floor: float,
+          params: CoscoParams) -> dict:
+    s = o.shape
+    match = None
+    m = res.match if res is not None else None
+    if m is not None and kind.kind != UNKNOWN:
+        same_kind = cache.row(m.model_id).category == kind.kind
+        if same_kind and m.confidence is not None and m.confidence >= floor:
+            match = {"model_id": m.model_id, "name": m.name, "rmse_m": round(m.rmse, 4),
+                     "confidence": round(m.confidence, 3), "ambiguous_with": list(m.ambiguous_with)}
+    return {"file": str(o.path), "n_points": int(s.n_points), "kind": kind.kind,
+            "kind_confidence": round(kind.confidence, 3), "type": label,
+            "symmetry": {"found": bool(s.symmetry.found), "pcr": round(float(s.symmetry.pcr), 4),
+                         "level": o.level.level},
+            "size": s.size.as_dict(), "match": match,
+            "candidates": [] if match is not None else _candidates(o, kind, refs, cache, params)}
+
+
+def _candidates(o: GivenObject, kind, refs: References, cache, params: CoscoParams) -> list[dict]:
+    """The nearest references of the object's kind (any kind when unknown): name, kind, the sections'
+    dissimilarity (m) and the share of the kind vote each carried."""
+    if cache is None or not len(kind.nearest):
+        return []
+    weights = 1.0 / (kind.distances + params.kind_vote_floor)
+    missing = sorted({int(refs.ids[j]) for j in kind.nearest} - set(cache.known()))
+    if missing:
+        cache.add_rows(cache.catalogue.rows(missing))
+    out = []
+    for j, w in zip(kind.nearest, weights / weights.sum()):
+        if kind.kind != UNKNOWN and refs.kinds[j] != kind.kind:
+            continue
+        model_sections = cache.geometry(int(refs.ids[j])).sections
+        out.append({"name": refs.names[j], "kind": str(refs.kinds[j]),
+                    "score_m": round(float(cosco.dissimilarity(o.shape.sections, model_sections, params)), 4),
+                    "confidence": round(float(w), 3)})
+    return out
+
+
+def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float | None = None,
+                   params: CoscoParams = DEFAULT, progress=None) -> list[dict]:
+    """``classify``: every object file of ``paths`` (a folder stands for its point files) read, then
+    :func:`classify_objects`."""
+    files = object_files(paths)
+    objects = []
+    for k, f in enumerate(files):
+        objects.append(read_object(f, unit, params))
+        if progress:
+            progress("reading", k + 1, len(files))
+    return classify_objects(objects, catalogue, min_confidence, params, progress)
