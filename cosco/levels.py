@@ -68,8 +68,10 @@ def _mirrored(xy: np.ndarray, centre: np.ndarray, phi: float) -> np.ndarray:
     return xy - 2.0 * (d @ n)[:, None] * n
 
 
-def symmetry_level(points, params: CoscoParams = DEFAULT) -> Level:
-    """The level of symmetry of one object's points ((n, 3) metres, z up; see the module's text).
+def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Level:
+    """The level of symmetry of one object's points ((n, 3) metres, z up; see the module's text). ``symmetry``:
+    the object's :class:`~cosco.symmetry.Symmetry` when already detected (a scan's objects): its plane, when found,
+    is the mirror plane tried (no sweep of planes), on at most ``level_object_points`` points.
 
     >>> rng = np.random.default_rng(0)
     >>> a = rng.uniform(0, 2 * np.pi, 4000); z = rng.uniform(0, 3, 4000)
@@ -82,8 +84,9 @@ def symmetry_level(points, params: CoscoParams = DEFAULT) -> Level:
     extent = float(np.ptp(pts[:, :2], axis=0).max())
     voxel = max(params.level_voxel, extent / params.level_cells)
     pts = voxel_downsample(pts, voxel)[0]
-    if len(pts) > params.level_max_points:
-        pts = pts[np.random.default_rng(0).choice(len(pts), params.level_max_points, replace=False)]
+    cap = params.level_object_points if symmetry is not None else params.level_max_points
+    if len(pts) > cap:
+        pts = pts[np.random.default_rng(0).choice(len(pts), cap, replace=False)]
     tree3 = cKDTree(pts)
     spacing = float(np.median(tree3.query(pts, k=2)[0][:, 1])) if len(pts) > 1 else voxel
     tol = max(params.level_tol, params.level_tol_spacing * spacing)
@@ -93,18 +96,26 @@ def symmetry_level(points, params: CoscoParams = DEFAULT) -> Level:
     # the rotational test in 3D (the turned points keep their heights)
     rot = min(_share(np.c_[_turned(xy, axis, a), z], tree3, tol) for a in (np.pi / 2, np.pi / 4))
     centre = (xy.min(0) + xy.max(0)) / 2
-    phis = np.arange(0.0, np.pi, params.level_step)
-    scores = [_share(np.c_[_mirrored(xy, centre, p), z], tree3, tol) for p in phis]
-    phi = float(phis[int(np.argmax(scores))])
+    if symmetry is not None and symmetry.found:
+        phi = float(symmetry.phi)
+        normal = np.array([np.cos(phi), np.sin(phi)])
+        centre = centre + (symmetry.rho - centre @ normal) * normal  # onto the detected plane
+    else:
+        phis = np.arange(0.0, np.pi, params.level_step)
+        scores = [_share(np.c_[_mirrored(xy, centre, p), z], tree3, tol) for p in phis]
+        phi = float(phis[int(np.argmax(scores))])
     # a detail on one side (a spare wheel, a mirror) moves the box's centre off the plane: the plane's offset
     # searched along its normal, for the best plane and the one across it
     shifts = np.linspace(-1.0, 1.0, 2 * params.level_offsets + 1) * params.level_offset_share * extent
 
-    def best_offset(angle: float) -> float:
+    def best_offset(angle: float, steps: np.ndarray) -> float:
         n = np.array([np.cos(angle), np.sin(angle)])
-        return max(_share(np.c_[_mirrored(xy, centre + d * n, angle), z], tree3, tol) for d in shifts)
+        return max(_share(np.c_[_mirrored(xy, centre + d * n, angle), z], tree3, tol) for d in steps)
 
-    mirror, second = best_offset(phi), best_offset(phi + np.pi / 2)
+    if symmetry is not None and symmetry.found:  # the detected plane as it is; the one across it coarsely
+        mirror, second = best_offset(phi, np.zeros(1)), best_offset(phi + np.pi / 2, shifts[::params.level_offsets])
+    else:
+        mirror, second = best_offset(phi, shifts), best_offset(phi + np.pi / 2, shifts)
     share = params.level_share
     level = ("rotational" if rot >= share else "two_mirrors" if min(mirror, second) >= share else
              "mirror" if mirror >= share else "none")

@@ -118,7 +118,8 @@ class CoscoParams:
         The size filter of the target class (m, m, m, m^2 of footprint); the paper kept 1-20 m^2 of surface.
 
     Levels of symmetry (cosco/levels.py): the points on voxels of ``level_voxel`` m or the plan extent over
-    ``level_cells``, at most ``level_max_points``; a point maps onto another within ``level_tol`` m or
+    ``level_cells``, at most ``level_max_points`` (``level_object_points`` for a scan's object whose plane is already
+    detected); a point maps onto another within ``level_tol`` m or
     ``level_tol_spacing`` point spacings; the rotational axis through the lowest ``level_base_share`` of the
     points; mirror planes tried every ``level_step`` rad through the plan box's centre, the best one and the one
     across it then moved along their normals by up to ``level_offset_share`` of the extent in ``level_offsets``
@@ -128,7 +129,8 @@ class CoscoParams:
     their sizes (each at least ``kind_min_size`` m; the length weighted by ``kind_length_weight``) and
     ``kind_level_penalty`` when their levels of symmetry differ; the ``kind_k`` nearest vote by 1 / (distance +
     ``kind_vote_floor``); farther than ``kind_unknown_distance`` the kind is unknown. Tuned on the even-numbered
-    DALES objects (docs/PERFORMANCE.md).
+    DALES objects (docs/PERFORMANCE.md). A model whose confidence is under ``model_min_confidence`` is not
+    claimed (``--min-confidence``; chosen on the calibration of docs/PERFORMANCE.md, "Kinds").
 
     Clustering (paper 3.3):
 
@@ -260,6 +262,7 @@ class CoscoParams:
     level_voxel: float = 0.03
     level_cells: int = 60
     level_max_points: int = 3000
+    level_object_points: int = 800
     level_tol: float = 0.03
     level_tol_spacing: float = 1.5
     level_base_share: float = 0.2
@@ -274,6 +277,7 @@ class CoscoParams:
     kind_k: int = 2
     kind_vote_floor: float = 0.05
     kind_unknown_distance: float = 2.5
+    model_min_confidence: float = 0.3
 
     cluster_threshold: float = 0.065
     linkage: str = "average"

@@ -148,3 +148,33 @@ def taxonomy(shapes: list, params: CoscoParams = DEFAULT, distances_of=None) -> 
     else:
         d = np.asarray(distances_of(pairs), dtype=np.float64)
     return Taxonomy(graph_clusters(n, pairs, d, t), "sparse", t, pairs=pairs, distances=d)
+
+
+def taxonomy_of(shapes: list, params: CoscoParams = DEFAULT, timing: dict | None = None, say=None,
+                distances_of=None) -> Taxonomy:
+    """The objects' taxonomy as a run takes it: the paper's matrix and dendrogram up to
+    ``params.taxonomy_full_max`` objects (timed in ``timing`` as "matrix" and "clustering"), the sparse graph of
+    :func:`taxonomy` beyond (timed as "matrix": its comparisons and its components); ``say(text)`` as each part
+    starts."""
+    import time
+
+    from .cluster import cluster
+    from .dissimilarity import dissimilarity_matrix
+
+    timing = {} if timing is None else timing
+    t = time.perf_counter()
+    if len(shapes) > params.taxonomy_full_max or distances_of is not None:
+        if say:
+            say(f"taxonomy of {len(shapes)} objects")
+        tax = taxonomy(shapes, params, distances_of=distances_of)
+        timing["matrix"] = time.perf_counter() - t
+        timing["clustering"] = 0.0
+        return tax
+    if say:
+        say("dissimilarity matrix")
+    matrix = dissimilarity_matrix([s.sections for s in shapes], params)
+    timing["matrix"] = time.perf_counter() - t
+    t = time.perf_counter()
+    c = cluster(matrix, params)
+    timing["clustering"] = time.perf_counter() - t
+    return Taxonomy(c.labels, "full", c.threshold, matrix=matrix, linkage=c.linkage)

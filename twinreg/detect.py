@@ -94,6 +94,15 @@ def describe_detected(det: Detection, params: CoscoParams = DEFAULT, objects=Non
             for o in (det.objects if objects is None else objects)]
 
 
+def object_levels(det: Detection, shapes: list, params: CoscoParams = DEFAULT, objects=None) -> list[str]:
+    """The level of symmetry (:mod:`cosco.levels`) of each described object (``shapes``, from
+    :func:`describe_detected` with the same ``objects``), its detected plane reused."""
+    from cosco.levels import symmetry_level
+
+    return [symmetry_level(object_points(det, o), params, symmetry=s.symmetry).level
+            for o, s in zip(det.objects if objects is None else objects, shapes)]
+
+
 def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None,
                 crs: str | None = None, override_crs: bool = False, on_read=None) -> Detection:
     """Read a scene (``crs``: its projected CRS; one that differs from a LAS header's only with ``override_crs``)

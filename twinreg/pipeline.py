@@ -11,7 +11,7 @@ from pathlib import Path
 from cosco.params import DEFAULT, CoscoParams
 
 from .catalogue.repository import Catalogue
-from .detect import describe_detected, detect_file, object_points
+from .detect import describe_detected, detect_file, object_levels, object_points
 from .errors import SceneReadError
 from .export.classified import scan_classes, write_classified
 from .export.formats import TwinFiles, write_twin
@@ -25,7 +25,7 @@ from .matching.acceptance import scene_noise
 from .matching.match import Evidence, ModelCache, match_objects
 from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
-from .stages import checked_params, classify, locate, place, require_models
+from .stages import apply_floor, checked_params, classify, locate, place, recognise, require_models
 
 
 def _say(progress, msg):
@@ -40,7 +40,7 @@ class RunSettings:
     write PLY (None: twin.ply for one scene, none for tiles); the survey's date (``YYYY-MM-DD``; None: the
     LAS/LAZ headers'); a scene's CityJSON with geometry templates instead of explicit geometry (a city's has
     templates, and explicit geometry in its CityJSONSeq); a tiled run's classified scan (a scene always has
-    scan.copc.laz)."""
+    scan.copc.laz); the models' confidence floor (None: the parameters')."""
 
     unit: str = "auto"
     tol: float | None = None
@@ -54,6 +54,7 @@ class RunSettings:
     date: str | None = None
     cityjson_templates: bool = False
     classified_scan: bool = False
+    min_confidence: float | None = None
 
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
@@ -77,17 +78,17 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
-                               date=s.date, classified=s.classified_scan)
+                               date=s.date, classified=s.classified_scan, min_confidence=s.min_confidence)
     say = (lambda msg: progress(msg, None, None)) if progress else None
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                       progress=say, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates,
-                      tick=progress)
+                      tick=progress, min_confidence=s.min_confidence)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
                tol: float | None = None, params: CoscoParams = DEFAULT, progress=None,
                threshold: float | None = None, ply: bool = True, date: str | None = None,
-               templates: bool = False, tick=None) -> dict:
+               templates: bool = False, tick=None, min_confidence: float | None = None) -> dict:
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
     ``ply=False`` leaves out twin.ply; ``date``: the survey's date, ``YYYY-MM-DD``, else the LAS/LAZ header's;
     ``templates``: CityJSON with geometry templates).
@@ -99,7 +100,7 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     """
     t_start = time.perf_counter()
     timing = {}
-    params = checked_params(params, tol, threshold)
+    params = checked_params(params, tol, threshold, min_confidence)
     scene_path = Path(scene_path)
     from .io.points import check_point_file
 
@@ -148,6 +149,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     _say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes = describe_detected(det, params)
+    levels = object_levels(det, shapes, params)
     timing["sections"] = time.perf_counter() - t
 
     clusters = classify(shapes, params, timing, progress)
@@ -159,7 +161,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
-                           templates=templates, prober=prober, tick=tick)
+                           templates=templates, prober=prober, tick=tick, levels=levels)
             twin = _match_and_export(run)
         except BaseException:
             for helper in (painter, prober):  # a helper may be writing into the stage: stopped before it goes
@@ -195,6 +197,7 @@ class SceneRun:
     templates: bool = False
     prober: object = None
     tick: object = None
+    levels: list | None = None
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -216,8 +219,10 @@ def _match_and_export(run: SceneRun) -> dict:
 
     _say(progress, "export")
     t = time.perf_counter()
+    results = apply_floor(results, params.model_min_confidence)
+    kinds = recognise(shapes, run.levels, catalogue, params)
     placed = place([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
-                   clusters.labels, [offset] * len(targets), georef, models)
+                   clusters.labels, [offset] * len(targets), georef, models, kinds, run.levels)
     objects = [p.doc for p in placed]
 
     sc = det.scene

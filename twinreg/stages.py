@@ -1,6 +1,7 @@
 """The stages a scene and a city both run, one copy: the run's parameters checked (:func:`checked_params`), the
 catalogue checked (:func:`require_models`), the scan placed on Earth (:func:`locate`), the objects' taxonomy
-(:func:`classify`), every object placed (:func:`place`). The per-scene pipeline
+(:func:`classify`), the objects' kinds (:func:`recognise`), the models under the confidence floor withdrawn
+(:func:`apply_floor`), every object placed (:func:`place`). The per-scene pipeline
 (:mod:`twinreg.pipeline`) runs them on one scene; the city engine (:mod:`twinreg.city`) maps them over cells and
 batches; the simulator's accuracy runs use them too. Nothing here imports the pipeline or the city engine."""
 
@@ -19,10 +20,16 @@ def _say(progress, msg):
         progress(msg)
 
 
-def checked_params(params: CoscoParams, tol: float | None, threshold: float | None) -> CoscoParams:
-    """``params`` with the size tolerance and cluster threshold the user gave (both must be positive)."""
-    from .errors import require_positive
+def checked_params(params: CoscoParams, tol: float | None, threshold: float | None,
+                   min_confidence: float | None = None) -> CoscoParams:
+    """``params`` with the size tolerance and cluster threshold the user gave (both must be positive) and the
+    models' confidence floor (0-1)."""
+    from .errors import ParameterError, require_positive
 
+    if min_confidence is not None:
+        if not 0.0 <= min_confidence <= 1.0:
+            raise ParameterError(f"--min-confidence {min_confidence:g}: give a confidence between 0 and 1")
+        params = params.with_(model_min_confidence=float(min_confidence))
     tol = require_positive("--tol", tol, f" (default {params.size_tol:g})")
     threshold = require_positive("--threshold", threshold, f" (default {params.cluster_threshold:g})")
     # a tolerance given by the user is the window, as in the paper: it no longer grows with the point spacing
@@ -61,44 +68,71 @@ def locate(georef, lo, hi, where: str):
 
 
 def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances_of=None):
-    """The objects' :class:`~cosco.taxonomy.Taxonomy`: the paper's matrix and dendrogram up to
-    ``params.taxonomy_full_max`` objects (timed as "matrix" and "clustering"), the sparse graph beyond (timed as
-    "matrix": its comparisons and its components)."""
-    from cosco.taxonomy import Taxonomy, taxonomy
+    """The objects' :class:`~cosco.taxonomy.Taxonomy` (:func:`cosco.taxonomy.taxonomy_of`: the paper's matrix and
+    dendrogram up to ``params.taxonomy_full_max`` objects, the sparse graph beyond), its parts timed in
+    ``timing``."""
+    from cosco.taxonomy import taxonomy_of
 
-    t = time.perf_counter()
-    if len(shapes) > params.taxonomy_full_max or distances_of is not None:
-        _say(progress, f"taxonomy of {len(shapes)} objects")
-        tax = taxonomy(shapes, params, distances_of=distances_of)
-        timing["matrix"] = time.perf_counter() - t
-        timing["clustering"] = 0.0
-        return tax
-    _say(progress, "dissimilarity matrix")
-    matrix = cosco.dissimilarity_matrix([s.sections for s in shapes], params)
-    timing["matrix"] = time.perf_counter() - t
-    t = time.perf_counter()
-    c = cosco.cluster(matrix, params)
-    timing["clustering"] = time.perf_counter() - t
-    return Taxonomy(c.labels, "full", c.threshold, matrix=matrix, linkage=c.linkage)
+    return taxonomy_of(shapes, params, timing, (lambda text: _say(progress, text)) if progress else None,
+                       distances_of)
 
 
-def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: list, georef, models) -> list:
+def recognise(shapes: list, levels: list[str], catalogue, params: CoscoParams) -> list:
+    """Each object's kind (:class:`~twinreg.recognition.kinds.KindResult`) from the catalogue's nearest references
+    by size and level of symmetry (:mod:`twinreg.recognition.kinds`; one query for the references, numpy for the
+    rest)."""
+    from .recognition.kinds import References, recognise_kind
+
+    refs = References.of(catalogue.list())
+    return [recognise_kind(s.size.as_array(), level, refs, params) for s, level in zip(shapes, levels)]
+
+
+def apply_floor(outcomes: list, floor: float) -> list:
+    """The outcomes with every model whose confidence is under ``floor`` withdrawn: ``match`` None, the reason
+    code ``under_floor``, the withdrawn model first among the candidates (the scan does not decide it)."""
+    from dataclasses import replace
+
+    out = []
+    for res in outcomes:
+        m = res.match
+        if m is not None and m.confidence is not None and m.confidence < floor:
+            others = [c for c in res.candidates if c != m.model_id]
+            res = replace(res, match=None, candidates=[m.model_id, *others],
+                          reason=f"the best model, {m.name}, has confidence {m.confidence:.2f}, under the floor "
+                                 f"{floor:g} (--min-confidence)",
+                          reason_code="under_floor", rejected={"name": m.name, "confidence": round(m.confidence, 3)})
+        out.append(res)
+    return out
+
+
+def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: list, georef, models,
+          kinds: list | None = None, levels: list | None = None) -> list:
     """Place every object: its :class:`~twinreg.export.objects.PlacedObject` (the mesh at its pose, where it is
-    on Earth, its twin.json record) from its matching outcome, its taxonomy label and ``offsets`` (each (3,), its
-    local frame to the scene frame). Every object's lat/lon and bearing come from two vectorised transformations
-    (one per object took 8 s at 5,000 objects)."""
+    on Earth, its kind and type, its twin.json record) from its matching outcome, its taxonomy label, ``offsets``
+    (each (3,), its local frame to the scene frame) and its recognised kind and level of symmetry
+    (:func:`recognise`; None: not recognised). Every object's lat/lon and bearing come from two vectorised
+    transformations (one per object took 8 s at 5,000 objects)."""
+    from collections import Counter
+
     import numpy as np
 
     from .export.objects import place_object, pose
     from .export.twin_json import object_record
+    from .recognition.classify import near_candidates
 
     poses = [pose(res) for res in outcomes]
     centres = np.array([c + np.asarray(off) for (c, _), off in zip(poses, offsets)]).reshape(-1, 3)
     lonlat, bearings = georef.placements(centres, [h for _, h in poses])
+    members = Counter(int(v) for v in labels)
     placed = []
     for k, (oid, n, res, label, off) in enumerate(zip(ids, n_points, outcomes, labels, offsets)):
         p = place_object(oid, n, res, int(label), np.asarray(off),
                          (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k])), models)
+        p.members = members[int(label)]
+        if kinds is not None:
+            p.kind, p.level = kinds[k], levels[k]
+            if res.match is None:
+                p.candidates = near_candidates(res.shape, kinds[k], models, models.params)
         p.doc = object_record(p, georef)
         placed.append(p)
     return placed

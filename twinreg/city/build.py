@@ -136,16 +136,17 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
                     threshold: float | None = None, params: CoscoParams = DEFAULT, cell: float | None = None,
                     buffer: float = 10.0, workers: int | None = None, scheduler: str | None = None,
                     restart: bool = False, ply: bool = False, progress=None, date: str | None = None,
-                    classified: bool = False) -> dict:
+                    classified: bool = False, min_confidence: float | None = None) -> dict:
     """Build the twin of tiles (files, folders, globs of LAS/LAZ/COPC) cell by cell on Dask; returns the twin JSON
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances;
-    ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`)."""
+    ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`);
+    ``min_confidence``: the models' confidence floor (None: ``params.model_min_confidence``)."""
     from ..io.outdir import check_replaceable, locked
     from ..stages import checked_params, locate, require_models
 
     t_start = time.perf_counter()
     timing: dict = {}
-    params = checked_params(params, tol, threshold)
+    params = checked_params(params, tol, threshold, min_confidence)
     if workers is not None and workers < 1:
         raise ParameterError(f"--workers must be 1 or more (got {workers})")
     crs = georef.crs if georef is not None and georef.crs_source == "--crs" else None

@@ -43,8 +43,8 @@ class CellJob:
 @dataclass
 class CellObject:
     """An object the cell owns: ``id`` (cell name and index, the same from run to run), its shape and a sample of
-    its points (at most ``accept_max_points``, scene-local: add ``offset``), its point ``spacing`` (m) and the
-    ground under it."""
+    its points (at most ``accept_max_points``, scene-local: add ``offset``), its point ``spacing`` (m), the
+    ground under it and its ``level`` of symmetry (:mod:`cosco.levels`)."""
 
     id: str
     cell: str
@@ -54,6 +54,7 @@ class CellObject:
     cloud: np.ndarray
     spacing: float
     ground_z: float
+    level: str = "none"
 
 
 @dataclass
@@ -102,7 +103,7 @@ def _process_cell(job: CellJob) -> CellResult:
     from cosco.segment import point_spacing
 
     from ..io.observed import raster
-    from ..detect import describe_detected, detect_points, object_ground, object_points
+    from ..detect import describe_detected, detect_points, object_ground, object_levels, object_points
     from ..export.scan_tiles import cell_scan_folder, write_cell_scan
     from ..export.tiles3d import scan_sample
     from ..io.points import PointSet
@@ -153,12 +154,13 @@ def _process_cell(job: CellJob) -> CellResult:
     order = sorted(range(len(owned)), key=lambda k: (round(float(centres[k][0]), 2), round(float(centres[k][1]), 2)))
     owned = [owned[k] for k in order]
     shapes = describe_detected(det, params, objects=owned)
-    for k, (o, shape) in enumerate(zip(owned, shapes)):
+    levels = object_levels(det, shapes, params, objects=owned)
+    for k, (o, shape, level) in enumerate(zip(owned, shapes, levels)):
         cloud = object_points(det, o)
         out.objects.append(CellObject(
             id=f"{cell.name}-{k + 1}", cell=cell.name, offset=offset, n_points=int(o.n_points), shape=shape,
             cloud=sample_cloud(cloud, params.accept_max_points),
-            spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o)))
+            spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o), level=level))
     out.timing_s["sections"] = time.perf_counter() - t
     if job.labels:
         t = time.perf_counter()

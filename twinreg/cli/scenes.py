@@ -64,6 +64,9 @@ def detect(
 
 
 # build-twin's options
+MinConfidenceOpt = Annotated[Optional[float], typer.Option(
+    "--min-confidence", help=f"Below this confidence no model is claimed: match null, candidates listed [default: "
+                             f"{DEFAULT.model_min_confidence}].", show_default=False)]
 LatOpt = Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")]
 LonOpt = Annotated[Optional[float], typer.Option(help="WGS84 longitude of the anchor point.")]
 AltOpt = Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")]
@@ -142,6 +145,7 @@ def build_twin_cmd(
     cityjson_templates: CityjsonTemplatesOpt = False,
     classified_scan: ClassifiedScanOpt = False,
     ply: PlyOpt = None,
+    min_confidence: MinConfidenceOpt = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -158,7 +162,7 @@ def build_twin_cmd(
     settings = RunSettings(unit=unit, tol=tol, threshold=threshold, cell=cell, buffer=buffer, workers=workers,
                            scheduler=scheduler, restart=restart, ply=ply,
                            date=date.date().isoformat() if date else None, cityjson_templates=cityjson_templates,
-                           classified_scan=classified_scan)
+                           classified_scan=classified_scan, min_confidence=min_confidence)
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
     from ..export.summary import twin_summary, warnings_of

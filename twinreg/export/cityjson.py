@@ -21,7 +21,7 @@ integers (0.1 mm).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +68,7 @@ def _extent(p: "_Placed") -> list[float]:
 @dataclass
 class _Placed:
     """What every variant needs: the templates (vertices, faces) by mesh key, each object's template key,
-    reference point (CRS units), matrix (4 x 4, row-major) and attributes; the file's translate."""
+    reference point (CRS units), matrix (4 x 4, row-major), attributes and CityJSON type; the file's translate."""
 
     meshes: dict
     keys: list
@@ -77,6 +77,26 @@ class _Placed:
     attributes: list
     ids: list
     translate: np.ndarray
+    types: list = field(default_factory=list)
+
+
+#: the kinds drawn as vehicles (CityJSON has no vehicle type: a CityFurniture of function vehicle, as before)
+VEHICLES = frozenset({"car", "van", "truck", "bus"})
+
+
+def city_type(kind: str | None) -> tuple[str, str | None]:
+    """The CityJSON type of an object of ``kind`` and its ``function`` attribute (None: no function).
+
+    >>> city_type("car"), city_type("lamp_post"), city_type("tree"), city_type("unknown")
+    (('CityFurniture', 'vehicle'), ('CityFurniture', 'lamp_post'), ('SolitaryVegetationObject', None), ('GenericCityObject', None))
+    """
+    if kind in VEHICLES:
+        return "CityFurniture", "vehicle"
+    if kind == "tree":
+        return "SolitaryVegetationObject", None
+    if not kind or kind == "unknown":
+        return "GenericCityObject", None
+    return "CityFurniture", kind
 
 
 def _placed(instances, meshes, docs, headings, georef) -> _Placed:
@@ -90,15 +110,18 @@ def _placed(instances, meshes, docs, headings, georef) -> _Placed:
         v, f = (UNIT_BOX if i.mesh == "box" else meshes[i.mesh][:2])
         used.setdefault(i.mesh, (np.round(np.asarray(v, dtype=np.float64), 4), np.asarray(f, dtype=np.int64)))
     ref = np.array([i.origin for i in instances], dtype=np.float64).reshape(-1, 3) @ to_crs
-    matrices, attributes = [], []
+    matrices, attributes, types = [], [], []
     for inst, doc, a in zip(instances, docs, headings):
         m = np.eye(4)
         m[:3, :3] = to_crs @ yaw(a) @ np.diag(inst.scale or (1, 1, 1))
         matrices.append(m)
         flat = {k: v for k, v in properties(doc).items() if v is not None and k != "id"}
-        attributes.append({"function": "vehicle", **flat})
+        kind_type, function = city_type(doc.get("kind"))
+        attributes.append(({"function": function} if function else {}) | flat)
+        types.append(kind_type)
     translate = np.floor(ref.min(0)) if len(ref) else np.zeros(3)
-    return _Placed(used, [i.mesh for i in instances], ref, matrices, attributes, [d["id"] for d in docs], translate)
+    return _Placed(used, [i.mesh for i in instances], ref, matrices, attributes, [d["id"] for d in docs], translate,
+                   types)
 
 
 def _explicit(p: _Placed, k: int, base: int) -> tuple[np.ndarray, dict]:
@@ -138,7 +161,7 @@ def write_cityjson(path, instances: list, meshes: dict, docs: list[dict], headin
             "vertices-templates": np.vstack([p.meshes[key][0] for key in keys]).tolist() if keys else []}
         doc["vertices"] = np.rint((p.ref - p.translate) / SCALE).astype(np.int64).tolist()
         for k, oid in enumerate(p.ids):
-            doc["CityObjects"][oid] = {"type": "CityFurniture", "attributes": p.attributes[k], "geometry": [
+            doc["CityObjects"][oid] = {"type": p.types[k], "attributes": p.attributes[k], "geometry": [
                 {"type": "GeometryInstance", "template": index[p.keys[k]], "boundaries": [k],
                  "transformationMatrix": [float(x) for x in p.matrices[k].ravel()]}]}
     else:
@@ -147,7 +170,7 @@ def write_cityjson(path, instances: list, meshes: dict, docs: list[dict], headin
             ints, geometry = _explicit(p, k, base)
             verts.append(ints)
             base += len(ints)
-            doc["CityObjects"][oid] = {"type": "CityFurniture", "attributes": p.attributes[k],
+            doc["CityObjects"][oid] = {"type": p.types[k], "attributes": p.attributes[k],
                                        "geometry": [geometry]}
         doc["vertices"] = np.vstack(verts).tolist() if verts else []
     Path(path).write_text(json.dumps(doc, separators=(",", ":")), encoding="utf-8")
@@ -166,7 +189,7 @@ def write_cityjson_seq(path, p: _Placed, title: str, georef) -> Path:
             if key not in boundaries:
                 boundaries[key] = json.dumps(p.meshes[key][1].reshape(-1, 1, 3).tolist(), separators=(",", ":"))
             feature = {"type": "CityJSONFeature", "id": oid,
-                       "CityObjects": {oid: {"type": "CityFurniture", "attributes": p.attributes[k],
+                       "CityObjects": {oid: {"type": p.types[k], "attributes": p.attributes[k],
                                              "geometry": [{"type": "MultiSurface", "lod": "2", "boundaries": 0}]}},
                        "vertices": 0}
             text = json.dumps(feature, separators=(",", ":"))

@@ -2,7 +2,8 @@
 exterior ring counter-clockwise) with the object's attributes as properties, for QGIS and web maps.
 
 Every feature has the same properties (:data:`PROPERTIES`, null where a value does not apply), so a GIS table has
-one column each: ``kind``, ``matched`` (a boolean to filter on), the catalogue model's fields under ``model*``
+one column each: ``kind`` (and its confidence, the object's ``type``, level of symmetry and the source of its
+drawn shape), ``matched`` (a boolean to filter on), the catalogue model's fields under ``model*``
 (``model`` its name), ``reason_code`` (one word of :data:`~twinreg.matching.match.REASON_CODES`) beside the
 reason's text, and ``x``, ``y``, ``z``: the object's position in the scan's CRS and units. twin.gpkg carries the
 same attributes (:mod:`.gpkg`)."""
@@ -15,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 #: the properties of every feature, in order, with their types (str, int, float, bool)
-PROPERTIES = (("id", str), ("kind", str), ("matched", bool), ("model", str), ("model_id", int),
+PROPERTIES = (("id", str), ("kind", str), ("kind_confidence", float), ("type", int), ("symmetry_level", str),
+              ("shape_source", str), ("matched", bool), ("model", str), ("model_id", int),
               ("model_make", str), ("model_designation", str), ("confidence", float), ("rmse_m", float),
               ("ambiguous_with", str), ("outside_tolerance", bool), ("reason_code", str), ("reason", str),
               ("rejected_model", str), ("cluster", int), ("n_points", int), ("x", float), ("y", float),
@@ -31,7 +33,9 @@ def properties(doc: dict) -> dict:
     size, measured, sym = doc.get("size") or {}, doc.get("measured_size") or {}, doc.get("symmetry") or {}
     xyz = doc.get("position_crs") or doc.get("centroid") or [None] * 3
     rejected = doc.get("rejected_model")
-    values = {"id": doc.get("id"), "kind": doc.get("kind"), "matched": bool(m), "model": m.get("name"),
+    values = {"id": doc.get("id"), "kind": doc.get("kind"), "kind_confidence": doc.get("kind_confidence"),
+              "type": doc.get("type"), "symmetry_level": sym.get("level"),
+              "shape_source": (doc.get("shape") or {}).get("source"), "matched": bool(m), "model": m.get("name"),
               "model_id": m.get("model_id"), "model_make": m.get("make"), "model_designation": m.get("model"),
               "confidence": m.get("confidence"), "rmse_m": m.get("rmse_m"),
               "ambiguous_with": ", ".join(m["ambiguous_with"]) if m.get("ambiguous_with") else None,

@@ -40,7 +40,9 @@ class PlacedObject:
     ``bearing`` (degrees clockwise from true north of the mesh's +X); ``outline`` (the mesh's plan hull, model
     coordinates); ``model_id`` and the catalogue ``model`` row (None for a box; ``scale`` (L, W, H) of the unit
     box then); ``model_sections``, the model's sections registered onto the object's; ``doc``, its twin.json
-    record (:func:`~twinreg.export.twin_json.object_record`)."""
+    record (:func:`~twinreg.export.twin_json.object_record`); its recognised ``kind``
+    (:class:`~twinreg.recognition.kinds.KindResult`, or None), its ``level`` of symmetry, the number of
+    ``members`` of its type (taxonomy label) and, without a model, the near references (``candidates``)."""
 
     id: str
     n_points: int
@@ -62,6 +64,10 @@ class PlacedObject:
     scale: tuple | None = None
     model_sections: dict = field(default_factory=dict)
     doc: dict = field(default_factory=dict)
+    kind: object = None
+    level: str | None = None
+    members: int = 1
+    candidates: list = field(default_factory=list)
 
     @property
     def origin(self) -> np.ndarray:

@@ -12,7 +12,8 @@ REASON_WORDS = {"no_model_of_this_size": "no catalogue model of their size",
                 "points_unexplained": "the best model leaves their points unexplained",
                 "model_too_tall": "the best model only fits sunk into the ground",
                 "model_too_low": "the best model only fits floating above the ground",
-                "top_unseen": "the best model's top is not seen in the scan"}
+                "top_unseen": "the best model's top is not seen in the scan",
+                "under_floor": "the best model's confidence is under the floor (--min-confidence)"}
 
 
 def outcomes(objects: list[dict]) -> list[str]:

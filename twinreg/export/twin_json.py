@@ -130,12 +130,16 @@ def object_record(p, georef) -> dict:
     res, match = p.outcome, match_record(p)
     shape = res.shape
     centre_scene = np.asarray(p.centre) + p.offset
+    kind, kind_confidence = kind_of(p)
     doc = {"id": p.id, "n_points": int(p.n_points), "centroid": [float(v) for v in centre_scene],
            "position_crs": [float(v) for v in georef.to_crs_units(centre_scene)[0]],
            "heading_rad": float(p.heading), "size": {k: round(float(v), 3) for k, v in p.size.items()},
            "measured_size": shape.size.as_dict(),
-           "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4)},
-           "cluster": int(p.label), "kind": (p.model.category or "car") if match else "unknown", "match": match,
+           "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4),
+                        "level": p.level},
+           "cluster": int(p.label), "kind": kind, "kind_confidence": kind_confidence, "type": int(p.label),
+           "match": match, "candidates": list(p.candidates),
+           "shape": {"source": "model" if match else "box", "type": int(p.label), "members": int(p.members)},
            "lat": float(p.lat), "lon": float(p.lon), "bearing_deg": round(p.bearing, 3)}
     if match is None:
         doc["reason"] = res.reason
@@ -143,6 +147,21 @@ def object_record(p, georef) -> dict:
         if res.rejected:
             doc["rejected_model"] = res.rejected
     return doc
+
+
+def kind_of(p) -> tuple[str, float | None]:
+    """An object's kind and its confidence: with a model, the model's category (at the larger of the model's
+    confidence and the category's share of the kind vote); else the recognised kind (``unknown`` when nothing in
+    the catalogue is near, or when the object was not recognised: confidence None)."""
+    m = p.match
+    if m is not None:
+        category = p.model.category or "car"
+        share = p.kind.votes.get(category, 0.0) if p.kind is not None else 0.0
+        conf = max(share, m.confidence if m.confidence is not None else 0.0)
+        return category, round(float(conf), 3)
+    if p.kind is None:
+        return "unknown", None
+    return p.kind.kind, round(float(p.kind.confidence), 3)
 
 
 def trust_text(match_doc: dict) -> str:

@@ -74,15 +74,16 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
                      params: CoscoParams = DEFAULT, progress=None) -> list[dict]:
     """Each object's item as ``classify --json`` prints it (docs/CONTRACT.md). ``progress(stage, done, total)``
     as the objects are matched."""
+    from cosco.taxonomy import taxonomy_of
+
     from ..matching.match import Evidence, ModelCache, match_objects
-    from ..stages import classify
 
     floor = MIN_CONFIDENCE if min_confidence is None else float(min_confidence)
     if not 0.0 <= floor <= 1.0:
         raise ParameterError(f"--min-confidence {floor:g}: give a confidence between 0 and 1")
     refs = References.of(catalogue.list()) if catalogue.exists else References.of([])
     shapes = [o.shape for o in objects]
-    tax = classify(shapes, params, {}) if len(shapes) > 1 else None
+    tax = taxonomy_of(shapes, params) if len(shapes) > 1 else None
     labels = tax.labels if tax is not None else np.ones(len(shapes), dtype=int)
     kinds = [recognise_kind(o.shape.size.as_array(), o.level.level, refs, params) for o in objects]
     outcomes = [None] * len(objects)
@@ -115,23 +116,22 @@ def _item(o: GivenObject, kind, label: int, res, refs: References, cache, floor:
 
 
 def _candidates(o: GivenObject, kind, refs: References, cache, params: CoscoParams) -> list[dict]:
-    """The nearest references of the object's kind (any kind when unknown): name, kind, the sections'
-    dissimilarity (m) and the share of the kind vote each carried."""
-    if cache is None or not len(kind.nearest):
+    """The nearest references of the object's kind (any kind when unknown) (:func:`near_candidates`)."""
+    if cache is None:
         return []
-    weights = 1.0 / (kind.distances + params.kind_vote_floor)
-    missing = sorted({int(refs.ids[j]) for j in kind.nearest} - set(cache.known()))
+    return near_candidates(o.shape, kind, cache, params)
+
+
+def near_candidates(shape, kind, cache, params: CoscoParams) -> list[dict]:
+    """The references nearest an object of its kind (of any kind when it is unknown): name, kind, the sections'
+    dissimilarity (m, ``score_m``) and the share of the kind vote each carried (``confidence``)."""
+    near = [n for n in kind.near if kind.kind == UNKNOWN or n.kind == kind.kind]
+    missing = sorted({n.id for n in near} - set(cache.known()))
     if missing:
         cache.add_rows(cache.catalogue.rows(missing))
-    out = []
-    for j, w in zip(kind.nearest, weights / weights.sum()):
-        if kind.kind != UNKNOWN and refs.kinds[j] != kind.kind:
-            continue
-        model_sections = cache.geometry(int(refs.ids[j])).sections
-        out.append({"name": refs.names[j], "kind": str(refs.kinds[j]),
-                    "score_m": round(float(cosco.dissimilarity(o.shape.sections, model_sections, params)), 4),
-                    "confidence": round(float(w), 3)})
-    return out
+    return [{"name": n.name, "kind": n.kind,
+             "score_m": round(float(cosco.dissimilarity(shape.sections, cache.geometry(n.id).sections, params)), 4),
+             "confidence": round(n.share, 3)} for n in near]
 
 
 def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float | None = None,

@@ -44,16 +44,27 @@ class References:
 
 
 @dataclass(frozen=True)
+class Near:
+    """One of the references nearest an object: its model ``id``, ``name``, ``kind``, ``distance`` and the
+    ``share`` of the vote it carried."""
+
+    id: int
+    name: str
+    kind: str
+    distance: float
+    share: float
+
+
+@dataclass(frozen=True)
 class KindResult:
     """An object's ``kind`` (a category, or ``unknown``), its ``confidence`` (the winner's share of the vote; 0
-    for unknown), its ``votes`` (kind -> share) and the nearest references (``nearest``: indices into the
-    references, ``distances``)."""
+    for unknown), its ``votes`` (kind -> share) and the nearest references (``near``, :class:`Near`, nearest
+    first)."""
 
     kind: str
     confidence: float
     votes: dict
-    nearest: np.ndarray
-    distances: np.ndarray
+    near: tuple = ()
 
 
 def distances(size, level: str, refs: References, params: CoscoParams = DEFAULT) -> np.ndarray:
@@ -77,16 +88,18 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
     'unknown'
     """
     if len(refs) == 0:
-        return KindResult(UNKNOWN, 0.0, {}, np.zeros(0, dtype=np.int64), np.zeros(0))
+        return KindResult(UNKNOWN, 0.0, {})
     d = distances(size, level, refs, params)
     order = np.argsort(d, kind="stable")[:params.kind_k]
-    if d[order[0]] > params.kind_unknown_distance:
-        return KindResult(UNKNOWN, 0.0, {}, order, d[order])
     weights = 1.0 / (d[order] + params.kind_vote_floor)
+    shares = weights / weights.sum()
+    near = tuple(Near(int(refs.ids[j]), str(refs.names[j]), str(refs.kinds[j]), float(d[j]), float(w))
+                 for j, w in zip(order, shares))
+    if d[order[0]] > params.kind_unknown_distance:
+        return KindResult(UNKNOWN, 0.0, {}, near)
     votes: dict = {}
-    for j, w in zip(order, weights):
-        votes[refs.kinds[j]] = votes.get(refs.kinds[j], 0.0) + float(w)
-    total = sum(votes.values())
-    votes = {k: v / total for k, v in sorted(votes.items(), key=lambda kv: -kv[1])}
+    for n in near:
+        votes[n.kind] = votes.get(n.kind, 0.0) + n.share
+    votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
     kind = next(iter(votes))
-    return KindResult(str(kind), float(votes[kind]), votes, order, d[order])
+    return KindResult(kind, float(votes[kind]), votes, near)

@@ -162,11 +162,11 @@ def score(doc: dict, pair: SurveyPair, k: int = 0) -> dict:
     whose object lies within 1 m of the bay's car (the later car moved back by the true shift for an arrival).
     Returns the counts right and wrong, the wrong ones (bay, expected, got), records that match no bay, the cars
     of the missing strip called ``left``, the shift's error (m) and, of the cars that stayed, how many kept their
-    model."""
+    model and how many had none claimed in one survey (under the confidence floor)."""
     changes = [c for c in doc["changes"] if c["from"] == k]
     used, wrong, right = set(), [], 0
     strip_left = 0
-    kept = stayed = 0
+    kept = stayed = unclaimed = 0
     for b in pair.bays:
         if b.expected is None:
             continue
@@ -189,7 +189,10 @@ def score(doc: dict, pair: SurveyPair, k: int = 0) -> dict:
             strip_left += 1
         if b.event == "same" and b.expected == "same" and best is not None and changes[best]["after"] is not None:
             stayed += 1
-            kept += changes[best]["before"]["model"] == changes[best]["after"]["model"]
+            models = (changes[best]["before"]["model"], changes[best]["after"]["model"])
+            kept += models[0] == models[1]
+            unclaimed += (models[0] is None) != (models[1] is None)  # under the floor in one survey
     shift = np.asarray(doc["alignment"][k]["shift"])
     return {"right": right, "wrong": wrong, "spurious": len(changes) - len(used), "strip_left": strip_left,
-            "shift_error_m": float(np.abs(shift - pair.shift).max()), "stayed": stayed, "kept_model": kept}
+            "shift_error_m": float(np.abs(shift - pair.shift).max()), "stayed": stayed, "kept_model": kept,
+            "unclaimed_once": unclaimed}

@@ -40,7 +40,9 @@ def test_sparse_later_survey(surveys, tmp_path):
     assert s["right"] >= 0.95 * n, s
     assert s["strip_left"] == 0
     assert s["shift_error_m"] < 0.03
-    assert s["kept_model"] >= 0.95 * s["stayed"]
+    # a car that stayed keeps its model, or has none claimed in the sparse survey (its confidence under the floor):
+    # never another model
+    assert s["kept_model"] + s["unclaimed_once"] == s["stayed"] and s["kept_model"] >= 0.9 * s["stayed"], s
 
 
 def test_contract_shape(surveys, dense):
