@@ -116,6 +116,14 @@ class CoscoParams:
         neighbouring ``outlier_voxel`` (m) cubes are reported and ignored (birds, multipath, stray returns).
     car_length, car_width, car_height, car_area : (min, max)
         The size filter of the target class (m, m, m, m^2 of footprint); the paper kept 1-20 m^2 of surface.
+    seg_targets, object_height, object_max_extent, object_max_area
+        ``"cars"`` (the size filter above) or ``"all"``: besides, every object standing on the ground from
+        ``object_height`` (m, min, max) tall, at most ``object_max_extent`` m across and ``object_max_area`` m^2 of
+        footprint (a 0.3 m bollard to a 16 m pole; a building is larger); such an object that reaches
+        ``seg_max_height`` grows upwards by the points connected to its top within ``object_reach`` m of it in plan;
+        such objects need ``object_min_points`` points; one at least ``object_crown_height`` m tall whose lowest
+        point is under half its height stands on the ground too (a tree's crown over a trunk the scan missed).
+        A run takes ``"all"`` when its catalogue holds models of other kinds than vehicles.
 
     Levels of symmetry (cosco/levels.py): the points on voxels of ``level_voxel`` m or the plan extent over
     ``level_cells``, at most ``level_max_points`` (``level_object_points`` for a scan's object whose plane is already
@@ -254,6 +262,13 @@ class CoscoParams:
     seg_min_points: int = 30
     outlier_voxel: float = 10.0
     outlier_points: int = 10
+    seg_targets: str = "cars"
+    object_height: tuple = (0.3, 16.0)
+    object_max_extent: float = 12.0
+    object_max_area: float = 60.0
+    object_reach: float = 3.0
+    object_min_points: int = 10
+    object_crown_height: float = 3.0
     car_length: tuple = (2.5, 7.5)
     car_width: tuple = (1.0, 3.0)
     car_height: tuple = (0.9, 3.3)

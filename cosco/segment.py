@@ -7,11 +7,14 @@
 3. Connected patches form objects (scipy's connected components on the sparse adjacency graph).
 4. An object too large for the target class is split where its footprint has a neck (two cars touching by their
    mirrors): the footprint is eroded until it falls apart into car-sized parts.
-5. The size filter keeps objects of the target class (defaults for cars in :class:`~cosco.params.CoscoParams`).
+5. The size filter keeps objects of the target class (defaults for cars in :class:`~cosco.params.CoscoParams`); with
+   ``seg_targets="all"`` every object standing on the ground within a street's sizes too (poles, signs, bins,
+   bollards, trees, kiosks: ``object_height``, ``object_max_extent``, ``object_max_area``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -361,10 +364,17 @@ def _describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosc
     width = rect.width if rect else 0.0
     height = float(np.quantile(hag[idx], params.seg_height_quantile))
     base = float(hag[idx].min())
+    grounded = base <= params.seg_max_base + spacing
     target = (params.car_length[0] <= length <= params.car_length[1]
               and params.car_width[0] <= width <= params.car_width[1]
               and params.car_height[0] <= height <= params.car_height[1]
-              and params.car_area[0] <= area <= params.car_area[1] and base <= params.seg_max_base + spacing)
+              and params.car_area[0] <= area <= params.car_area[1] and grounded)
+    if params.seg_targets == "all" and not target:  # every object standing on the ground, of a street's sizes
+        # (a tree's crown above a trunk the airborne scan does not see stands on the ground too)
+        crown = height >= params.object_crown_height and base <= height / 2
+        target = (params.object_height[0] <= height <= params.object_height[1] and (grounded or crown)
+                  and max(length, width) <= params.object_max_extent and area <= params.object_max_area
+                  and _describable(p))
     return DetectedObject(np.sort(idx), float(length), float(width), height, float(area), base, bool(target))
 
 
@@ -454,14 +464,80 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
     order = stable_argsort(comp)
     bounds = np.flatnonzero(np.r_[True, comp[order][1:] != comp[order][:-1], True])
     objects = []
+    least = min(params.seg_min_points, params.object_min_points) if params.seg_targets == "all" else \
+        params.seg_min_points
     for a, b in zip(bounds[:-1], bounds[1:]):
         idx = cand[order[a:b]]
-        if len(idx) >= params.seg_min_points:
+        if len(idx) >= least:
             objects.append(_describe(pts, hag, idx, params, cell, spacing))
+    if params.seg_targets == "all":
+        objects = _reach_up(pts, hag, ground, objects, params, cell, spacing)
     objects.sort(key=lambda o: tuple(np.round(pts[o.indices, :2].mean(0), 1)))
     for k, o in enumerate(objects):
         labels[o.indices] = k
     return Segmentation(labels, objects, n_patches, n_comp)
+
+
+def _describable(points: np.ndarray) -> bool:
+    """Whether COSCO can describe these points (:func:`~cosco.arrays.check_object`: enough distinct points, not
+    on one line)."""
+    from .arrays import check_object
+
+    try:
+        check_object(points)
+    except ValueError:
+        return False
+    return True
+
+
+def _car_sized(o: DetectedObject, params: CoscoParams) -> bool:
+    return (params.car_length[0] <= o.length <= params.car_length[1] and params.car_width[0] <= o.width
+            <= params.car_width[1] and params.car_height[0] <= o.height <= params.car_height[1])
+
+
+def _reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, spacing: float) -> list:
+    """Every object that is not car-sized and reaches the segmentation's ceiling (``seg_max_height``: it keeps
+    tree crowns off the cars under them) grown upwards: the points above the ceiling (up to ``object_height``'s
+    top) connected to its top, within ``object_reach`` m of it in plan, join it (a pole's upper part and its lamp,
+    a sign's plate, a tree's crown). Each high point joins one object at most."""
+    from scipy.spatial import cKDTree
+
+    ceiling = params.seg_max_height
+    high = np.flatnonzero(~ground & (hag > ceiling) & (hag <= params.object_height[1]))
+    if len(high) == 0:
+        return objects
+    voxel = max(params.seg_voxel, 1.2 * spacing)
+    tree = cKDTree(pts[high, :2])
+    taken = np.zeros(len(high), dtype=bool)
+    out = []
+    for o in objects:
+        top = o.indices[hag[o.indices] > ceiling - max(2 * voxel, 0.5)]
+        if _car_sized(o, params) or len(top) < 2 or max(o.length, o.width) > params.object_max_extent:
+            out.append(o)
+            continue
+        xy = pts[o.indices, :2]
+        centre = (xy.min(0) + xy.max(0)) / 2
+        radius = float(np.hypot(*(xy.max(0) - xy.min(0))) / 2 + params.object_reach)
+        near = np.asarray(tree.query_ball_point(centre, radius), dtype=np.int64)
+        near = near[~taken[near]]
+        if len(near) == 0:
+            out.append(o)
+            continue
+        # thin uprights are sparse along their height: linked across two patches
+        comp, _, _ = voxel_components(np.vstack([pts[top], pts[high[near]]]), max(2 * voxel, 0.5))
+        joined = np.isin(comp[len(top):], comp[:len(top)])
+        if not joined.any():
+            out.append(o)
+            continue
+        taken[near[joined]] = True
+        grown = _describe(pts, hag, np.r_[o.indices, high[near[joined]]], params, cell, spacing)
+        # what it joins runs on beyond the reach looked at: part of something larger (a building's wall under
+        # its roof), not an object of its own
+        edge = np.hypot(*(pts[high[near[joined]], :2] - centre).T).max() > radius - max(2 * voxel, 0.5)
+        if edge and not _car_sized(grown, params):
+            grown = dataclasses.replace(grown, target=False)
+        out.append(grown)
+    return out
 
 
 def point_spacing(local: np.ndarray, cell: float = 0.5) -> float:

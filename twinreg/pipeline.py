@@ -25,7 +25,16 @@ from .matching.acceptance import scene_noise
 from .matching.match import Evidence, ModelCache, match_objects
 from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
-from .stages import apply_floor, checked_params, classify, locate, place, recognise, require_models
+from .stages import (
+    apply_floor,
+    checked_params,
+    classify,
+    locate,
+    place,
+    recognise,
+    require_models,
+    with_targets,
+)
 
 
 def _say(progress, msg):
@@ -114,6 +123,7 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
 def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
                   templates, tick=None) -> dict:
     require_models(catalogue)
+    params = with_targets(catalogue, params)
     from .matching.prober import Prober
 
     prober = Prober.start()  # open3d loads in a helper while this process detects and registers
@@ -144,8 +154,9 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     timing.update(det.timing_s)
     targets = det.objects
     if not targets:
-        raise SceneReadError(f"{scene_path}: no car-sized objects were found; check --unit (the scene's unit) and "
-                             "that the scan covers parked cars")
+        what = "objects" if params.seg_targets == "all" else "car-sized objects"
+        raise SceneReadError(f"{scene_path}: no {what} were found; check --unit (the scene's unit) and that the "
+                             "scan covers what the catalogue holds")
     _say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes = describe_detected(det, params)

@@ -77,6 +77,15 @@ def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances
                        distances_of)
 
 
+def with_targets(catalogue, params: CoscoParams) -> CoscoParams:
+    """``params`` detecting every object on the ground (``seg_targets="all"``) when the catalogue holds models of
+    other kinds than vehicles (what a run can recognise is what it looks for), else as given."""
+    from .catalogue.categories import VEHICLES
+
+    kinds = {r.category or "car" for r in catalogue.list()}
+    return params.with_(seg_targets="all") if kinds - VEHICLES else params
+
+
 def recognise(shapes: list, levels: list[str], catalogue, params: CoscoParams) -> list:
     """Each object's kind (:class:`~twinreg.recognition.kinds.KindResult`) from the catalogue's nearest references
     by size and level of symmetry (:mod:`twinreg.recognition.kinds`; one query for the references, numpy for the

@@ -142,7 +142,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`);
     ``min_confidence``: the models' confidence floor (None: ``params.model_min_confidence``)."""
     from ..io.outdir import check_replaceable, locked
-    from ..stages import checked_params, locate, require_models
+    from ..stages import checked_params, locate, require_models, with_targets
 
     t_start = time.perf_counter()
     timing: dict = {}
@@ -161,6 +161,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     protect = [Path(s.path) for s in sources] + [catalogue.folder]
     check_replaceable(out, protect, kind="twin")
     require_models(catalogue)
+    params = with_targets(catalogue, params)
     with locked(out, "build-twin"):
         return _locked_city(sources, georef, p, out, protect, catalogue, params, workers, scheduler, restart, ply,
                             progress, date, classified, t_start, timing)
