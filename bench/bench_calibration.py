@@ -6,8 +6,8 @@ build-twin runs it.
 
 A match is right when it is the car's own model ("strict"), or one flagged as not told apart from it ("or
 ambiguous", the recognition bench's measure). For each floor, the matches at or above it and the share right:
-the floor build-twin and classify use is the lowest one at which that share is at least 95 % (strict) at every
-density.
+the lowest one at which that share is at least 95 % (strict) at every density is reported as ``floor``
+(build-twin's default, ``CoscoParams.model_min_confidence``, is drawn beside it: docs/PERFORMANCE.md says why).
 """
 
 from __future__ import annotations
@@ -34,7 +34,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=6)
     ap.add_argument("--plot", type=Path)
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--replot", type=Path, help="draw --plot from a --json of an earlier run, running nothing")
     args = ap.parse_args()
+    if args.replot:
+        _plot(json.loads(args.replot.read_text()), args.plot)
+        return
     from bench_twin import _catalogue
 
     from twinreg.sim.accuracy import park_outcomes
@@ -90,8 +94,10 @@ def _plot(doc: dict, path: Path) -> None:
             ax.plot(x, y, marker="o", label=f"{density} pts/m2")
             for xi, yi, ni in pts:
                 ax.annotate(str(ni), (xi, yi), fontsize=6, xytext=(2, -8), textcoords="offset points")
-    if doc.get("floor") is not None:
-        ax.axvline(doc["floor"], color="tab:red", lw=1, label=f"floor {doc['floor']:.1f}")
+    from cosco.params import DEFAULT
+
+    used = DEFAULT.model_min_confidence
+    ax.axvline(used, color="tab:red", lw=1, label=f"floor used {used:.1f} (these parks allow {doc.get('floor')})")
     ax.axhline(0.95, color="tab:red", lw=0.5, ls=":")
     ax.set_xlabel("claimed confidence (bin mean)")
     ax.set_ylabel("share of shown models that are the car's own")

@@ -1,4 +1,5 @@
-"""twin.city.json (CityJSON 2.0): one ``CityFurniture`` (function: vehicle) per object, with the object's twin.json
+"""twin.city.json (CityJSON 2.0): one city object per object, of its kind's type (:func:`city_type`: a
+``CityFurniture`` of function vehicle for a car), with the object's twin.json
 record as attributes, drawn by its catalogue model's mesh (the tiles' mesh of at most 2,000 triangles) or a box of
 its measured size when it has no model. For city runs also ``twin.city.jsonl``, the same objects as CityJSONSeq
 (CityJSON Text Sequences: a first line with the transform and metadata, then one ``CityJSONFeature`` a line, each
