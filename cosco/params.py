@@ -146,6 +146,10 @@ class CoscoParams:
         Dendrogram cut (m of RMSE); the paper used 6.5 cm.
     linkage : str
         scipy linkage method.
+    cluster_spacing_k : float
+        On a sparse scan the threshold is at least this many times the objects' median point spacing (their
+        sections differ by their sampling: at Autzen's 0.41 m the nearest objects lie 0.07-0.085 m apart, so the
+        paper's 6.5 cm leaves every object a type of its own); 0 when the user gives the threshold.
     cluster_share : int
         A member of a cluster registers first to its leader's best ``cluster_share`` models and its own nearest
         ``cluster_share`` by descriptor (0: every candidate, as a leader does).
@@ -297,6 +301,7 @@ class CoscoParams:
     cluster_threshold: float = 0.065
     linkage: str = "average"
     cluster_share: int = 4
+    cluster_spacing_k: float = 0.22
 
     size_tol: float = 0.20
     size_spacing_k: float = 1.5

@@ -163,7 +163,10 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     levels = object_levels(det, shapes, params)
     timing["sections"] = time.perf_counter() - t
 
-    clusters = classify(shapes, params, timing, progress)
+    from cosco.segment import point_spacing
+
+    clusters = classify(shapes, params, timing, progress,
+                        spacing=[point_spacing(object_points(det, o)) for o in targets])
     with staged_folder(Path(out), protect=[scene_path, catalogue.folder], kind="twin") as stage:
         try:
             names = [f"obj{k + 1}" for k in range(len(targets))]

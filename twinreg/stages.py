@@ -35,7 +35,8 @@ def checked_params(params: CoscoParams, tol: float | None, threshold: float | No
     # a tolerance given by the user is the window, as in the paper: it no longer grows with the point spacing
     return params.with_(size_tol=params.size_tol if tol is None else tol,
                         size_spacing_k=params.size_spacing_k if tol is None else 0.0,
-                        cluster_threshold=params.cluster_threshold if threshold is None else threshold)
+                        cluster_threshold=params.cluster_threshold if threshold is None else threshold,
+                        cluster_spacing_k=params.cluster_spacing_k if threshold is None else 0.0)
 
 
 def require_models(catalogue) -> None:
@@ -67,11 +68,18 @@ def locate(georef, lo, hi, where: str):
     return georef.identified(centre["lon"], centre["lat"])
 
 
-def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances_of=None):
+def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances_of=None, spacing=None):
     """The objects' :class:`~cosco.taxonomy.Taxonomy` (:func:`cosco.taxonomy.taxonomy_of`: the paper's matrix and
     dendrogram up to ``params.taxonomy_full_max`` objects, the sparse graph beyond), its parts timed in
-    ``timing``."""
+    ``timing``. ``spacing``: the objects' point spacings (m): the threshold is at least
+    ``params.cluster_spacing_k`` times their median (a sparse scan)."""
+    import numpy as np
     from cosco.taxonomy import taxonomy_of
+
+    if spacing is not None and len(spacing):
+        floor = params.cluster_spacing_k * float(np.median(spacing))
+        if floor > params.cluster_threshold:
+            params = params.with_(cluster_threshold=floor)
 
     return taxonomy_of(shapes, params, timing, (lambda text: _say(progress, text)) if progress else None,
                        distances_of)
