@@ -50,6 +50,11 @@ def test_report_leads_with_the_map_and_keeps_cells_short(catalogue16, tmp_path):
     assert page.count("<details>") == len(unmatched)
     for o in unmatched:  # the full reason is there, behind its gist
         assert f"<span>{html.escape(o['reason'], quote=True)}</span>" in page
+    # the objects by kind, each kind's count as twin.json has it
+    from collections import Counter
+
+    for kind, n in Counter(o["kind"] for o in twin["objects"]).items():
+        assert f"<tr><td>{kind}</td><td>{n}</td>" in page
 
 
 def test_city_report_leads_with_the_map(city_twin, small_city):

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..io.observed import heights
 from .plots import plot_dendrogram, pyplot, save_figure
-from .scene import STYLE, short_reason
+from .scene import STYLE, kinds_table, short_reason
 
 #: at most this many cluster representatives (the largest clusters) in the report's dendrogram
 MAX_REPRESENTATIVES = 30
@@ -128,11 +128,12 @@ def write_city_report(folder, twin: dict, results, objects, outcomes, plan, para
         "<!doctype html><html><head><meta charset='utf-8'>"
         f"<title>twin of {html.escape(twin['scene'])}</title><style>{STYLE}</style></head><body>"
         f"<h1>Digital twin of {html.escape(twin['scene'])}</h1>"
-        f"<p>{len(objs)} car-sized objects, {n_matched} with a model; {twin['n_points']:,} points in "
+        f"<p>{len(objs)} objects, {n_matched} with a model; {twin['n_points']:,} points in "
         f"{twin['grid']['n_cells']} cells of {twin['grid']['cell_m']:g} m"
         + (f"; built in {t['total']:.1f} s" if t.get("total") else "") + ".</p>"
         f"<img class='lead' src='{pics[0].name}' alt='the city map'>"
-        "<div class='row'><table><tr><th>model</th><th>objects</th><th>median RMSE</th></tr>" + model_rows
+        "<div class='row'>" + kinds_table(objs) + "<table><tr><th>model</th><th>objects</th><th>median RMSE</th></tr>"
+        + model_rows
         + "</table>"
         + (f"<table><tr><th>without a model, because</th><th>objects</th></tr>{reason_rows}</table>"
            if reason_rows else "") + "</div>"

@@ -138,6 +138,23 @@ def text(x) -> str:
     return html.escape(str(x), quote=True)
 
 
+def kinds_table(objects: list[dict]) -> str:
+    """The objects by kind (most common first): how many, how many with a model, their median kind confidence."""
+    import statistics
+    from collections import defaultdict
+
+    by = defaultdict(list)
+    for o in objects:
+        by[o.get("kind") or "unknown"].append(o)
+    rows = "".join(
+        f"<tr><td>{text(k)}</td><td>{len(v)}</td><td>{sum(1 for o in v if o['match'])}</td><td>"
+        + text("" if not [o for o in v if o.get("kind_confidence") is not None] else
+               f"{statistics.median(o['kind_confidence'] for o in v if o.get('kind_confidence') is not None):.2f}")
+        + "</td></tr>" for k, v in sorted(by.items(), key=lambda kv: -len(kv[1])))
+    return ("<table><tr><th>kind</th><th>objects</th><th>with a model</th><th>median kind confidence</th></tr>"
+            f"{rows}</table>")
+
+
 def _summary_tables(twin: dict) -> str:
     from collections import Counter
 
@@ -145,7 +162,7 @@ def _summary_tables(twin: dict) -> str:
     why = Counter(short_reason(o.get("reason", "")) for o in twin["objects"] if not o["match"])
     models = "".join(f"<tr><td>{text(n)}</td><td>{text(m)}</td><td>{c}</td></tr>" for (n, m), c in per_model.most_common())
     reasons = "".join(f"<tr><td>{text(r)}</td><td>{c}</td></tr>" for r, c in why.most_common())
-    return (f"<table><tr><th>model</th><th>make</th><th>cars</th></tr>{models}</table>"
+    return (kinds_table(twin["objects"]) + f"<table><tr><th>model</th><th>make</th><th>objects</th></tr>{models}</table>"
             f"<img class='pic' src='confidence.png' alt='confidence of the matches'>"
             + (f"<table><tr><th>without a model, because</th><th>objects</th></tr>{reasons}</table>" if why else ""))
 
@@ -161,7 +178,8 @@ def _object_row(o: dict) -> str:
         full = o.get("reason", "")
         outcome = f"<details><summary>no model: {text(short_reason(full))}</summary><span>{text(full)}</span></details>"
     cells = [text(o["id"]), text(o["n_points"]),
-             text(f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}"), text(o["cluster"]),
+             text(f"{o['size']['length']:.2f} x {o['size']['width']:.2f} x {o['size']['height']:.2f}"),
+             text(o.get("kind") or ""), text(o["cluster"]),
              outcome, text(f"{m['rmse_m'] * 100:.1f} cm" if m else ""),
              text("" if not m or m.get("confidence") is None else f"{m['confidence']:.2f}"), text(doubt),
              text(f"{o['bearing_deg']:.1f}"), text((m.get("runner_up") or {}).get("name", "") if m else "")]
@@ -187,7 +205,7 @@ def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: li
             f"model; built in {twin['timing_s']['total']:.2f} s.</p>"
             f"<img class='lead' src='topview.png' alt='the twin over its scan'>"
             f"<div class='row'>{_summary_tables(twin)}</div>"
-            "<table><tr><th>object</th><th>points</th><th>size (m)</th><th>cluster</th><th>model</th><th>RMSE</th>"
+            "<table><tr><th>object</th><th>points</th><th>size (m)</th><th>kind</th><th>type</th><th>model</th><th>RMSE</th>"
             "<th>confidence</th><th>ambiguous with</th><th>bearing (deg)</th><th>runner-up</th></tr>"
             + "".join(_object_row(o) for o in twin["objects"]) + "</table>" + pics + "</body></html>")
     (folder / "report.html").write_text(page, encoding="utf-8")

@@ -111,7 +111,7 @@ def test_city_output_is_complete_and_clean(small_city, city_twin):
             n_marks += 1
     assert n_marks == len(city_twin["objects"])
     html = (out / "report.html").read_text()
-    assert "map.png" in html and "taxonomy.png" in html and f"{len(city_twin['objects'])} car-sized objects" in html
+    assert "map.png" in html and "taxonomy.png" in html and f"{len(city_twin['objects'])} objects" in html
 
 
 def test_copc_tiles_read_by_bounds_give_the_same_twin(small_city, city_twin, parametric_catalogue):
