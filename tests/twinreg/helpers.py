@@ -102,3 +102,18 @@ def toy_shapes(n: int) -> list:
         pts = toy_car(k % 3) * [1.0 + 0.2 * (k % 2), 1.0, 1.0]
         out.append(cosco.describe_object(pts + [rng.uniform(0, 100), rng.uniform(0, 100), 0.0]))
     return out
+
+
+def string_column(gltf: dict, binary: bytes, table: dict, name: str) -> list[str]:
+    """The values of a STRING property of an EXT_structural_metadata property table (read from its buffer
+    views as the specification lays them out: UTF-8 bytes and UINT32 offsets)."""
+    col = table["properties"][name]
+
+    def view(k):
+        bv = gltf["bufferViews"][k]
+        return binary[bv.get("byteOffset", 0):bv.get("byteOffset", 0) + bv["byteLength"]]
+
+    assert col.get("stringOffsetType", "UINT32") == "UINT32"
+    offsets = np.frombuffer(view(col["stringOffsets"]), dtype="<u4")
+    data = view(col["values"])
+    return [data[a:b].decode("utf-8") for a, b in zip(offsets[:-1], offsets[1:])]

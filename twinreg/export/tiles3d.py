@@ -56,11 +56,13 @@ def instance_of(p) -> Instance:
     frame)."""
     doc = p.doc
     m = doc["match"]
-    props = {"id": doc["id"], "model": m["name"] if m else "", "make": (m or {}).get("make") or "",
+    props = {"id": doc["id"], "kind": doc.get("kind") or "unknown", "model": m["name"] if m else "",
+             "make": (m or {}).get("make") or "",
              "matched": m is not None,
              "confidence": float(c) if (c := (m or {}).get("confidence")) is not None else -1.0,
              "length": doc["size"]["length"], "width": doc["size"]["width"], "height": doc["size"]["height"],
-             "cluster": float(doc["cluster"])}
+             "cluster": float(doc["cluster"]),
+             "kind_confidence": float(c) if (c := doc.get("kind_confidence")) is not None else -1.0}
     return Instance(doc["id"], "box" if p.scale is not None else p.mesh_key, np.asarray(p.origin) + p.offset,
                     p.bearing, p.scale, props)
 
@@ -80,6 +82,8 @@ def model_colour(key: str) -> tuple:
 UNIT_BOX = box_mesh(1.0, 1.0, 1.0)
 BOX_COLOUR = (0.9, 0.2, 0.2)
 DESCRIPTIONS = {"id": "object id in twin.json", "model": "catalogue model (empty: no model fits)",
+                "kind": "the object's kind: a catalogue category (car, lamp_post, ...) or unknown",
+                "kind_confidence": "0-1, the kind vote's share (-1: not known)",
                 "confidence": "0-1 from the margin over the runner-up (-1: not known)",
                 "matched": "a catalogue model was placed (else a box of the measured size)"}
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
-from tests.twinreg.helpers import DUBLIN, ROOT, node_script as _node, tileset_instances as _instances
+from tests.twinreg.helpers import DUBLIN, ROOT, node_script as _node, string_column, tileset_instances as _instances
 from twinreg.cli import app
 from twinreg.export.gltf import accessor_array, read_glb
 
@@ -51,6 +51,11 @@ def test_every_glb_passes_the_khronos_validator_and_the_instancing_checks(twin):
             assert len(gltf["meshes"][node["mesh"]]["primitives"]) == 1  # each model flattened to one mesh
             if f.parent.name == "cells":
                 n_instances += len(ids)
+                # each instance's feature row names the object and its kind as twin.json does
+                names = string_column(gltf, binary, tables[0], "id")
+                kinds = string_column(gltf, binary, tables[0], "kind")
+                by_id = {o["id"]: o["kind"] for o in doc["objects"]}
+                assert all(by_id[names[int(i)]] == kinds[int(i)] for i in ids)
     assert n_instances == len(doc["objects"])  # every object once in the tiles
 
 
