@@ -39,34 +39,47 @@ def read_objects(paths) -> list[dict]:
     return out
 
 
-def coverage(objects: list[dict], models: np.ndarray, names: list[str]) -> dict:
-    """Groups of the objects with no model (or one outside the window) by measured size, each with the nearest
-    catalogue model. ``models``: (m, 3) L, W, H of the catalogue's models, ``names`` theirs."""
+def coverage(objects: list[dict], models: np.ndarray, names: list[str], kinds: list[str] | None = None) -> dict:
+    """Groups of the objects with no model (or one outside the window) by kind and measured size, each with the
+    nearest catalogue model of its kind (of any kind when it has none or is unknown). ``models``: (m, 3) L, W, H
+    of the catalogue's models, ``names`` and ``kinds`` (categories; None: all cars) theirs. A twin written
+    before kinds counts its objects as cars."""
+    kinds = ["car"] * len(names) if kinds is None else list(kinds)
     lacking = [o for o in objects if not o.get("match") or o["match"].get("outside_tolerance")]
     sizes = np.array([[o["measured_size"]["length"], o["measured_size"]["width"], o["measured_size"]["height"]]
                       for o in lacking]).reshape(-1, 3)
     groups = {}
     for o, s in zip(lacking, sizes):
-        groups.setdefault((int(s[0] // LENGTH_BIN), int(s[1] // WIDTH_BIN)), []).append((o, s))
+        kind = str(o.get("kind") or "car")
+        groups.setdefault((kind, int(s[0] // LENGTH_BIN), int(s[1] // WIDTH_BIN)), []).append((o, s))
     out = []
-    for _, members in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0])):
+    per_kind: dict = {}
+    for o in objects:
+        k = str(o.get("kind") or "car")
+        entry = per_kind.setdefault(k, {"n_objects": 0, "n_lacking": 0})
+        entry["n_objects"] += 1
+        entry["n_lacking"] += int(not o.get("match") or bool(o["match"].get("outside_tolerance")))
+    for (kind, _, _), members in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0])):
         s = np.array([m[1] for m in members])
         lo, hi = s.min(0), s.max(0)
         tol, grow = window_of([m[0] for m in members])
         centre = (lo + hi) / 2
-        g = {"n_objects": len(members), "window_m": {"smaller": round(tol, 3), "larger": round(tol + grow, 3)}, "length_m": [round(lo[0], 2), round(hi[0], 2)],
+        g = {"kind": kind, "n_objects": len(members), "window_m": {"smaller": round(tol, 3), "larger": round(tol + grow, 3)}, "length_m": [round(lo[0], 2), round(hi[0], 2)],
              "width_m": [round(lo[1], 2), round(hi[1], 2)], "height_m": [round(lo[2], 2), round(hi[2], 2)],
              "n_no_model": sum(1 for m in members if not m[0].get("match")), "objects": [m[0]["id"] for m in members]}
-        if len(models):
+        same = np.array([k == kind for k in kinds], dtype=bool)
+        pool = np.flatnonzero(same) if same.any() else np.arange(len(names))
+        if len(pool):
             # how far each model's size lies outside the group's range (0 inside), in metres summed
             larger = np.array([tol + grow, tol + grow, tol])
-            gap = np.maximum(np.maximum(lo - tol - models, models - hi - larger), 0).sum(1)
-            k = int(np.argmin(np.abs(models - centre).sum(1)))
-            g["nearest_model"] = {"name": names[k], "size_gap_m": [round(v, 2) for v in models[k] - centre]}
+            gap = np.maximum(np.maximum(lo - tol - models[pool], models[pool] - hi - larger), 0).sum(1)
+            k = int(pool[np.argmin(np.abs(models[pool] - centre).sum(1))])
+            g["nearest_model"] = {"name": names[k], "kind": kinds[k],
+                                  "size_gap_m": [round(v, 2) for v in models[k] - centre]}
             g["models_within_tol"] = int((gap == 0).sum())
         g["text"] = _text(g)
         out.append(g)
-    return {"n_objects": len(objects), "n_lacking": len(lacking), "groups": out}
+    return {"n_objects": len(objects), "n_lacking": len(lacking), "per_kind": per_kind, "groups": out}
 
 
 def window_of(objects: list[dict]) -> tuple[float, float]:
@@ -81,9 +94,10 @@ def window_of(objects: list[dict]) -> tuple[float, float]:
 
 
 def _text(g: dict) -> str:
-    """One line for a group, e.g. "14 objects 3.2-3.6 m long, 1.5-1.7 m wide: no model within 0.2 m"."""
-    what = (f"{g['n_objects']} object{'s' if g['n_objects'] != 1 else ''} {g['length_m'][0]:.1f}-{g['length_m'][1]:.1f}"
-            f" m long, {g['width_m'][0]:.1f}-{g['width_m'][1]:.1f} m wide")
+    """One line for a group, e.g. "14 cars 3.2-3.6 m long, 1.5-1.7 m wide: no model in the size window ..."."""
+    kind = g.get("kind", "car")
+    what = (f"{g['n_objects']} {'object' if kind == 'unknown' else kind}{'s' if g['n_objects'] != 1 else ''} "
+            f"{g['length_m'][0]:.1f}-{g['length_m'][1]:.1f} m long, {g['width_m'][0]:.1f}-{g['width_m'][1]:.1f} m wide")
     if g.get("models_within_tol") == 0:
         near = g["nearest_model"]
         gap = near["size_gap_m"]

@@ -79,8 +79,8 @@ def coverage(
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
-    """The objects that got no model (or one outside the size window), grouped by size, and the sizes the
-    catalogue is missing."""
+    """The objects that got no model (or one outside the size window), grouped by kind and size, and the sizes
+    the catalogue is missing."""
     import numpy as np
 
     from ..catalogue.coverage import coverage as cover
@@ -91,7 +91,7 @@ def coverage(
     rows = open_catalogue(library, create=False).list()
     models = np.array([[r.length, r.width, r.height] for r in rows]).reshape(-1, 3)
     names = [r.name for r in rows]
-    doc = cover(objects, models, names)
+    doc = cover(objects, models, names, [r.category or "car" for r in rows])
     if plot:
         draw(objects, models, names, plot)
         doc["plot"] = str(plot)
@@ -100,6 +100,7 @@ def coverage(
         return
     info(f"{doc['n_lacking']} of {doc['n_objects']} objects got no model or one outside the size window"
          + ("" if rows else " (no catalogue: give --library to name the nearest models)"))
+    info("by kind: " + ", ".join(f"{k} {v['n_lacking']} of {v['n_objects']}" for k, v in doc["per_kind"].items()))
     for g in doc["groups"]:
         info("  " + g["text"])
 

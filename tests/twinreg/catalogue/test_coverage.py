@@ -25,9 +25,29 @@ def test_small_cars_are_reported_as_missing_sizes(catalogue16, tmp_path):
     assert doc["n_objects"] == 8 and doc["n_lacking"] == 7
     small, fusion = doc["groups"]
     assert small["n_objects"] == 6 and small["models_within_tol"] == 0
-    assert small["text"].startswith("6 objects 3.3-3.4 m long, 1.6-1.6 m wide: no model in the size window")
+    assert small["text"].startswith("6 cars 3.3-3.4 m long, 1.6-1.6 m wide: no model in the size window")
+    assert small["kind"] == "car" and doc["per_kind"] == {"car": {"n_objects": 8, "n_lacking": 7}}
     assert fusion["models_within_tol"] >= 3  # Fusion, Mondeo, MKZ...: near in size, none accepted
     assert (tmp_path / "cov.png").stat().st_size > 10_000
+
+
+def test_coverage_per_kind_names_the_nearest_model_of_the_kind(tmp_path):
+    """Objects of other kinds are grouped apart and each group's nearest model is one of its kind."""
+    import numpy as np
+
+    from twinreg.catalogue.coverage import coverage
+
+    objs = [_obj(k, 0.45, 0.42, 0.9) | {"kind": "hydrant"} for k in range(3)]
+    objs += [_obj(5, 4.2, 1.7, 1.4) | {"kind": "car"}, _obj(6, 0.5, 0.45, 0.8) | {"kind": "unknown"}]
+    models = np.array([[4.5, 1.8, 1.5], [0.6, 0.6, 1.0], [0.55, 0.55, 1.1]])
+    doc = coverage(objs, models, ["golf", "hydrant_a", "cone_b"], ["car", "hydrant", "cone"])
+    by_kind = {g["kind"]: g for g in doc["groups"]}
+    assert set(by_kind) == {"hydrant", "car", "unknown"}
+    assert by_kind["hydrant"]["nearest_model"]["name"] == "hydrant_a" and by_kind["hydrant"]["n_objects"] == 3
+    assert by_kind["car"]["nearest_model"]["name"] == "golf"
+    assert by_kind["unknown"]["nearest_model"]["name"] in ("hydrant_a", "cone_b")  # any kind, the nearest
+    assert by_kind["hydrant"]["text"].startswith("3 hydrants") and by_kind["unknown"]["text"].startswith("1 object ")
+    assert doc["per_kind"]["hydrant"] == {"n_objects": 3, "n_lacking": 3}
 
 
 def test_a_file_that_is_not_a_twin_is_refused(tmp_path):
