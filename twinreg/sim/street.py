@@ -36,19 +36,23 @@ class Street:
 
 
 def street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, passes=DEFAULT_PASSES,
-           noise: float = 0.02, spacing: tuple = (4.0, 7.0)) -> Street:
+           noise: float = 0.02, spacing: tuple = (4.0, 7.0), absent: frozenset = frozenset(),
+           scan_seed: int | None = None) -> Street:
     """``cars`` and ``furniture``: ``(kind, name, (vertices, faces))`` of normalised models (metres, Z up, front
     +X, footprint centred, z_min 0). ``n_cars`` cars (the models in turn) parked along the kerb, nose to tail with
     0.8-2 m gaps; every furniture model once, in a random order, on the pavement behind them, ``spacing`` (m)
-    apart along the street, turned at random."""
+    apart along the street, turned at random. ``absent``: names of the items placed (in ``items``) but not in the
+    scan (a later survey where a lamp post was knocked down sees the pavement there); ``scan_seed``: the scan's
+    own noise (default ``seed``): two surveys of one street differ by it."""
     rng = np.random.default_rng(seed)
     meshes, labels, items = [], [], []
 
     def put(kind, name, mesh, x, y, heading):
         v, f = mesh[0], mesh[1]
         z = float(ground_height(x, y))
-        meshes.append((transform(v, pose_matrix(x, y, heading, z)), f))
-        labels.append(len(items))
+        if name not in absent:
+            meshes.append((transform(v, pose_matrix(x, y, heading, z)), f))
+            labels.append(len(items))
         items.append(PlacedItem(kind, name, float(x), float(y), float(np.mod(heading, 2 * np.pi)),
                                 float(np.ptp(np.asarray(v)[:, 2]))))
 
@@ -77,7 +81,7 @@ def street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, passes=D
     labels.append(-2)
     meshes.append(_ground_mesh(-4.0, 12.0, -3.0, top))
     labels.append(-1)
-    scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed)
+    scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed if scan_seed is None else scan_seed)
     return Street(scan.points, np.asarray(labels)[scan.labels], items)
 
 
