@@ -43,7 +43,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                    help="a CoscoParams value for this run (e.g. kind_unknown_distance=3.0)")
     args = ap.parse_args()
+    from cosco.params import DEFAULT
+
+    params = DEFAULT.with_(**{k: type(getattr(DEFAULT, k))(v) for k, v in (a.split("=", 1) for a in args.param)})
     from sklearn.ensemble import RandomForestClassifier
 
     from twinreg.catalogue.repository import Catalogue
@@ -51,7 +56,7 @@ def main() -> None:
 
     t0 = time.perf_counter()
     files = [(k, f) for k in KINDS for f in sorted((DALES / k).glob("*.xyz"), key=lambda p: int(p.stem))]
-    objects = [read_object(f) for _, f in files]
+    objects = [read_object(f, params=params) for _, f in files]
     kinds = np.array([k for k, _ in files])
     ids = np.array([int(f.stem) for _, f in files])
     feats = np.array([features(o.points, o.shape) for o in objects])
@@ -67,7 +72,7 @@ def main() -> None:
             for r in refs:
                 cat.add(files[r][1], name=f"{kinds[r]}_{ids[r]}", category=kinds[r])
             t = time.perf_counter()
-            items = classify_objects([objects[i] for i in test], cat)
+            items = classify_objects([objects[i] for i in test], cat, params=params)
             took = time.perf_counter() - t
         got = np.array([it["kind"] for it in items])
         conf = np.array([it["kind_confidence"] for it in items])
@@ -87,7 +92,7 @@ def main() -> None:
     # the types with an empty catalogue: purity of the taxonomy's groups over all 250 objects
     with tempfile.TemporaryDirectory() as tmp:
         empty = Catalogue(Path(tmp) / "empty")
-        items = classify_objects(objects, empty)
+        items = classify_objects(objects, empty, params=params)
     types = np.array([it["type"] for it in items])
     purity = sum(Counter(kinds[types == t]).most_common(1)[0][1] for t in np.unique(types)) / len(types)
     bins = np.linspace(0, 1, 6)

@@ -1,6 +1,7 @@
 // Open the twinreg viewer in the system's headless Chromium (local_browser.mjs: every request that is not local is
 // refused), wait for the viewer's ready flag, save a screenshot and print one JSON
-// line: {"ready", "ms", "stats", "errors", "blocked", "cars": [{id, x, y, colour}], "clicked", "found", "zoom"};
+// line: {"ready", "ms", "stats", "errors", "blocked", "cars": [{id, x, y, colour}], "clicked", "found", "zoom",
+// "kinds": the kind filter's options and the ids drawn with each};
 // with "zoom" as the fifth argument, the camera then goes close and back ("zoom": the stats at each step).
 //   node shoot_viewer.mjs URL SCREENSHOT.png [width height [zoom]]
 import { localPage } from "./local_browser.mjs";
@@ -36,7 +37,18 @@ try {
     const far = await page.evaluate(() => window.twinViewerZoom(1 / 0.08));
     zoom = { start: stats, near, far };
   }
-  console.log(JSON.stringify({ ready, ms, stats, errors, blocked, cars, clicked, found, zoom }));
+  // the kind filter: its options, and the objects drawn with each of them chosen (and with a kind the twin lacks)
+  let kinds = null;
+  if (ready) {
+    const options = await page.evaluate(() => [...document.querySelectorAll("#kind option")].map((o) => o.value));
+    const shown = {};
+    for (const k of [...options.filter((o) => o), "no_such_kind", ""]) {
+      await page.evaluate((kind) => window.twinViewerFilter(kind), k);
+      shown[k] = (await page.evaluate(() => window.twinViewerProbe())).map((c) => c.id);
+    }
+    kinds = { options, shown };
+  }
+  console.log(JSON.stringify({ ready, ms, stats, errors, blocked, cars, clicked, found, zoom, kinds }));
 } finally {
   await browser.close();
 }

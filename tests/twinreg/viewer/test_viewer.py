@@ -54,6 +54,12 @@ def test_the_viewer_shows_the_demo_cars_in_a_real_browser_offline(demo_twin, ser
     assert got["ready"] and got["errors"] == [] and got["blocked"] == [], got
     twin = json.loads((demo_twin / "twin.json").read_text())
     assert got["stats"]["instances"] == len(twin["objects"]) and got["stats"]["scanPoints"] > 10_000
+    # the kind filter lists the twin's kinds and draws exactly the objects of the kind chosen
+    kinds = {o["kind"] for o in twin["objects"]}
+    assert got["kinds"]["options"] == ["", *sorted(kinds, key=lambda k: -sum(o["kind"] == k for o in twin["objects"]))]
+    for kind in kinds:
+        assert sorted(got["kinds"]["shown"][kind]) == sorted(o["id"] for o in twin["objects"] if o["kind"] == kind)
+    assert got["kinds"]["shown"]["no_such_kind"] == [] and len(got["kinds"]["shown"][""]) == len(twin["objects"])
     tiles = json.loads((demo_twin / "tiles" / "scan" / "tileset.json").read_text())
     assert tiles["root"]["refine"] == "ADD"
     assert got["ms"] < 30_000

@@ -173,12 +173,43 @@ window.twinViewerZoom = async (factor, target) => {
   return Object.assign({}, stats);
 };
 
+// show only the objects of one kind ("" for every kind): the others' instances are scaled to nothing
+const shownMatrices = new Map();
+function filterKind(kind) {
+  for (const mesh of cars) {
+    if (!shownMatrices.has(mesh)) shownMatrices.set(mesh, mesh.instanceMatrix.array.slice());
+    const src = shownMatrices.get(mesh), dst = mesh.instanceMatrix.array;
+    mesh.userData.ids.forEach((id, k) => {
+      const show = !kind || (byId.get(id) || {}).kind === kind;
+      for (let j = 0; j < 16; j++) dst[k * 16 + j] = show ? src[k * 16 + j] : 0;
+    });
+    mesh.instanceMatrix.needsUpdate = true;
+  }
+  stage.render();
+}
+window.twinViewerFilter = (kind) => { document.getElementById("kind").value = kind; filterKind(kind); };
+
+function kindOptions() {
+  const counts = new Map();
+  for (const o of twin.objects) counts.set(o.kind || "unknown", (counts.get(o.kind || "unknown") || 0) + 1);
+  const select = document.getElementById("kind");
+  select.options[0].textContent = `every kind (${twin.objects.length})`;
+  for (const [kind, n] of [...counts.entries()].sort((a, b) => b[1] - a[1])) {
+    const opt = document.createElement("option");
+    opt.value = kind;
+    opt.textContent = `${kind} (${n})`;
+    select.appendChild(opt);
+  }
+  select.onchange = (e) => filterKind(e.target.value);
+}
+
 window.twinViewerProbe = () => {
   const out = [];
   for (const mesh of cars) {
     const m = new THREE.Matrix4(), colour = mesh.material.color ? mesh.material.color.getHexString() : "";
     for (let k = 0; k < mesh.count; k++) {
       mesh.getMatrixAt(k, m);
+      if (m.determinant() === 0) continue;  // hidden by the kind filter
       const box = mesh.geometry.boundingBox || (mesh.geometry.computeBoundingBox(), mesh.geometry.boundingBox);
       const centre = box.getCenter(new THREE.Vector3()).applyMatrix4(m).applyMatrix4(mesh.matrixWorld);
       out.push({ id: mesh.userData.ids[k], ...stage.toScreen(centre), colour });
@@ -202,6 +233,7 @@ async function main() {
   const matched = twin.objects.filter((o) => o.match).length;
   document.getElementById("title").textContent = `twinreg: ${twin.scene}`;
   document.getElementById("search").oninput = (e) => search(e.target.value);
+  kindOptions();
   await updateScan();
   controls.addEventListener("change", () => { updateScan(); });
   document.getElementById("summary").textContent =
