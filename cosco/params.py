@@ -295,7 +295,7 @@ class CoscoParams:
     kind_level_penalty: float = 0.6
     kind_k: int = 2
     kind_vote_floor: float = 0.05
-    kind_unknown_distance: float = 2.5
+    kind_unknown_distance: float = 3.0
     model_min_confidence: float = 0.3
 
     cluster_threshold: float = 0.065

@@ -83,7 +83,12 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
         raise ParameterError(f"--min-confidence {floor:g}: give a confidence between 0 and 1")
     refs = References.of(catalogue.list()) if catalogue.exists else References.of([])
     shapes = [o.shape for o in objects]
-    tax = taxonomy_of(shapes, params) if len(shapes) > 1 else None
+    tax = None
+    if len(shapes) > 1:  # the threshold at least cluster_spacing_k point spacings, as a twin's (stages.classify)
+        from cosco.segment import point_spacing
+
+        floor = params.cluster_spacing_k * float(np.median([point_spacing(o.points) for o in objects]))
+        tax = taxonomy_of(shapes, params.with_(cluster_threshold=max(params.cluster_threshold, floor)))
     labels = tax.labels if tax is not None else np.ones(len(shapes), dtype=int)
     kinds = [recognise_kind(o.shape.size.as_array(), o.level.level, refs, params) for o in objects]
     outcomes = [None] * len(objects)
