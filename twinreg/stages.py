@@ -140,12 +140,15 @@ def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: 
     poses = [pose(res) for res in outcomes]
     centres = np.array([c + np.asarray(off) for (c, _), off in zip(poses, offsets)]).reshape(-1, 3)
     lonlat, bearings = georef.placements(centres, [h for _, h in poses])
-    members = Counter(int(v) for v in labels)
+    from .recognition.kinds import object_types
+
+    types = object_types(labels, [k.kind for k in kinds] if kinds is not None else None)
+    members = Counter(types)
     placed = []
     for k, (oid, n, res, label, off) in enumerate(zip(ids, n_points, outcomes, labels, offsets)):
         p = place_object(oid, n, res, int(label), np.asarray(off),
                          (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k])), models)
-        p.members = members[int(label)]
+        p.type, p.members = types[k], members[types[k]]
         if kinds is not None:
             p.kind, p.level = kinds[k], levels[k]
             if res.match is None:

@@ -67,7 +67,7 @@ def test_placing_all_at_once_is_placing_each_alone(parametric_catalogue):
         ll, bearing = georef.placements((centre + offsets[k])[None], [heading])
         alone = place_object(ids[k], shapes[k].n_points, results[k], [1, 1, 2, 2][k], offsets[k],
                              (float(ll[0, 0]), float(ll[0, 1]), float(bearing[0])), models)
-        alone.members = 2  # two objects of each label
+        alone.type, alone.members = [1, 1, 2, 2][k], 2  # two objects of each label (not recognised: no kinds)
         alone.doc = object_record(alone, georef)
         assert p.doc == alone.doc and placemark_fields(p) == placemark_fields(alone) and p.mesh_key == alone.mesh_key
         assert np.array_equal(p.pose, alone.pose)

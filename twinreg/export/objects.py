@@ -41,8 +41,9 @@ class PlacedObject:
     coordinates); ``model_id`` and the catalogue ``model`` row (None for a box; ``scale`` (L, W, H) of the unit
     box then); ``model_sections``, the model's sections registered onto the object's; ``doc``, its twin.json
     record (:func:`~twinreg.export.twin_json.object_record`); its recognised ``kind``
-    (:class:`~twinreg.recognition.kinds.KindResult`, or None), its ``level`` of symmetry, the number of
-    ``members`` of its type (taxonomy label) and, without a model, the near references (``candidates``)."""
+    (:class:`~twinreg.recognition.kinds.KindResult`, or None), its ``level`` of symmetry, its ``type`` (its
+    taxonomy group split by kind: :func:`twinreg.recognition.kinds.object_types`) and the type's number of ``members``, and,
+    without a model, the near references (``candidates``)."""
 
     id: str
     n_points: int
@@ -66,6 +67,7 @@ class PlacedObject:
     doc: dict = field(default_factory=dict)
     kind: object = None
     level: str | None = None
+    type: int = 0
     members: int = 1
     candidates: list = field(default_factory=list)
 

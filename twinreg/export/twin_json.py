@@ -137,9 +137,9 @@ def object_record(p, georef) -> dict:
            "measured_size": shape.size.as_dict(),
            "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4),
                         "level": p.level},
-           "cluster": int(p.label), "kind": kind, "kind_confidence": kind_confidence, "type": int(p.label),
+           "cluster": int(p.label), "kind": kind, "kind_confidence": kind_confidence, "type": int(p.type),
            "match": match, "candidates": list(p.candidates),
-           "shape": {"source": "model" if match else "box", "type": int(p.label), "members": int(p.members)},
+           "shape": {"source": "model" if match else "box", "type": int(p.type), "members": int(p.members)},
            "lat": float(p.lat), "lon": float(p.lon), "bearing_deg": round(p.bearing, 3)}
     if match is None:
         doc["reason"] = res.reason

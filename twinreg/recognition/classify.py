@@ -17,7 +17,7 @@ from cosco.levels import symmetry_level
 from cosco.params import DEFAULT, CoscoParams
 
 from ..errors import ParameterError, SceneReadError
-from .kinds import UNKNOWN, References, recognise_kind
+from .kinds import UNKNOWN, References, object_types, recognise_kind
 
 #: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
 #: scan's noise on)
@@ -98,8 +98,9 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
         done = (lambda k, n: progress("matching", k, n)) if progress else None
         outcomes, _ = match_objects(shapes, catalogue, labels=labels, params=params,
                                     evidence=Evidence([o.points for o in objects], OBJECT_NOISE_M), cache=cache, done=done)
-    return [_item(o, k, int(label), res, refs, cache, floor, params)
-            for o, k, label, res in zip(objects, kinds, labels, outcomes)]
+    types = object_types(labels, [k.kind for k in kinds])
+    return [_item(o, k, t, res, refs, cache, floor, params)
+            for o, k, t, res in zip(objects, kinds, types, outcomes)]
 
 
 def _item(o: GivenObject, kind, label: int, res, refs: References, cache, floor: float,

@@ -103,3 +103,18 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
     kind = next(iter(votes))
     return KindResult(kind, float(votes[kind]), votes, near)
+
+
+def object_types(labels, kinds: list | None) -> list[int]:
+    """Each object's type: its taxonomy group, split by kind (objects of one design are of one kind; a sparse
+    scan's taxonomy may join a car and a barrier of like sections), numbered from 1 in order of first appearance.
+
+    >>> object_types([1, 1, 2, 1], ["car", "barrier", "car", "car"])
+    [1, 2, 3, 1]
+    """
+    seen: dict = {}
+    out = []
+    for k, label in enumerate(labels):
+        key = (int(label), kinds[k] if kinds is not None else None)
+        out.append(seen.setdefault(key, len(seen) + 1))
+    return out
