@@ -82,7 +82,7 @@ def main() -> None:
         rf_right = rf.predict(feats[test]) == kinds[test]
         for a, b in zip(kinds[test], got):
             confusion[(a, b)] += 1
-        calib += list(zip(conf.tolist(), right.tolist()))
+        calib += [(c, r) for c, r, g in zip(conf.tolist(), right.tolist(), got.tolist()) if g != "unknown"]
         per_kind = {k: float(right[kinds[test] == k].mean()) for k in KINDS}
         rows.append({"seed": seed, "cosco_even": float(right[even].mean()), "cosco_odd": float(right[~even].mean()),
                      "rf_even": float(rf_right[even].mean()), "rf_odd": float(rf_right[~even].mean()),
@@ -95,14 +95,14 @@ def main() -> None:
         items = classify_objects(objects, empty, params=params)
     types = np.array([it["type"] for it in items])
     purity = sum(Counter(kinds[types == t]).most_common(1)[0][1] for t in np.unique(types)) / len(types)
-    bins = np.linspace(0, 1, 6)
+    bins = (0.0, 0.5, 0.7, 0.9, 0.97, 1.0001)
     c = np.array(calib)
     table = []
     for lo, hi in zip(bins[:-1], bins[1:]):
-        sel = (c[:, 0] > lo) & (c[:, 0] <= hi) if lo > 0 else (c[:, 0] <= hi)
+        sel = (c[:, 0] >= lo) & (c[:, 0] < hi)
         if sel.any():
-            table.append({"claimed": f"{lo:.1f}-{hi:.1f}", "n": int(sel.sum()), "mean_claimed": round(float(c[sel, 0].mean()), 3),
-                          "right": round(float(c[sel, 1].mean()), 3)})
+            table.append({"claimed": f"{lo:g}-{min(hi, 1.0):g}", "n": int(sel.sum()),
+                          "mean_claimed": round(float(c[sel, 0].mean()), 3), "right": round(float(c[sel, 1].mean()), 3)})
     summary = {
         "objects": {k: int((kinds == k).sum()) for k in KINDS}, "seeds": args.seeds,
         "cosco_even": _stat([r["cosco_even"] for r in rows]), "cosco_odd": _stat([r["cosco_odd"] for r in rows]),

@@ -136,7 +136,8 @@ class CoscoParams:
     Kinds (twinreg/recognition/kinds.py): an object's distance to a reference sums the absolute log ratios of
     their sizes (each at least ``kind_min_size`` m; the length weighted by ``kind_length_weight``) and
     ``kind_level_penalty`` when their levels of symmetry differ; the ``kind_k`` nearest vote by 1 / (distance +
-    ``kind_vote_floor``); farther than ``kind_unknown_distance`` the kind is unknown. Tuned on the even-numbered
+    ``kind_vote_floor``); farther than ``kind_unknown_distance`` the kind is unknown; the kind's confidence is the
+    logistic of its margin over the nearest other kind (or the unknown distance) in ``kind_confidence_scale``. Tuned on the even-numbered
     DALES objects (docs/PERFORMANCE.md). A model whose confidence is under ``model_min_confidence`` is not
     claimed (``--min-confidence``; chosen on the calibration of docs/PERFORMANCE.md, "Kinds").
 
@@ -296,6 +297,7 @@ class CoscoParams:
     kind_k: int = 2
     kind_vote_floor: float = 0.05
     kind_unknown_distance: float = 3.0
+    kind_confidence_scale: float = 0.28
     model_min_confidence: float = 0.3
 
     cluster_threshold: float = 0.065

@@ -4,9 +4,12 @@ of symmetry, the features COSCO measures on every object.
 The distance of an object to a reference is the sum over length, width and height of the absolute log ratio
 (``kind_length_weight`` on the length: a fence or a hedge is as long as its segment, not as its kind), plus
 ``kind_level_penalty`` when their levels of symmetry differ. The ``kind_k`` nearest references vote, each by
-1 / (distance + ``kind_vote_floor``); the kind is the vote's winner and its confidence the winner's share. When
-the nearest reference is farther than ``kind_unknown_distance`` the kind is ``unknown``: nothing in the catalogue
-is near. Pure numpy: references in, kinds out.
+1 / (distance + ``kind_vote_floor``); the kind is the vote's winner. Its confidence is a logistic function of
+its margin: how much nearer the winner's nearest reference is than the nearest of any other kind (or than
+``kind_unknown_distance``, whichever is nearer), over ``kind_confidence_scale`` (fit on the DALES objects of even
+id; on the held-out ones, claimed 0.61 / 0.82 / 0.94 / 0.996 were right 61 / 84 / 91 / 99 %). When the nearest
+reference is farther than ``kind_unknown_distance`` the kind is ``unknown``: nothing in the catalogue is near.
+Pure numpy: references in, kinds out.
 """
 
 from __future__ import annotations
@@ -65,6 +68,7 @@ class KindResult:
     confidence: float
     votes: dict
     near: tuple = ()
+    margin: float = 0.0
 
 
 def distances(size, level: str, refs: References, params: CoscoParams = DEFAULT) -> np.ndarray:
@@ -102,7 +106,11 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
         votes[n.kind] = votes.get(n.kind, 0.0) + n.share
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
     kind = next(iter(votes))
-    return KindResult(kind, float(votes[kind]), votes, near)
+    mine = refs.kinds == kind
+    others = d[~mine].min() if (~mine).any() else np.inf
+    margin = float(min(others, params.kind_unknown_distance) - d[mine].min())
+    confidence = float(1.0 / (1.0 + np.exp(-margin / params.kind_confidence_scale)))
+    return KindResult(kind, confidence, votes, near, margin)
 
 
 def object_types(labels, kinds: list | None) -> list[int]:
