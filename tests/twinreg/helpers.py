@@ -117,3 +117,20 @@ def string_column(gltf: dict, binary: bytes, table: dict, name: str) -> list[str
     offsets = np.frombuffer(view(col["stringOffsets"]), dtype="<u4")
     data = view(col["values"])
     return [data[a:b].decode("utf-8") for a, b in zip(offsets[:-1], offsets[1:])]
+
+
+def downgrade_catalogue(db: Path, revision: str) -> None:
+    """Take a catalogue's database back to an earlier migration ``revision`` with alembic (an older catalogue, as
+    a user may still hold one)."""
+    from alembic import command
+    from alembic.config import Config
+
+    from twinreg.catalogue.db import make_engine, migrations_dir
+
+    engine = make_engine(db)
+    cfg = Config()
+    cfg.set_main_option("script_location", str(migrations_dir()))
+    with engine.begin() as conn:
+        cfg.attributes["connection"] = conn
+        command.downgrade(cfg, revision)
+    engine.dispose()

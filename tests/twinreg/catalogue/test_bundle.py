@@ -87,20 +87,11 @@ def test_a_damaged_zip_is_refused_with_one_line(bundle, tmp_path):
 
 def test_an_older_schema_is_upgraded_on_import(bundle, tmp_path):
     """A bundle written before migration 0004 (no section descriptor) imports with its descriptors filled."""
-    from alembic import command
-    from alembic.config import Config
-
-    from twinreg.catalogue.db import make_engine, migrations_dir
+    from tests.twinreg.helpers import downgrade_catalogue
 
     work = tmp_path / "old"
     zipfile.ZipFile(bundle).extractall(work)
-    engine = make_engine(work / "catalogue.sqlite")
-    cfg = Config()
-    cfg.set_main_option("script_location", str(migrations_dir()))
-    with engine.begin() as conn:
-        cfg.attributes["connection"] = conn
-        command.downgrade(cfg, "0003_frame")
-    engine.dispose()
+    downgrade_catalogue(work / "catalogue.sqlite", "0003_frame")
     con = sqlite3.connect(work / "catalogue.sqlite")
     con.execute("PRAGMA journal_mode=DELETE")
     con.close()

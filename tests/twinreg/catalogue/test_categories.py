@@ -66,21 +66,12 @@ def test_an_implausible_size_for_the_kind_is_refused_in_one_line(furniture, tmp_
 def test_a_catalogue_from_before_categories_is_upgraded(parametric_catalogue, tmp_path):
     """The parametric catalogue taken back to revision 0004, then opened: every model a car from a mesh, its
     level of symmetry measured on the points it holds."""
-    from alembic import command
-    from alembic.config import Config
-
-    from twinreg.catalogue.db import make_engine, migrations_dir
+    from tests.twinreg.helpers import downgrade_catalogue
     from twinreg.catalogue.repository import Catalogue
 
     lib = tmp_path / "old"
     shutil.copytree(parametric_catalogue.folder, lib)
-    engine = make_engine(lib / "catalogue.sqlite")
-    cfg = Config()
-    cfg.set_main_option("script_location", str(migrations_dir()))
-    with engine.begin() as conn:
-        cfg.attributes["connection"] = conn
-        command.downgrade(cfg, "0004_profile")
-    engine.dispose()
+    downgrade_catalogue(lib / "catalogue.sqlite", "0004_profile")
     cols = {c[1] for c in sqlite3.connect(lib / "catalogue.sqlite").execute("PRAGMA table_info(ref_models)")}
     assert "category" not in cols and "sym_level" not in cols
     rows = Catalogue(lib).list()
