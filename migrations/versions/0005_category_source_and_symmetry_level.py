@@ -25,13 +25,22 @@ def _unpack(blob: bytes) -> np.ndarray:
 def upgrade() -> None:
     from cosco.levels import symmetry_level
 
-    with op.batch_alter_table('ref_models', schema=None) as batch_op:
-        batch_op.add_column(sa.Column('category', sa.String(length=40), nullable=False, server_default='car'))
-        batch_op.add_column(sa.Column('source', sa.String(length=10), nullable=False, server_default='mesh'))
-        batch_op.add_column(sa.Column('sym_level', sa.String(length=20), nullable=True))
-        batch_op.create_index(batch_op.f('ix_ref_models_category'), ['category'], unique=False)
-    # every model so far is a car from a mesh; its level of symmetry from the surface points it holds
+    # SQLite's DDL is not undone when a migration fails half-way (pysqlite commits it): a catalogue left with
+    # some of these columns by an interrupted upgrade is completed, not refused
     conn = op.get_bind()
+    inspector = sa.inspect(conn)
+    have = {c["name"] for c in inspector.get_columns('ref_models')}
+    indexes = {i["name"] for i in inspector.get_indexes('ref_models')}
+    with op.batch_alter_table('ref_models', schema=None) as batch_op:
+        if 'category' not in have:
+            batch_op.add_column(sa.Column('category', sa.String(length=40), nullable=False, server_default='car'))
+        if 'source' not in have:
+            batch_op.add_column(sa.Column('source', sa.String(length=10), nullable=False, server_default='mesh'))
+        if 'sym_level' not in have:
+            batch_op.add_column(sa.Column('sym_level', sa.String(length=20), nullable=True))
+        if 'ix_ref_models_category' not in indexes:
+            batch_op.create_index(batch_op.f('ix_ref_models_category'), ['category'], unique=False)
+    # every model so far is a car from a mesh; its level of symmetry from the surface points it holds
     for mid, blob in conn.execute(sa.text("SELECT id, points FROM ref_models")).fetchall():
         level = symmetry_level(_unpack(blob)).level
         conn.execute(sa.text("UPDATE ref_models SET sym_level = :l WHERE id = :i"), {"l": level, "i": mid})

@@ -77,3 +77,20 @@ def test_a_catalogue_from_before_categories_is_upgraded(parametric_catalogue, tm
     rows = Catalogue(lib).list()
     assert len(rows) == 8 and {r.category for r in rows} == {"car"} and {r.source for r in rows} == {"mesh"}
     assert all(r.sym_level in ("mirror", "two_mirrors") for r in rows)
+
+
+def test_an_upgrade_interrupted_half_way_is_completed(parametric_catalogue, tmp_path):
+    """SQLite keeps the columns an interrupted upgrade added (its DDL is committed as it goes): the next open
+    completes the upgrade instead of refusing the catalogue."""
+    from tests.twinreg.helpers import downgrade_catalogue
+    from twinreg.catalogue.repository import Catalogue
+
+    lib = tmp_path / "half"
+    shutil.copytree(parametric_catalogue.folder, lib)
+    downgrade_catalogue(lib / "catalogue.sqlite", "0004_profile")
+    con = sqlite3.connect(lib / "catalogue.sqlite")
+    con.execute("ALTER TABLE ref_models ADD COLUMN category VARCHAR(40) DEFAULT 'car' NOT NULL")
+    con.commit()
+    con.close()
+    rows = Catalogue(lib).list()
+    assert len(rows) == 8 and {r.category for r in rows} == {"car"} and all(r.sym_level for r in rows)
