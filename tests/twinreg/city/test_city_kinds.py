@@ -1,0 +1,38 @@
+"""A city built cell by cell with a catalogue of several kinds: every object on the ground detected on the workers,
+each object's level of symmetry carried in its cell's file, the kinds and types as a scene's; the cars the same
+as with the cars alone."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from tests.conftest import CELL, furniture_rows
+
+
+@pytest.mark.timeout(600)
+def test_a_city_with_furniture_in_the_catalogue(small_city, parametric_catalogue, city_twin, tmp_path):
+    from twinreg.catalogue.repository import Catalogue
+    from twinreg.city.build import build_city_twin
+
+    lib = tmp_path / "lib"
+    shutil.copytree(parametric_catalogue.folder, lib)
+    cat = Catalogue(lib)
+    bin_row = next(r for r in furniture_rows() if r["slug"] == "first_2015_trash_can")
+    cat.add(bin_row["path"], name="bin", category="bin")
+    root, _ = small_city
+    twin = build_city_twin([root / "laz"], cat, None, tmp_path / "out", cell=CELL, workers=2)
+    objs = twin["objects"]
+    assert len(objs) >= len(city_twin["objects"])  # every object on the ground: the cars and more
+    for o in objs:
+        assert o["symmetry"]["level"] in ("none", "mirror", "two_mirrors", "rotational")
+        assert o["kind"] in ("car", "bin", "unknown") and isinstance(o["type"], int)
+        if o["match"]:
+            assert o["kind"] == ("bin" if o["match"]["name"] == "bin" else "car")
+    # the cars found with the cars alone are found again, with the same models
+    before = {(round(o["centroid"][0]), round(o["centroid"][1])): (o["match"] or {}).get("name")
+              for o in city_twin["objects"]}
+    after = {(round(o["centroid"][0]), round(o["centroid"][1])): (o["match"] or {}).get("name") for o in objs}
+    same = sum(1 for k, v in before.items() if k in after and after[k] == v)
+    assert same >= 0.95 * len(before), (same, len(before))
