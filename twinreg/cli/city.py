@@ -37,6 +37,9 @@ def simulate_city_cmd(
         "--date", formats=["%Y-%m-%d"], help="The survey's date in the tiles' headers, YYYY-MM-DD [default: today; "
                                              "with --epoch-of, 91 days after the earlier one's].",
         show_default=False)] = None,
+    furniture: Annotated[bool, typer.Option(
+        "--furniture", help="Streets layout: also the catalogue's street furniture (its models of other kinds than "
+                            "vehicles) on the pavements.")] = False,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -44,7 +47,7 @@ def simulate_city_cmd(
     models, or parametric cars when it is empty), walls, trees, poles, sloping ground, or dense car parks
     (--layout parks); or, with --epoch-of, a later survey of such a city."""
     from ..io.outdir import staged_folder
-    from ..sim.city import city_models, simulate_city
+    from ..sim.city import city_furniture, city_models, simulate_city
 
     if layout not in ("streets", "parks"):
         from ..errors import ParameterError
@@ -59,9 +62,11 @@ def simulate_city_cmd(
             truth = _later(stage, epoch_of, models, names, sizes, density, seed, when, bars.update)
         else:
             truth = simulate_city(stage, models, names, km2=km2, density=density or 150.0, tile=tile, seed=seed,
-                                  crs=crs, progress=bars.update, copc=copc, date=when, kind=layout)
+                                  crs=crs, progress=bars.update, copc=copc, date=when, kind=layout,
+                                  furniture=city_furniture(library) if furniture else None)
     doc = {k: truth.get(k) for k in ("crs", "tile_m", "density", "seed", "side_m", "n_points", "tiles", "date")}
-    doc |= {"n_cars": len(truth["cars"]), "truth": str(out / "truth.json"), "models": source}
+    doc |= {"n_cars": len(truth["cars"]), "truth": str(out / "truth.json"), "models": source,
+            "n_furniture": sum(1 for o in truth.get("others", []) if o["kind"].startswith("furniture:"))}
     if epoch_of is not None:
         doc["events"] = {k: sum(1 for e in truth["events"] if e["event"] == k)
                          for k in ("same", "moved", "left", "replaced", "arrived")}

@@ -62,11 +62,14 @@ def _tree(x, y, rng):
 
 
 def layout(models: list, side_x: float, side_y: float, seed: int,
-           street_spacing: float = STREET_SPACING) -> list[Placed]:
+           street_spacing: float = STREET_SPACING, furniture: list | None = None) -> list[Placed]:
     """Cars along streets (one every ``street_spacing`` metres), walls, trees and poles over
     ``[0, side_x) x [0, side_y)`` (metres, local); the spaces left empty are kept as ``slot`` (not scanned: where
-    a later epoch's cars arrive)."""
+    a later epoch's cars arrive). ``furniture``: ``(category, name, mesh)`` placed in turn on the pavements, one
+    every 9-15 m (kind ``furniture:<category>``, ``model`` its index in the list); none when None (the same city as
+    without)."""
     rng = np.random.default_rng(seed)
+    street_rng = np.random.default_rng([seed, 7])  # its own draws: the rest of the city is unchanged
     placed: list[Placed] = []
     lengths = [float(np.ptp(v[:, 0])) for v, _ in models]
     for yc in np.arange(street_spacing / 2, side_y, street_spacing):
@@ -104,6 +107,17 @@ def layout(models: list, side_x: float, side_y: float, seed: int,
             gz = float(ground_height(xp, py))
             placed.append(Placed("pole", -1, float(xp), float(py), 0.0, _box([0.2, 0.2, 6.0], [xp, py, gz + 3.0]),
                                  0.5))
+        if furniture:
+            xf = street_rng.uniform(4.0, 9.0)
+            while xf < side_x - 4.0:
+                k = int(street_rng.integers(len(furniture)))
+                category, _, (v, f) = furniture[k][0], furniture[k][1], furniture[k][2][:2]
+                py = yc + street_rng.choice([-1.0, 1.0]) * 6.6  # the pavement, behind the parked cars
+                heading = float(street_rng.uniform(0, 2 * np.pi))
+                mesh = (transform(v, pose_matrix(float(xf), float(py), heading, float(ground_height(xf, py)))), f)
+                radius = float(np.ptp(np.asarray(v)[:, :2], axis=0).max()) / 2 + 0.3
+                placed.append(Placed(f"furniture:{category}", k, float(xf), float(py), heading, mesh, radius))
+                xf += street_rng.uniform(9.0, 15.0)
     return placed
 
 
@@ -211,16 +225,33 @@ def write_laz(path, points: np.ndarray, crs: str, date: str | None = None):
     las.write(str(path))
 
 
-def city_models(library=None) -> tuple[list, list[str], str, np.ndarray]:
-    """The cars of a simulated city: the catalogue's models (their twin meshes) when it has any, else the
-    project's parametric cars. Returns (meshes, names, "catalogue" or "parametric", their (n, 3) sizes)."""
+def city_furniture(library=None) -> list[tuple]:
+    """The street furniture of a simulated city: ``(category, name, mesh)`` of the catalogue's models of other
+    kinds than vehicles (none when it has no such model)."""
+    from ..catalogue.categories import VEHICLES
     from ..catalogue.db import library_path
     from ..catalogue.repository import Catalogue
 
     folder = library_path(library)
+    if not (Path(folder) / "catalogue.sqlite").exists():
+        return []
+    cat = Catalogue(folder, create=False)
+    rows = sorted((r for r in cat.list() if (r.category or "car") not in VEHICLES), key=lambda r: r.name)
+    return [(r.category, r.name, cat.ge_mesh(r)) for r in rows]
+
+
+def city_models(library=None) -> tuple[list, list[str], str, np.ndarray]:
+    """The cars of a simulated city: the catalogue's vehicle models (their twin meshes) when it has any, else the
+    project's parametric cars. Returns (meshes, names, "catalogue" or "parametric", their (n, 3) sizes)."""
+    from ..catalogue.db import library_path
+    from ..catalogue.repository import Catalogue
+
+    from ..catalogue.categories import VEHICLES
+
+    folder = library_path(library)
     if (Path(folder) / "catalogue.sqlite").exists():
         cat = Catalogue(folder, create=False)
-        rows = sorted(cat.list(), key=lambda r: r.name)
+        rows = sorted((r for r in cat.list() if (r.category or "car") in VEHICLES), key=lambda r: r.name)
         if rows:
             return ([cat.ge_mesh(r) for r in rows], [r.name for r in rows], "catalogue",
                     np.array([(r.length, r.width, r.height) for r in rows]))
@@ -233,10 +264,11 @@ def city_models(library=None) -> tuple[list, list[str], str, np.ndarray]:
 def simulate_city(out, models: list, names: list[str], km2: float = 0.01, density: float = 150.0,
                   tile: float = 100.0, seed: int = 0, crs: str = DEFAULT_CRS, origin=DEFAULT_ORIGIN,
                   progress=None, copc: bool = False, street_spacing: float = STREET_SPACING,
-                  date: str | None = None, kind: str = "streets") -> dict:
+                  date: str | None = None, kind: str = "streets", furniture: list | None = None) -> dict:
     """Write ``out/tile_<x>_<y>.laz`` (``tile`` metres square, ``crs`` and ``date`` (``YYYY-MM-DD``, None: today's)
     in each header; ``.copc.laz`` files with ``copc``) and ``out/truth.json``; ``kind``: ``streets`` (see the
-    module's text) or ``parks`` (dense car parks with furniture, :func:`park_layout`).
+    module's text) or ``parks`` (dense car parks with furniture, :func:`park_layout`); ``furniture``: the
+    catalogue's street furniture placed on a streets layout's pavements (:func:`city_furniture`).
 
     models : (vertices, faces) of each car model (metres, Z up, front +X, footprint centred, bottom at z 0);
     names : their names, written in the truth. Returns the truth document.
@@ -247,7 +279,7 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
     side = n_tiles * tile
     if kind not in ("streets", "parks"):
         raise ValueError(f"unknown city layout {kind!r}: streets or parks")
-    placed = (layout(models, side, side, seed, street_spacing) if kind == "streets"
+    placed = (layout(models, side, side, seed, street_spacing, furniture) if kind == "streets"
               else park_layout(models, side, side, seed))
     origin = np.asarray(origin, dtype=np.float64)
     survey = Survey(density, seed, PASSES, date=date)
@@ -256,8 +288,9 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
     truth = {"crs": crs, "origin": origin.tolist(), "tile_m": tile, "density": density, "seed": seed,
              "street_spacing_m": street_spacing, "km2": km2, "date": date, "layout": kind,
              "side_m": side, "n_points": n_points, "tiles": files, "cars": car_truth(placed, names, origin),
-             "others": [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]} for p in placed
-                        if p.kind not in ("car", "slot")]}
+             "others": [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]}
+                        | ({"model": furniture[p.model][1]} if p.kind.startswith("furniture:") else {})
+                        for p in placed if p.kind not in ("car", "slot")]}
     write_truth(out, truth)
     return truth
 

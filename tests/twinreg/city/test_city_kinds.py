@@ -36,3 +36,36 @@ def test_a_city_with_furniture_in_the_catalogue(small_city, parametric_catalogue
     after = {(round(o["centroid"][0]), round(o["centroid"][1])): (o["match"] or {}).get("name") for o in objs}
     same = sum(1 for k, v in before.items() if k in after and after[k] == v)
     assert same >= 0.95 * len(before), (same, len(before))
+
+
+def test_simulate_city_puts_the_catalogues_furniture_on_the_pavements(parametric_catalogue, tmp_path):
+    """``simulate-city --furniture``: the catalogue's cars park (never its furniture), its furniture stands on the
+    pavements, each item in truth.json with its kind and model; without the flag, the same city as before."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from twinreg.catalogue.repository import Catalogue
+    from twinreg.cli import app
+
+    lib = tmp_path / "lib"
+    shutil.copytree(parametric_catalogue.folder, lib)
+    cat = Catalogue(lib)
+    for r in furniture_rows():
+        if r["slug"] in ("first_2015_trash_can", "fire_hydrant"):
+            cat.add(r["path"], name=r["slug"], category=r["category"], scale=r["scale"])
+    args = ["simulate-city", "--km2", "0.0025", "--tile", "50", "--density", "40", "--seed", "2", "--library", lib,
+            "--json"]
+    res = CliRunner().invoke(app, [str(a) for a in [*args[:1], tmp_path / "with", *args[1:], "--furniture"]])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    truth = json.loads((tmp_path / "with" / "truth.json").read_text())
+    items = [o for o in truth["others"] if o["kind"].startswith("furniture:")]
+    assert doc["n_furniture"] == len(items) >= 4
+    assert {o["kind"] for o in items} <= {"furniture:bin", "furniture:hydrant"}
+    assert {o["model"] for o in items} <= {"first_2015_trash_can", "fire_hydrant"}
+    assert {c["model"] for c in truth["cars"]} <= {r.name for r in cat.list() if r.category == "car"}
+    res = CliRunner().invoke(app, [str(a) for a in [*args[:1], tmp_path / "without", *args[1:]]])
+    plain = json.loads((tmp_path / "without" / "truth.json").read_text())
+    assert res.exit_code == 0 and plain["cars"] == truth["cars"]  # the furniture changes nothing else
+    assert not [o for o in plain["others"] if o["kind"].startswith("furniture:")]
