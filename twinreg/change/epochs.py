@@ -7,7 +7,7 @@ from __future__ import annotations
 import datetime
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +22,8 @@ MAX_TWIN_BYTES = 256 * 1024 ** 2
 #: the largest object size (m) a twin may state: a building block is still under this
 MAX_SIZE_M = 500.0
 _CODE = re.compile(r"^[A-Za-z]{2,12}:[0-9]{1,7}$")
+#: a kind as twin.json states it (a catalogue's category): anything else from a stranger's file reads unknown
+_KIND = re.compile(r"[a-z][a-z0-9_]{0,39}")
 _WKT = re.compile(r"^\s*(PROJCRS|PROJCS|COMPOUNDCRS|COMPD_CS|GEOGCRS|GEOGCS|BOUNDCRS|GEODCRS)\s*\[")
 
 
@@ -33,7 +35,8 @@ class Epoch:
     (NaN: none), ``n_points``, ``lonlat`` (n, 2) as twin.json states them; the scan's ``noise`` (m) and
     ``spacing`` (m, mean point spacing of the area it saw); and
     its observation ``record``; ``vertical``: its heights' datum (None: unknown), and ``height`` how its heights
-    were put in the comparison's datum (set by :func:`read_epochs`)."""
+    were put in the comparison's datum (set by :func:`read_epochs`); ``kinds``: each object's kind (``unknown``
+    when its twin.json gives none, or not a kind's word)."""
 
     folder: Path
     date: str | None
@@ -53,6 +56,7 @@ class Epoch:
     n_scan_points: int = 0
     vertical: str | None = None
     height: dict | None = None
+    kinds: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -134,7 +138,7 @@ def _objects(doc, folder: Path) -> dict:
     if not isinstance(objs, list):
         raise CompareError(f"{folder}: twin.json lists no objects; rerun build-twin")
     cols = {"ids": [], "centre": [], "heading": [], "size": [], "measured": [], "models": [], "confidence": [],
-            "n_points": [], "lonlat": []}
+            "n_points": [], "lonlat": [], "kinds": []}
     for o in objs:
         if not isinstance(o, dict) or not isinstance(o.get("id"), str):
             raise CompareError(f"{folder}: an object in twin.json has no id; rerun build-twin")
@@ -147,6 +151,8 @@ def _objects(doc, folder: Path) -> dict:
         cols["size"].append(_size(o, "size", folder))
         cols["measured"].append(_size(o, "measured_size", folder))
         cols["models"].append(name[:200] if isinstance(name, str) else None)
+        kind = o.get("kind")
+        cols["kinds"].append(kind if isinstance(kind, str) and _KIND.fullmatch(kind) else "unknown")
         conf = _number(conf, "confidence", folder) if conf is not None else np.nan
         n = _number(o.get("n_points", 0), "n_points", folder)
         if not (np.isnan(conf) or 0.0 <= conf <= 1.0) or n < 0 or n != int(n):
@@ -198,7 +204,7 @@ def read_epoch(folder) -> Epoch:
                  np.array(cols["confidence"], dtype=np.float64), np.array(cols["n_points"], dtype=np.int64),
                  np.array(cols["lonlat"], dtype=np.float64).reshape(-1, 2),
                  _noise(doc, folder), float(np.sqrt(seen / max(n_scan, 1))),
-                 record, n_scan, _vertical(doc, folder))
+                 record, n_scan, _vertical(doc, folder), kinds=cols["kinds"])
 
 
 def same_frame(a: Epoch, b: Epoch) -> bool:

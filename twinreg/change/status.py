@@ -87,6 +87,7 @@ def _logistic(x):
 def _object(e: Epoch, k: int) -> dict:
     return {"id": e.ids[k], "centroid": [float(v) for v in e.centre[k]], "lat": float(e.lonlat[k, 1]),
             "lon": float(e.lonlat[k, 0]), "heading_rad": float(e.heading[k]), "model": e.models[k],
+            "kind": e.kinds[k] if e.kinds else "unknown",
             "size": {n: round(float(v), 3) for n, v in zip(("length", "width", "height"), e.size[k])}}
 
 

@@ -115,5 +115,10 @@ def test_a_lamp_post_knocked_down_is_left(street_lib, tmp_path):
     for name in gone & set(status):
         assert status[name] == "left", status
     assert not any(v == "left" for n, v in status.items() if n not in gone), status
+    # each record says what kind of object it is, as the twin did
+    kinds = {o["id"]: o["kind"] for o in before}
+    for c in doc["changes"]:
+        if c["before"] is not None:
+            assert c["before"]["kind"] == kinds[c["before"]["id"]]
     cars = [r.name for r in rows if r.category == "car"]
     assert sum(status.get(n) == "same" for n in cars) >= 2, status
