@@ -151,16 +151,21 @@ def taxonomy(shapes: list, params: CoscoParams = DEFAULT, distances_of=None) -> 
 
 
 def taxonomy_of(shapes: list, params: CoscoParams = DEFAULT, timing: dict | None = None, say=None,
-                distances_of=None) -> Taxonomy:
+                distances_of=None, spacing=None) -> Taxonomy:
     """The objects' taxonomy as a run takes it: the paper's matrix and dendrogram up to
     ``params.taxonomy_full_max`` objects (timed in ``timing`` as "matrix" and "clustering"), the sparse graph of
     :func:`taxonomy` beyond (timed as "matrix": its comparisons and its components); ``say(text)`` as each part
-    starts."""
+    starts. ``spacing``: the objects' point spacings (m): the threshold is at least ``params.cluster_spacing_k``
+    times their median (a sparse scan's sections differ by their sampling)."""
     import time
 
     from .cluster import cluster
     from .dissimilarity import dissimilarity_matrix
 
+    if spacing is not None and len(spacing):
+        floor = params.cluster_spacing_k * float(np.median(spacing))
+        if floor > params.cluster_threshold:
+            params = params.with_(cluster_threshold=floor)
     timing = {} if timing is None else timing
     t = time.perf_counter()
     if len(shapes) > params.taxonomy_full_max or distances_of is not None:

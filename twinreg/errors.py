@@ -93,6 +93,18 @@ def require_positive(name: str, value, hint: str = "") -> float | None:
     return v
 
 
+def require_probability(name: str, value) -> float:
+    """``value`` as a float if it lies in 0-1, else :class:`ParameterError` (a confidence the user gave).
+
+    >>> require_probability("--min-confidence", 0.3)
+    0.3
+    """
+    v = float(value)
+    if not 0.0 <= v <= 1.0:
+        raise ParameterError(f"{name} {v:g}: give a confidence between 0 and 1")
+    return v
+
+
 class CompareError(TwinregError):
     """Twins that cannot be compared (not a twin, no observation record, another CRS, no overlap, the same twin
     twice); nothing was written."""

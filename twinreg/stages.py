@@ -24,12 +24,10 @@ def checked_params(params: CoscoParams, tol: float | None, threshold: float | No
                    min_confidence: float | None = None) -> CoscoParams:
     """``params`` with the size tolerance and cluster threshold the user gave (both must be positive) and the
     models' confidence floor (0-1)."""
-    from .errors import ParameterError, require_positive
+    from .errors import require_positive, require_probability
 
     if min_confidence is not None:
-        if not 0.0 <= min_confidence <= 1.0:
-            raise ParameterError(f"--min-confidence {min_confidence:g}: give a confidence between 0 and 1")
-        params = params.with_(model_min_confidence=float(min_confidence))
+        params = params.with_(model_min_confidence=require_probability("--min-confidence", min_confidence))
     tol = require_positive("--tol", tol, f" (default {params.size_tol:g})")
     threshold = require_positive("--threshold", threshold, f" (default {params.cluster_threshold:g})")
     # a tolerance given by the user is the window, as in the paper: it no longer grows with the point spacing
@@ -73,16 +71,10 @@ def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances
     dendrogram up to ``params.taxonomy_full_max`` objects, the sparse graph beyond), its parts timed in
     ``timing``. ``spacing``: the objects' point spacings (m): the threshold is at least
     ``params.cluster_spacing_k`` times their median (a sparse scan)."""
-    import numpy as np
     from cosco.taxonomy import taxonomy_of
 
-    if spacing is not None and len(spacing):
-        floor = params.cluster_spacing_k * float(np.median(spacing))
-        if floor > params.cluster_threshold:
-            params = params.with_(cluster_threshold=floor)
-
     return taxonomy_of(shapes, params, timing, (lambda text: _say(progress, text)) if progress else None,
-                       distances_of)
+                       distances_of, spacing)
 
 
 def with_targets(catalogue, params: CoscoParams) -> CoscoParams:

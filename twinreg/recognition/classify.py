@@ -16,7 +16,7 @@ import cosco
 from cosco.levels import symmetry_level
 from cosco.params import DEFAULT, CoscoParams
 
-from ..errors import ParameterError, SceneReadError
+from ..errors import SceneReadError, require_probability
 from .kinds import UNKNOWN, References, object_types, recognise_kind
 
 #: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
@@ -78,18 +78,14 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
 
     from ..matching.match import Evidence, ModelCache, match_objects
 
-    floor = MIN_CONFIDENCE if min_confidence is None else float(min_confidence)
-    if not 0.0 <= floor <= 1.0:
-        raise ParameterError(f"--min-confidence {floor:g}: give a confidence between 0 and 1")
+    from cosco.segment import point_spacing
+
+    floor = MIN_CONFIDENCE if min_confidence is None else require_probability("--min-confidence", min_confidence)
     refs = References.of(catalogue.list()) if catalogue.exists else References.of([])
     shapes = [o.shape for o in objects]
-    tax = None
-    if len(shapes) > 1:  # the threshold at least cluster_spacing_k point spacings, as a twin's (stages.classify)
-        from cosco.segment import point_spacing
-
-        floor = params.cluster_spacing_k * float(np.median([point_spacing(o.points) for o in objects]))
-        tax = taxonomy_of(shapes, params.with_(cluster_threshold=max(params.cluster_threshold, floor)))
-    labels = tax.labels if tax is not None else np.ones(len(shapes), dtype=int)
+    # the threshold at least cluster_spacing_k point spacings, as a twin's
+    labels = (taxonomy_of(shapes, params, spacing=[point_spacing(o.points) for o in objects]).labels
+              if len(shapes) > 1 else np.ones(len(shapes), dtype=int))
     kinds = [recognise_kind(o.shape.size.as_array(), o.level.level, refs, params) for o in objects]
     outcomes = [None] * len(objects)
     cache = None
@@ -99,12 +95,11 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
         outcomes, _ = match_objects(shapes, catalogue, labels=labels, params=params,
                                     evidence=Evidence([o.points for o in objects], OBJECT_NOISE_M), cache=cache, done=done)
     types = object_types(labels, [k.kind for k in kinds])
-    return [_item(o, k, t, res, refs, cache, floor, params)
+    return [_item(o, k, t, res, cache, floor, params)
             for o, k, t, res in zip(objects, kinds, types, outcomes)]
 
 
-def _item(o: GivenObject, kind, label: int, res, refs: References, cache, floor: float,
-          params: CoscoParams) -> dict:
+def _item(o: GivenObject, kind, label: int, res, cache, floor: float, params: CoscoParams) -> dict:
     s = o.shape
     match = None
     m = res.match if res is not None else None
@@ -118,14 +113,7 @@ def _item(o: GivenObject, kind, label: int, res, refs: References, cache, floor:
             "symmetry": {"found": bool(s.symmetry.found), "pcr": round(float(s.symmetry.pcr), 4),
                          "level": o.level.level},
             "size": s.size.as_dict(), "match": match,
-            "candidates": [] if match is not None else _candidates(o, kind, refs, cache, params)}
-
-
-def _candidates(o: GivenObject, kind, refs: References, cache, params: CoscoParams) -> list[dict]:
-    """The nearest references of the object's kind (any kind when unknown) (:func:`near_candidates`)."""
-    if cache is None:
-        return []
-    return near_candidates(o.shape, kind, cache, params)
+            "candidates": [] if match is not None or cache is None else near_candidates(s, kind, cache, params)}
 
 
 def near_candidates(shape, kind, cache, params: CoscoParams) -> list[dict]:
