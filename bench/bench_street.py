@@ -58,11 +58,11 @@ def run_street(cat, density: float, seed: int) -> list[dict]:
     params = with_targets(cat, DEFAULT)
     det = detect_points(PointSet(path=None, points=st.points, offset=np.zeros(3), unit="m"), params)
     shapes = describe_detected(det, params)
-    levels = object_levels(det, shapes, params)
+    clouds = [object_points(det, o) for o in det.objects]
+    levels = object_levels(clouds, shapes, params)
     tax = classify(shapes, params, {})
     results, _ = match_objects(shapes, cat, labels=tax.labels, params=params, cache=ModelCache(cat, params),
-                               evidence=Evidence([object_points(det, o) for o in det.objects],
-                                                 scene_noise(det.hag, det.is_ground)))
+                               evidence=Evidence(clouds, scene_noise(det.hag, det.is_ground)))
     results = apply_floor(results, params.model_min_confidence)
     kinds = recognise(shapes, levels, cat, params)
     owner = item_objects(st, det.objects)

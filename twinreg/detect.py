@@ -94,13 +94,12 @@ def describe_detected(det: Detection, params: CoscoParams = DEFAULT, objects=Non
             for o in (det.objects if objects is None else objects)]
 
 
-def object_levels(det: Detection, shapes: list, params: CoscoParams = DEFAULT, objects=None) -> list[str]:
-    """The level of symmetry (:mod:`cosco.levels`) of each described object (``shapes``, from
-    :func:`describe_detected` with the same ``objects``), its detected plane reused."""
+def object_levels(clouds: list, shapes: list, params: CoscoParams = DEFAULT) -> list[str]:
+    """The level of symmetry (:mod:`cosco.levels`) of each described object: its points (``clouds``, as
+    :func:`object_points` gives them) and its shape (``shapes``), whose detected plane is reused."""
     from cosco.levels import symmetry_level
 
-    return [symmetry_level(object_points(det, o), params, symmetry=s.symmetry).level
-            for o, s in zip(det.objects if objects is None else objects, shapes)]
+    return [symmetry_level(c, params, symmetry=s.symmetry).level for c, s in zip(clouds, shapes)]
 
 
 def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None,

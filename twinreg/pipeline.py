@@ -160,13 +160,13 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     _say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes = describe_detected(det, params)
-    levels = object_levels(det, shapes, params)
+    clouds = [object_points(det, o) for o in targets]
+    levels = object_levels(clouds, shapes, params)
     timing["sections"] = time.perf_counter() - t
 
     from cosco.segment import point_spacing
 
-    clusters = classify(shapes, params, timing, progress,
-                        spacing=[point_spacing(object_points(det, o)) for o in targets])
+    clusters = classify(shapes, params, timing, progress, spacing=[point_spacing(c) for c in clouds])
     with staged_folder(Path(out), protect=[scene_path, catalogue.folder], kind="twin") as stage:
         try:
             names = [f"obj{k + 1}" for k in range(len(targets))]
@@ -175,7 +175,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
-                           templates=templates, prober=prober, tick=tick, levels=levels)
+                           templates=templates, prober=prober, tick=tick, levels=levels, clouds=clouds)
             twin = _match_and_export(run)
         except BaseException:
             for helper in (painter, prober):  # a helper may be writing into the stage: stopped before it goes
@@ -190,7 +190,8 @@ class SceneRun:
     """One scene's run once its objects are described: where it writes (``stage``), what it read (``scene_path``,
     the detection ``det``, its ``targets`` and their ``shapes``, the taxonomy ``clusters``), with what
     (``catalogue``, ``georef``, ``params``), and how it runs (``progress``, ``timing``, ``t_start``, the picture
-    helper ``painter`` and its ``taxonomy`` job, ``ply``, the distance helper ``prober``)."""
+    helper ``painter`` and its ``taxonomy`` job, ``ply``, the distance helper ``prober``); each object's
+    ``levels`` of symmetry and points (``clouds``, the detection's, read once)."""
 
     stage: Path
     scene_path: Path
@@ -212,6 +213,7 @@ class SceneRun:
     prober: object = None
     tick: object = None
     levels: list | None = None
+    clouds: list | None = None
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -224,7 +226,7 @@ def _match_and_export(run: SceneRun) -> dict:
     noise = scene_noise(det.hag, det.is_ground)
     models = ModelCache(catalogue, params, prober=run.prober)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
-                                   evidence=Evidence([object_points(det, o) for o in targets], noise), cache=models,
+                                   evidence=Evidence(run.clouds, noise), cache=models,
                                    done=(lambda k, n: run.tick("matching", k, n)) if run.tick else None)
     timing["prefilter"] = stats.prefilter_s
     timing["model_prep"] = stats.model_prep_s
@@ -260,13 +262,11 @@ def _match_and_export(run: SceneRun) -> dict:
         classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,
                                     [o["match"] is not None for o in objects])
         write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
-        return observed.write(stage / observed.FILE, [observed.raster(
+        return {"observation": observed.write(stage / observed.FILE, [observed.raster(
             det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
-            [s.sections for s in shapes])
+            [s.sections for s in shapes])}
 
-    observation = {}
-    twin |= write_twin(files, beside=lambda: observation.update(record=scan_files()))
-    twin["observation"] = observation["record"]
+    twin |= write_twin(files, beside=scan_files)
     # each job done there or, when its helper is missing, stuck or failed, here (the pictures within one deadline)
     deadline = time.monotonic() + HELPER_TIMEOUT_S
     for job in (taxonomy, report):

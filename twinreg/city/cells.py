@@ -154,9 +154,9 @@ def _process_cell(job: CellJob) -> CellResult:
     order = sorted(range(len(owned)), key=lambda k: (round(float(centres[k][0]), 2), round(float(centres[k][1]), 2)))
     owned = [owned[k] for k in order]
     shapes = describe_detected(det, params, objects=owned)
-    levels = object_levels(det, shapes, params, objects=owned)
-    for k, (o, shape, level) in enumerate(zip(owned, shapes, levels)):
-        cloud = object_points(det, o)
+    clouds = [object_points(det, o) for o in owned]
+    levels = object_levels(clouds, shapes, params)
+    for k, (o, shape, level, cloud) in enumerate(zip(owned, shapes, levels, clouds)):
         out.objects.append(CellObject(
             id=f"{cell.name}-{k + 1}", cell=cell.name, offset=offset, n_points=int(o.n_points), shape=shape,
             cloud=sample_cloud(cloud, params.accept_max_points),

@@ -110,7 +110,8 @@ TWIN_FORMATS = (_kmz, _ply, _tiles)
 def write_twin(f: TwinFiles, beside=None) -> dict:
     """Every file of the twin but twin.json, the report and the scan's: :data:`RECORD_FORMATS` on a thread (or
     in a forked child) beside :data:`TWIN_FORMATS` here, then ``beside()`` (the caller's own files) while the
-    records' formats finish. Returns twin.json's entries the formats give (the tiles' summary)."""
+    records' formats finish. Returns twin.json's entries the formats give (the tiles' summary), then those
+    ``beside()`` returns as a dict."""
     texts = start_text_formats(f)
     entries: dict = {}
     try:
@@ -121,8 +122,8 @@ def write_twin(f: TwinFiles, beside=None) -> dict:
                 entries |= got
             elif got is not None:
                 jobs.append(got)
-        if beside is not None:
-            beside()
+        if beside is not None and isinstance(got := beside(), dict):
+            entries |= got
         for job in jobs:
             job.wait()
         texts.wait(timeout=RECORD_FORMATS_S + RECORD_FORMATS_S_PER_OBJECT * len(f.placed))
