@@ -46,7 +46,7 @@ def run_street(cat, density: float, seed: int) -> list[dict]:
     from twinreg.matching.match import Evidence, ModelCache, match_objects
     from twinreg.sim.accuracy import density_passes
     from twinreg.sim.street import item_objects, street
-    from twinreg.stages import apply_floor, classify, recognise, with_targets
+    from twinreg.stages import classify, recognise, with_targets
 
     rows = sorted(cat.list(), key=lambda r: r.name)
     meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
@@ -63,8 +63,7 @@ def run_street(cat, density: float, seed: int) -> list[dict]:
     tax = classify(shapes, params, {})
     results, _ = match_objects(shapes, cat, labels=tax.labels, params=params, cache=ModelCache(cat, params),
                                evidence=Evidence(clouds, scene_noise(det.hag, det.is_ground)))
-    results = apply_floor(results, params.model_min_confidence)
-    kinds = recognise(shapes, levels, cat, params)
+    results, kinds = recognise(results, shapes, levels, cat, params)
     owner = item_objects(st, det.objects)
     category = {r.name: r.category for r in rows}
     out = []

@@ -26,7 +26,6 @@ from .matching.match import Evidence, ModelCache, match_objects
 from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
 from .stages import (
-    apply_floor,
     checked_params,
     classify,
     locate,
@@ -235,8 +234,7 @@ def _match_and_export(run: SceneRun) -> dict:
 
     _say(progress, "export")
     t = time.perf_counter()
-    results = apply_floor(results, params.model_min_confidence)
-    kinds = recognise(shapes, run.levels, catalogue, params)
+    results, kinds = recognise(results, shapes, run.levels, catalogue, params)
     placed = place([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
                    clusters.labels, [offset] * len(targets), georef, models, kinds, run.levels)
     objects = [p.doc for p in placed]

@@ -1,7 +1,7 @@
 """The stages a scene and a city both run, one copy: the run's parameters checked (:func:`checked_params`), the
 catalogue checked (:func:`require_models`), the scan placed on Earth (:func:`locate`), the objects' taxonomy
-(:func:`classify`), the objects' kinds (:func:`recognise`), the models under the confidence floor withdrawn
-(:func:`apply_floor`), every object placed (:func:`place`). The per-scene pipeline
+(:func:`classify`), the objects' kinds and the models under the confidence floor withdrawn (:func:`recognise`),
+every object placed (:func:`place`). The per-scene pipeline
 (:mod:`twinreg.pipeline`) runs them on one scene; the city engine (:mod:`twinreg.city`) maps them over cells and
 batches; the simulator's accuracy runs use them too. Nothing here imports the pipeline or the city engine."""
 
@@ -86,14 +86,16 @@ def with_targets(catalogue, params: CoscoParams) -> CoscoParams:
     return params.with_(seg_targets="all") if kinds - VEHICLES else params
 
 
-def recognise(shapes: list, levels: list[str], catalogue, params: CoscoParams) -> list:
-    """Each object's kind (:class:`~twinreg.recognition.kinds.KindResult`) from the catalogue's nearest references
-    by size and level of symmetry (:mod:`twinreg.recognition.kinds`; one query for the references, numpy for the
-    rest)."""
+def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params: CoscoParams) -> tuple[list, list]:
+    """The recognition's two steps for every object: its kind (:class:`~twinreg.recognition.kinds.KindResult`)
+    from the catalogue's nearest references by size and level of symmetry (:mod:`twinreg.recognition.kinds`; one
+    query for the references, numpy for the rest), and its model kept only at ``params.model_min_confidence`` or
+    above (:func:`apply_floor`). Returns (the matching outcomes, the kinds)."""
     from .recognition.kinds import References, recognise_kind
 
     refs = References.of(catalogue.list())
-    return [recognise_kind(s.size.as_array(), level, refs, params) for s, level in zip(shapes, levels)]
+    kinds = [recognise_kind(s.size.as_array(), level, refs, params) for s, level in zip(shapes, levels)]
+    return apply_floor(outcomes, params.model_min_confidence), kinds
 
 
 def apply_floor(outcomes: list, floor: float) -> list:

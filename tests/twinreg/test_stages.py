@@ -73,3 +73,25 @@ def test_placing_all_at_once_is_placing_each_alone(parametric_catalogue):
         assert np.array_equal(p.pose, alone.pose)
     assert [p.model_id is not None for p in placed] == [True, True, True, False]
     assert placed[-1].doc["reason_code"] == "top_unseen" and placed[-1].doc["kind"] == "unknown"
+
+
+def test_recognition_keeps_a_model_only_at_the_floor_or_above(parametric_catalogue):
+    """stages.recognise: every object a kind from the catalogue (all cars here), and a model under
+    ``model_min_confidence`` withdrawn: no match, reason_code under_floor, the model first among the candidates."""
+    from dataclasses import replace
+
+    from twinreg.matching.match import ModelCache, match_objects
+    from twinreg.stages import recognise
+
+    shapes = toy_shapes(4)
+    results, _ = match_objects(shapes, parametric_catalogue, cache=ModelCache(parametric_catalogue, DEFAULT))
+    assert all(r.match is not None for r in results)
+    results[1] = replace(results[1], match=replace(results[1].match, confidence=0.1))  # a doubtful model
+    levels = ["mirror"] * 4
+    kept, kinds = recognise(results, shapes, levels, parametric_catalogue, DEFAULT.with_(model_min_confidence=0.3))
+    assert [k.kind for k in kinds] == ["car"] * 4 and all(0.5 < k.confidence <= 1.0 for k in kinds)
+    assert kept[1].match is None and kept[1].reason_code == "under_floor"
+    assert kept[1].candidates[0] == results[1].match.model_id and "0.10" in kept[1].reason
+    assert [r.match for k, r in enumerate(kept) if k != 1] == [r.match for k, r in enumerate(results) if k != 1]
+    none_withdrawn, _ = recognise(results, shapes, levels, parametric_catalogue, DEFAULT.with_(model_min_confidence=0))
+    assert none_withdrawn[1].match is not None

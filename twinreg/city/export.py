@@ -18,7 +18,7 @@ from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_docu
 from ..io import observed
 from ..io.outdir import staged_folder
 from .classified import FOLDER as CLASSIFIED
-from ..stages import apply_floor, place, recognise
+from ..stages import place, recognise
 from .resume import WORK
 
 def _cell_bounds(georef, cell) -> dict:
@@ -65,9 +65,8 @@ class CityRun:
 def export_city(run: CityRun) -> dict:
     """Write a tiled run's twin (see the module's text); returns twin.json's document."""
     t = time.perf_counter()
-    run.outcomes = apply_floor(run.outcomes, run.params.model_min_confidence)
     levels = [o.level for o in run.objects]
-    kinds = recognise([o.shape for o in run.objects], levels, run.catalogue, run.params)
+    run.outcomes, kinds = recognise(run.outcomes, [o.shape for o in run.objects], levels, run.catalogue, run.params)
     outs = place([o.id for o in run.objects], [o.n_points for o in run.objects], run.outcomes, run.tax.labels,
                  [o.offset for o in run.objects], run.georef, run.models, kinds, levels)
     run.timing["records"] = time.perf_counter() - t
