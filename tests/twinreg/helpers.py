@@ -134,3 +134,26 @@ def downgrade_catalogue(db: Path, revision: str) -> None:
         cfg.attributes["connection"] = conn
         command.downgrade(cfg, revision)
     engine.dispose()
+
+
+def cjio_read(path: Path, stdin: bool = False) -> list:
+    """cjio reads the file (in its own process: importing cjio here changed how a later test's pyproj read a LAS
+    header): [version, number of city objects, EPSG]."""
+    if stdin:  # CityJSONSeq, as `cat twin.city.jsonl | cjio stdin ...` reads it
+        code = ("import sys, json; from cjio import cityjson; c = cityjson.read_stdin(); "
+                "print(json.dumps([c.get_version(), len(c.j['CityObjects']), c.get_epsg()]))")
+        proc = subprocess.run([sys.executable, "-c", code], stdin=open(path), capture_output=True, text=True,
+                              timeout=120)
+    else:
+        code = ("import sys, json; from cjio import cityjson; c = cityjson.reader(file=open(sys.argv[1])); "
+                "print(json.dumps([c.get_version(), len(c.j['CityObjects']), c.get_epsg()]))")
+        proc = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def cityjson_schema_valid(cj: dict) -> None:
+    """The document is valid against the schema of what twinreg writes (docs/schemas)."""
+    import jsonschema
+
+    jsonschema.validate(cj, json.loads((ROOT / "docs" / "schemas" / "cityjson-2.0-twin.schema.json").read_text()))

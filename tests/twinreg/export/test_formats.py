@@ -13,7 +13,15 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
-from tests.twinreg.helpers import DUBLIN, ROOT, node_script as _node, string_column, tileset_instances as _instances
+from tests.twinreg.helpers import (
+    DUBLIN,
+    ROOT,
+    cityjson_schema_valid,
+    cjio_read,
+    node_script as _node,
+    string_column,
+    tileset_instances as _instances,
+)
 from twinreg.cli import app
 from twinreg.export.gltf import accessor_array, read_glb
 
@@ -105,28 +113,6 @@ def test_a_car_facing_east_is_drawn_facing_east(catalogue16, tmp_path):
     assert "origin" in gltf["asset"]["extras"]
 
 
-def _cjio(path: Path, stdin: bool = False) -> list:
-    """cjio reads the file (in its own process: importing cjio here changed how a later test's pyproj read a LAS
-    header): [version, number of city objects, EPSG]."""
-    if stdin:  # CityJSONSeq, as `cat twin.city.jsonl | cjio stdin ...` reads it
-        code = ("import sys, json; from cjio import cityjson; c = cityjson.read_stdin(); "
-                "print(json.dumps([c.get_version(), len(c.j['CityObjects']), c.get_epsg()]))")
-        proc = subprocess.run([sys.executable, "-c", code], stdin=open(path), capture_output=True, text=True,
-                              timeout=120)
-    else:
-        code = ("import sys, json; from cjio import cityjson; c = cityjson.reader(file=open(sys.argv[1])); "
-                "print(json.dumps([c.get_version(), len(c.j['CityObjects']), c.get_epsg()]))")
-        proc = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    return json.loads(proc.stdout)
-
-
-def _schema_valid(cj: dict) -> None:
-    import jsonschema
-
-    jsonschema.validate(cj, json.loads((ROOT / "docs" / "schemas" / "cityjson-2.0-twin.schema.json").read_text()))
-
-
 def _explicit_vertices(cj: dict, oid: str) -> np.ndarray:
     scale, translate = np.array(cj["transform"]["scale"]), np.array(cj["transform"]["translate"])
     geometry = cj["CityObjects"][oid]["geometry"][0]
@@ -150,8 +136,8 @@ def _template_vertices(cj: dict, oid: str) -> np.ndarray:
 def test_cityjson_is_valid_and_places_each_car_at_its_centroid(twin):  # noqa: F811
     doc, out = twin
     cj = json.loads((out / "twin.city.json").read_text())
-    _schema_valid(cj)
-    version, n, epsg = _cjio(out / "twin.city.json")
+    cityjson_schema_valid(cj)
+    version, n, epsg = cjio_read(out / "twin.city.json")
     assert version == "2.0" and n == len(doc["objects"]) and (epsg is None or epsg > 0)
     assert "geometry-templates" not in cj  # explicit geometry by default: every viewer draws it
     for o in doc["objects"]:
@@ -171,8 +157,8 @@ def test_cityjson_templates_on_request_place_the_same_geometry(twin, park, catal
     assert res.exit_code == 0, res.output
     cj_t = json.loads((tmp_path / "t" / "twin.city.json").read_text())
     cj_e = json.loads((out / "twin.city.json").read_text())
-    _schema_valid(cj_t)
-    assert _cjio(tmp_path / "t" / "twin.city.json")[1] == len(doc["objects"])
+    cityjson_schema_valid(cj_t)
+    assert cjio_read(tmp_path / "t" / "twin.city.json")[1] == len(doc["objects"])
     assert len(cj_t["geometry-templates"]["templates"]) <= len(doc["objects"])
     for o in doc["objects"]:
         explicit, placed = _explicit_vertices(cj_e, o["id"]), _template_vertices(cj_t, o["id"])
@@ -206,7 +192,7 @@ def test_city_cityjson_seq_reads_a_feature_a_line(city_twin, small_city):
         mine_faces = np.array(f["CityObjects"][f["id"]]["geometry"][0]["boundaries"])
         assert mine_faces.shape == faces.shape and len(np.unique(faces - mine_faces)) == 1
         assert mine_faces.min() >= 0 and mine_faces.max() < len(f["vertices"])
-    version, n, _ = _cjio(root / "out" / "twin.city.jsonl", stdin=True)
+    version, n, _ = cjio_read(root / "out" / "twin.city.jsonl", stdin=True)
     assert version == "2.0" and n == len(features)
 
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import furniture_rows, manifest_rows
+from tests.twinreg.helpers import cityjson_schema_valid, cjio_read
 
 FURNITURE = ("lamp_post", "first_2015_trash_can", "jersey_barrier", "fire_hydrant", "oak_tree")
 
@@ -79,6 +80,12 @@ def test_a_twin_of_the_street_finds_its_furniture_with_its_kind(street_lib, tmp_
     doc = json.loads((tmp_path / "twin" / "twin.city.json").read_text())
     types = {co["type"] for co in doc["CityObjects"].values()}
     assert "CityFurniture" in types
+    # the CityJSON of a street's kinds is valid and read by cjio, each object with the type its kind gives
+    cityjson_schema_valid(doc)
+    assert cjio_read(tmp_path / "twin" / "twin.city.json")[1] == len(objs)
+    from twinreg.export.cityjson import city_type
+
+    assert all(doc["CityObjects"][o["id"]]["type"] == city_type(o["kind"])[0] for o in objs)
 
 
 def test_a_lamp_post_knocked_down_is_left(street_lib, tmp_path):
