@@ -148,6 +148,9 @@ def test_lying_blobs_and_sizes_are_refused(good_bundle, lib, tmp_path):
         ("section", "UPDATE ref_models SET section_transverse = X'0102' WHERE id = 1"),
         ("tags", "UPDATE ref_models SET tags_json = '{\"a\": 1}' WHERE id = 1"),
         ("name", "UPDATE ref_models SET name = 'evil' || char(10) || 'line' WHERE id = 1"),
+        ("category", "UPDATE ref_models SET category = '<script>alert(1)</script>' WHERE id = 1"),
+        ("source", "UPDATE ref_models SET source = '../../etc' WHERE id = 1"),
+        ("level", "UPDATE ref_models SET sym_level = 'spherical' WHERE id = 1"),
     ]
     for what, sql in cases:
         out = _refused(rebuild(good_bundle, tmp_path / f"bad_{what}.zip", [sql]), lib)

@@ -154,6 +154,7 @@ def test_markup_in_a_strangers_twin_is_text(surveys, tmp_path):
     def inject(doc):
         doc["objects"][0]["id"] = evil
         for o in doc["objects"]:
+            o["kind"] = evil
             if o["match"]:
                 o["match"]["name"] = evil
         doc["survey_date"] = "2026-06-03"
@@ -163,6 +164,9 @@ def test_markup_in_a_strangers_twin_is_text(surveys, tmp_path):
     assert r.exit_code == 0, r.output
     page = (tmp_path / "out" / "changes.html").read_text()
     assert evil not in page and "&lt;img src=x onerror=alert(1)&gt;" in page
+    # a kind that is not a kind's word reads unknown
+    changes = json.loads((tmp_path / "out" / "changes.json").read_text())["changes"]
+    assert {c["after"]["kind"] for c in changes if c["after"] is not None} == {"unknown"}
 
 
 @pytest.mark.parametrize("date", ["2026-13-01", "yesterday", 20260301])
