@@ -120,8 +120,11 @@ class CoscoParams:
         ``"cars"`` (the size filter above) or ``"all"``: besides, every object standing on the ground from
         ``object_height`` (m, min, max) tall, at most ``object_max_extent`` m across and ``object_max_area`` m^2 of
         footprint (a 0.3 m bollard to a 16 m pole; a building is larger); such an object that reaches
-        ``seg_max_height`` grows upwards by the points connected to its top within ``object_reach`` m of it in plan;
-        such objects need ``object_min_points`` points; one at least ``object_crown_height`` m tall whose lowest
+        ``seg_max_height`` grows upwards by the points connected to its top, unless they run on beyond
+        ``object_reach`` plus half ``object_max_extent`` m of it in plan; pieces stacked one over another within
+        ``object_link`` m of height (a sign's plate over its post, a roof over its posts) are one object, and a
+        piece off the ground joins what is within ``object_link`` m of it in plan; such objects need
+        ``object_min_points`` points; one at least ``object_crown_height`` m tall whose lowest
         point is under half its height stands on the ground too (a tree's crown over a trunk the scan missed).
         A run takes ``"all"`` when its catalogue holds models of other kinds than vehicles.
 
@@ -274,6 +277,7 @@ class CoscoParams:
     object_reach: float = 3.0
     object_min_points: int = 10
     object_crown_height: float = 3.0
+    object_link: float = 0.6
     car_length: tuple = (2.5, 7.5)
     car_width: tuple = (1.0, 3.0)
     car_height: tuple = (0.9, 3.3)

@@ -64,3 +64,47 @@ def test_every_object_on_the_ground_and_the_car_unchanged():
     pole = every["pole"]
     assert len(pole) == 1 and pole[0].height > 8.5 and pole[0].length > 1.3  # up through the ceiling, with its arm
     assert (labels[pole[0].indices] == names.index("pole")).mean() > 0.95
+
+
+def _street_pieces(seed=0):
+    """Street furniture as a sparse airborne scan leaves it, in pieces: a sign's plate 0.5 m over the last point of
+    its post, a shelter's roof over its posts (the roof in three pieces a scan's gaps left apart), two bins 1 m
+    apart, and a car with a wire 1 m over its roof."""
+    rng = np.random.default_rng(seed)
+
+    def post(x, y, z0, z1, n):
+        return np.c_[rng.normal(x, 0.02, n), rng.normal(y, 0.02, n), rng.uniform(z0, z1, n)]
+
+    parts = {
+        "ground": _ground(rng),
+        "sign": np.vstack([post(5, 20, 0.3, 1.0, 6), np.c_[rng.uniform(4.7, 5.3, 14), rng.normal(20, 0.01, 14),
+                                                           rng.uniform(1.5, 2.1, 14)]]),
+        "shelter": np.vstack([post(10, 20, 0.2, 2.3, 30), post(13, 20, 0.2, 2.3, 30), post(10, 21.5, 0.2, 2.3, 30),
+                              post(13, 21.5, 0.2, 2.3, 30)]
+                             + [_box(rng, [x0, 19.9, 2.6], [x1, 21.6, 2.7], 60) for x0, x1 in
+                                ((9.9, 10.9), (11.2, 12.0), (12.3, 13.1))]),
+        "bin_a": _box(rng, [20, 20, 0.02], [20.5, 20.5, 0.75], 60),
+        "bin_b": _box(rng, [21.5, 20, 0.02], [22.0, 20.5, 0.75], 60),
+        "car": _box(rng, [5, 5, 0.2], [9.5, 6.8, 1.5], 4000),
+        "wire": np.c_[rng.uniform(4, 11, 80), rng.normal(6, 0.01, 80), rng.normal(2.5, 0.01, 80)],
+    }
+    labels = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts.values())])
+    pts = np.vstack(list(parts.values()))
+    return pts, pts[:, 2].copy(), labels, list(parts)
+
+
+def test_pieces_of_one_object_joined_and_neighbours_kept_apart():
+    """A sign's plate joins its post across the gap, a shelter's roof pieces join each other and its posts, two
+    bins side by side stay two objects, and what hangs over a car (a wire) stays off it, as in car mode."""
+    pts, hag, labels, names = _street_pieces()
+    seg = segment_objects(pts, hag, DEFAULT.with_(seg_targets="all"), is_ground=hag < 0.03)
+    every = _owner(seg, labels, names)
+    for name in ("sign", "shelter"):
+        assert len(every[name]) == 1, name
+        mine = labels == names.index(name)
+        assert np.isin(np.flatnonzero(mine), every[name][0].indices).mean() > 0.9, name
+    assert every["shelter"][0].length > 3.0 and every["shelter"][0].height > 2.5
+    assert len(every["bin_a"]) == 1 and len(every["bin_b"]) == 1
+    car_mode = _owner(segment_objects(pts, hag, DEFAULT, is_ground=hag < 0.03), labels, names)["car"][0]
+    assert np.array_equal(every["car"][0].indices, car_mode.indices)
+    assert not np.isin(np.flatnonzero(labels == names.index("wire")), every["car"][0].indices).any()

@@ -72,11 +72,24 @@ class KindResult:
 
 
 def distances(size, level: str, refs: References, params: CoscoParams = DEFAULT) -> np.ndarray:
-    """(n,) the distance of an object (``size`` L, W, H metres, its ``level``) to every reference."""
+    """(n,) the distance of an object (``size`` L, W, H metres, its ``level``) to every reference. The plan sizes
+    are compared longer to longer (a model's length is along its own x axis, which may be its shorter side: a bus
+    shelter drawn facing +x)."""
     floor = params.kind_min_size
-    ratio = np.abs(np.log(np.maximum(np.asarray(size, dtype=np.float64), floor) / np.maximum(refs.sizes, floor)))
+    ratio = np.abs(np.log(np.maximum(_plan_sorted(size), floor) / np.maximum(_plan_sorted(refs.sizes), floor)))
     d = params.kind_length_weight * ratio[:, 0] + ratio[:, 1] + ratio[:, 2]
     return d + params.kind_level_penalty * (refs.levels != level)
+
+
+def _plan_sorted(sizes) -> np.ndarray:
+    """L, W, H with the plan's longer side first.
+
+    >>> _plan_sorted([1.7, 3.5, 3.3]).tolist()
+    [3.5, 1.7, 3.3]
+    """
+    s = np.array(sizes, dtype=np.float64)
+    s[..., :2] = np.sort(s[..., :2], axis=-1)[..., ::-1]
+    return s
 
 
 def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEFAULT) -> KindResult:

@@ -86,8 +86,8 @@ def street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, passes=D
 
 
 def item_objects(st: Street, objects) -> np.ndarray:
-    """(items,) the index of each placed item's detected object (the one holding the largest share of its
-    points, at least half of that object's points), or -1 when none holds any."""
+    """(items,) the index of each placed item's detected object (of the objects whose points are at least half the
+    item's, the one holding most of its points), or -1 when none holds any."""
     owner = np.full(len(st.items), -1)
     best = np.zeros(len(st.items))
     for k, o in enumerate(objects):
@@ -95,7 +95,7 @@ def item_objects(st: Street, objects) -> np.ndarray:
         lab = lab[lab >= 0]
         if len(lab):
             c = int(np.bincount(lab).argmax())
-            share = float(np.mean(lab == c))
-            if share > max(best[c], 0.5):
-                owner[c], best[c] = k, share
+            held = int(np.sum(lab == c))
+            if held > best[c] and held > len(o.indices) / 2:
+                owner[c], best[c] = k, held
     return owner
