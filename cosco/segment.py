@@ -748,8 +748,10 @@ def _reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float,
         near = np.asarray(tree.query_ball_point(centre, radius), dtype=np.int64)
         joined = np.zeros(0, dtype=bool)
         if len(near):
-            # thin uprights are sparse along their height: linked across two patches
-            comp, _, _ = voxel_components(np.vstack([pts[top], pts[high[near]]]), link)
+            # thin uprights are sparse along their height: linked across two patches, a pole (under a link
+            # across) across twice that
+            thin = max(o.length, o.width) <= params.object_link
+            comp, _, _ = voxel_components(np.vstack([pts[top], pts[high[near]]]), 2 * link if thin else link)
             joined = np.isin(comp[len(top):], comp[:len(top)])
         if not joined.any():
             out.append(o)

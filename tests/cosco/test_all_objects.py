@@ -69,7 +69,7 @@ def test_every_object_on_the_ground_and_the_car_unchanged():
 def _street_pieces(seed=0):
     """Street furniture as a sparse airborne scan leaves it, in pieces: a sign's plate 0.5 m over the last point of
     its post, a shelter's roof over its posts (the roof in three pieces a scan's gaps left apart), two bins 1 m
-    apart, and a car with a wire 1 m over its roof."""
+    apart, a car with a wire 1 m over its roof, and a sparse pole."""
     rng = np.random.default_rng(seed)
 
     def post(x, y, z0, z1, n):
@@ -87,6 +87,10 @@ def _street_pieces(seed=0):
         "bin_b": _box(rng, [21.5, 20, 0.02], [22.0, 20.5, 0.75], 60),
         "car": _box(rng, [5, 5, 0.2], [9.5, 6.8, 1.5], 4000),
         "wire": np.c_[rng.uniform(4, 11, 80), rng.normal(6, 0.01, 80), rng.normal(2.5, 0.01, 80)],
+        # a pole hit every 0.6-0.8 m of its height, its only low point a stray one at its foot (the rest are over
+        # that point's gap: overhangs standing on nothing else)
+        "pole": np.c_[rng.normal(25, 0.02, 14), rng.normal(10, 0.02, 14),
+                      np.r_[0.2, 0.85 + np.cumsum(rng.uniform(0.6, 0.75, 13)) - 0.6]],
     }
     labels = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts.values())])
     pts = np.vstack(list(parts.values()))
@@ -95,7 +99,8 @@ def _street_pieces(seed=0):
 
 def test_pieces_of_one_object_joined_and_neighbours_kept_apart():
     """A sign's plate joins its post across the gap, a shelter's roof pieces join each other and its posts, two
-    bins side by side stay two objects, and what hangs over a car (a wire) stays off it, as in car mode."""
+    bins side by side stay two objects, what hangs over a car (a wire) stays off it, as in car mode, and a pole
+    the scan hit every 0.7 m is one object up through the segmentation's ceiling."""
     pts, hag, labels, names = _street_pieces()
     seg = segment_objects(pts, hag, DEFAULT.with_(seg_targets="all"), is_ground=hag < 0.03)
     every = _owner(seg, labels, names)
@@ -108,3 +113,4 @@ def test_pieces_of_one_object_joined_and_neighbours_kept_apart():
     car_mode = _owner(segment_objects(pts, hag, DEFAULT, is_ground=hag < 0.03), labels, names)["car"][0]
     assert np.array_equal(every["car"][0].indices, car_mode.indices)
     assert not np.isin(np.flatnonzero(labels == names.index("wire")), every["car"][0].indices).any()
+    assert len(every["pole"]) == 1 and every["pole"][0].height > 8.0
