@@ -16,6 +16,7 @@ from ..errors import CompareError
 from ..geo.georef import Georef
 from ..io._files import read_json_doc
 from ..io import observed
+from cosco.levels import LEVELS
 
 #: the largest twin.json read (bytes; a city of 100,000 objects writes about 150 MB)
 MAX_TWIN_BYTES = 256 * 1024 ** 2
@@ -36,7 +37,8 @@ class Epoch:
     ``spacing`` (m, mean point spacing of the area it saw); and
     its observation ``record``; ``vertical``: its heights' datum (None: unknown), and ``height`` how its heights
     were put in the comparison's datum (set by :func:`read_epochs`); ``kinds``: each object's kind (``unknown``
-    when its twin.json gives none, or not a kind's word)."""
+    when its twin.json gives none, or not a kind's word); ``levels``: each object's level of symmetry, its model's
+    when a model is placed (``none`` when its twin.json gives none or another word)."""
 
     folder: Path
     date: str | None
@@ -57,6 +59,7 @@ class Epoch:
     vertical: str | None = None
     height: dict | None = None
     kinds: list = field(default_factory=list)
+    levels: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -138,7 +141,7 @@ def _objects(doc, folder: Path) -> dict:
     if not isinstance(objs, list):
         raise CompareError(f"{folder}: twin.json lists no objects; rerun build-twin")
     cols = {"ids": [], "centre": [], "heading": [], "size": [], "measured": [], "models": [], "confidence": [],
-            "n_points": [], "lonlat": [], "kinds": []}
+            "n_points": [], "lonlat": [], "kinds": [], "levels": []}
     for o in objs:
         if not isinstance(o, dict) or not isinstance(o.get("id"), str):
             raise CompareError(f"{folder}: an object in twin.json has no id; rerun build-twin")
@@ -153,6 +156,11 @@ def _objects(doc, folder: Path) -> dict:
         cols["models"].append(name[:200] if isinstance(name, str) else None)
         kind = o.get("kind")
         cols["kinds"].append(kind if isinstance(kind, str) and _KIND.fullmatch(kind) else "unknown")
+        # a placed model's level says what its heading means; else the object's own
+        sym = o.get("symmetry")
+        level = m.get("level") if isinstance(m, dict) and m.get("level") in LEVELS else \
+            sym.get("level") if isinstance(sym, dict) else None
+        cols["levels"].append(level if level in LEVELS else "none")
         conf = _number(conf, "confidence", folder) if conf is not None else np.nan
         n = _number(o.get("n_points", 0), "n_points", folder)
         if not (np.isnan(conf) or 0.0 <= conf <= 1.0) or n < 0 or n != int(n):
@@ -204,7 +212,7 @@ def read_epoch(folder) -> Epoch:
                  np.array(cols["confidence"], dtype=np.float64), np.array(cols["n_points"], dtype=np.int64),
                  np.array(cols["lonlat"], dtype=np.float64).reshape(-1, 2),
                  _noise(doc, folder), float(np.sqrt(seen / max(n_scan, 1))),
-                 record, n_scan, _vertical(doc, folder), kinds=cols["kinds"])
+                 record, n_scan, _vertical(doc, folder), kinds=cols["kinds"], levels=cols["levels"])
 
 
 def same_frame(a: Epoch, b: Epoch) -> bool:

@@ -102,8 +102,13 @@ def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: CoscoParams = DE
     size_z, p_same = _same_vehicle(a, b, i, j, section_m, params)
     disp = np.linalg.norm(b.centre[j, :2] - shift[:2] - a.centre[i, :2], axis=1)
     both = np.array([a.models[p] is not None and b.models[q] is not None for p, q in zip(i, j)], dtype=bool)
-    # a model fixes the front; a measured box only its axis
+    # a model fixes the front; a measured box only its axis; an object with two mirror planes only its axis too,
+    # and one turned about its axis (a pole, a hydrant, a bin) none: its heading is no measurement
     t = np.where(both, turn(a.heading[i], b.heading[j]), turn(a.heading[i], b.heading[j], np.pi))
+    if a.levels and b.levels:
+        la, lb = np.asarray(a.levels, dtype=object)[i], np.asarray(b.levels, dtype=object)[j]
+        t = np.where((la == "two_mirrors") | (lb == "two_mirrors"), turn(a.heading[i], b.heading[j], np.pi), t)
+        t = np.where((la == "rotational") | (lb == "rotational"), 0.0, t)
     order = np.lexsort((-iou, -np.round(p_same, 2)))
     used_a, used_b, chosen = set(), set(), []
     for k in order:

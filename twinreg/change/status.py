@@ -102,6 +102,15 @@ def _unpaired(cov: Coverage, arriving: bool) -> tuple[str, float, str]:
                                            "object there: not separated, or not a car")
 
 
+def _noun(e: Epoch, k: int) -> str:
+    """What an object is called in a change's reason: "vehicle" for a vehicle (or an object of no known kind, as
+    before kinds existed), else its kind's words ("lamp post")."""
+    from ..catalogue.categories import VEHICLES
+
+    kind = e.kinds[k] if e.kinds else "unknown"
+    return "vehicle" if kind in VEHICLES or kind == "unknown" else kind.replace("_", " ")
+
+
 def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[dict]:
     """The change records from epoch ``k`` (``a``) to ``k + 1`` (``b``), the contract's shape."""
     shift = al.shift[:2]
@@ -125,18 +134,19 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[di
         if p >= 0.5 or flipped and p >= 0.3:
             status = "same" if margin <= 1.0 else "moved"
             conf = p * float(_logistic(6.0 * abs(1.0 - margin)))
-            reason = (f"the same vehicle {'within' if status == 'same' else 'beyond'} {d_tol * 100:.0f} cm and "
-                      f"{np.degrees(t_tol):.1f} degrees ({d * 100:.0f} cm, {np.degrees(t):.1f} degrees)")
+            reason = (f"the same {_noun(a, i)} {'within' if status == 'same' else 'beyond'} {d_tol * 100:.0f} cm "
+                      f"and {np.degrees(t_tol):.1f} degrees ({d * 100:.0f} cm, {np.degrees(t):.1f} degrees)")
             if flipped:
                 reason += "; its front and back were not told apart in one survey"
         elif whole[n] < WHOLE:
             status, conf = "unobserved", float(1.0 - whole[n])
             reason = ("it borders a gap in one survey's returns: a cut-off object's size cannot tell whether it is "
-                      "the same vehicle")
+                      f"the same {_noun(a, i)}")
         else:
             status, conf = "replaced", 1.0 - p
             sec = "" if np.isnan(pairs.section_m[n]) else f", sections by {pairs.section_m[n] * 100:.0f} cm"
-            reason = f"another vehicle in the footprint (sizes differ by up to {pairs.size_z[n]:.1f} sigma{sec})"
+            reason = (f"another {_noun(b, j)} in the footprint (sizes differ by up to {pairs.size_z[n]:.1f} "
+                      f"sigma{sec})")
         out.append({**rec, "status": status, "confidence": round(float(conf), 3), "reason": reason})
     gone = np.setdiff1d(np.arange(len(a)), pairs.i)
     cov = coverage(b.record, a, gone, shift)

@@ -110,12 +110,14 @@ def survey_date(given: str | None, files: list) -> tuple[str | None, str | None,
 
 
 def match_record(p) -> dict | None:
-    """A placed object's ``match`` in twin.json (None when no model fits): the model, the registration, the
-    confidence and its evidence, the verification."""
+    """A placed object's ``match`` in twin.json (None when no model fits): the model (and its level of symmetry,
+    which says whether its heading means anything), the registration, the confidence and its evidence, the
+    verification."""
     m = p.match
     if m is None:
         return None
     return {"model_id": m.model_id, "name": m.name, "make": p.model.make, "model": p.model.model,
+            "level": getattr(p.model, "sym_level", None),
             "rmse_m": round(m.rmse, 4), "rz": round(m.rz, 6), "tz": round(m.tz, 4), "du": round(m.du, 4),
             "n_candidates": m.n_candidates, "n_trials": m.n_trials, "runner_up": m.runner_up,
             "confidence": None if m.confidence is None else round(m.confidence, 3),
