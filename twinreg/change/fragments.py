@@ -73,6 +73,7 @@ def merge_pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
         new["n_points"].append(int(parts.n_points[js].sum()))
         new["sections"].append(parts.record.sections[biggest])
         new.setdefault("kinds", []).append(parts.kinds[biggest] if parts.kinds else "unknown")
+        new.setdefault("levels", []).append("none")  # pieces joined: no placed model's level, no measured one
     k = np.flatnonzero(keep)
     size = np.vstack([parts.size[k], new["size"]])
     merged = replace(
@@ -81,6 +82,7 @@ def merge_pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
         measured=np.vstack([parts.measured[k], new["size"]]),
         models=[parts.models[j] for j in k] + [None] * len(groups),
         kinds=([parts.kinds[j] for j in k] if parts.kinds else ["unknown"] * len(k)) + new.get("kinds", []),
+        levels=([parts.levels[j] for j in k] if parts.levels else ["none"] * len(k)) + new.get("levels", []),
         confidence=np.concatenate([parts.confidence[k], np.full(len(groups), np.nan)]),
         n_points=np.concatenate([parts.n_points[k], new["n_points"]]),
         lonlat=np.vstack([parts.lonlat[k], new["lonlat"]]),

@@ -59,7 +59,8 @@ def simulate_city_cmd(
     when = date.date().isoformat() if date else None
     with RunProgress() as bars, staged_folder(out, protect=[epoch_of] if epoch_of else (), kind="city") as stage:
         if epoch_of is not None:
-            truth = _later(stage, epoch_of, models, names, sizes, density, seed, when, bars.update)
+            truth = _later(stage, epoch_of, models, names, sizes, density, seed, when, bars.update,
+                           city_furniture(library))
         else:
             truth = simulate_city(stage, models, names, km2=km2, density=density or 150.0, tile=tile, seed=seed,
                                   crs=crs, progress=bars.update, copc=copc, date=when, kind=layout,
@@ -77,7 +78,7 @@ def simulate_city_cmd(
              f"({truth['side_m']:g} m square, {crs}); truth in {out / 'truth.json'}")
 
 
-def _later(stage, earlier: Path, models, names, sizes, density, seed, date, progress) -> dict:
+def _later(stage, earlier: Path, models, names, sizes, density, seed, date, progress, furniture) -> dict:
     from ..errors import SceneReadError
     from ..sim.city_epoch import simulate_later
 
@@ -85,6 +86,6 @@ def _later(stage, earlier: Path, models, names, sizes, density, seed, date, prog
         raise SceneReadError(f"{earlier}: no truth.json; --epoch-of takes a folder written by simulate-city")
     try:
         return simulate_later(stage, earlier, models, names, sizes, density=density, seed=seed, date=date,
-                              progress=progress)
+                              progress=progress, furniture=furniture)
     except ValueError as exc:
         raise SceneReadError(str(exc)) from exc

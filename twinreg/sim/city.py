@@ -291,6 +291,8 @@ def simulate_city(out, models: list, names: list[str], km2: float = 0.01, densit
              "others": [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]}
                         | ({"model": furniture[p.model][1]} if p.kind.startswith("furniture:") else {})
                         for p in placed if p.kind not in ("car", "slot")]}
+    if furniture:  # which models, in which order: a later survey places the same furniture from them
+        truth["furniture"] = [name for _, name, _ in furniture]
     write_truth(out, truth)
     return truth
 

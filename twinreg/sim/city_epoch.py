@@ -1,8 +1,10 @@
 """A later survey of a simulated city (``simulate-city --epoch-of EARLIER``): the same streets, walls and trees;
 between the surveys some parked cars stay, re-park (0.5-1 m along the kerb where the gaps allow, else sideways,
-turned a few degrees), leave, are replaced by a car of another size, and cars arrive in spaces that were empty. The
-later survey is flown along other lines, its georeferencing is off by a systematic shift, and a strip across the
-city has no returns. Its truth.json lists every event with what ``compare`` should say."""
+turned a few degrees), leave, are replaced by a car of another size, and cars arrive in spaces that were empty; of
+the street furniture (when the earlier city has some), a tenth is taken away (a lamp post knocked down, a bin
+removed), the rest stays. The later survey is flown along other lines, its georeferencing is off by a systematic
+shift, and a strip across the city has no returns. Its truth.json lists every event with what ``compare`` should
+say."""
 
 from __future__ import annotations
 
@@ -51,9 +53,15 @@ def later_layout(models, sizes, placed: list[Placed], seed: int) -> tuple[list[P
     lengths = [s[0] for s in sizes]
     cars = [p for p in placed if p.kind == "car"]
     gaps = _row_gaps(cars + [p for p in placed if p.kind == "slot"], lengths)
-    out = [p for p in placed if p.kind not in ("car", "slot")]
+    out = [p for p in placed if p.kind not in ("car", "slot") and not p.kind.startswith("furniture:")]
     events = []
     for p in placed:
+        if p.kind.startswith("furniture:"):
+            gone = rng.random() < SHARES["left"]
+            if not gone:
+                out.append(p)
+            events.append({"event": "left" if gone else "same", "before": p, "after": None if gone else p})
+            continue
         if p.kind == "slot":
             if rng.random() < ARRIVE:
                 q = _placed(models, p.model, p.x, p.y, p.heading, p.radius)
@@ -89,24 +97,35 @@ def later_layout(models, sizes, placed: list[Placed], seed: int) -> tuple[list[P
     return out, events
 
 
-def _car(p: Placed | None, names, origin) -> dict | None:
+def _car(p: Placed | None, names, origin, furniture=()) -> dict | None:
+    """An event's object in truth.json: its model's name, where it stands, its heading; furniture says its kind."""
     if p is None:
         return None
+    if p.kind.startswith("furniture:"):
+        return {"model": furniture[p.model], "kind": p.kind.split(":", 1)[1], "x": p.x + origin[0],
+                "y": p.y + origin[1], "heading": p.heading}
     return {"model": names[p.model], "x": p.x + origin[0], "y": p.y + origin[1], "heading": p.heading}
 
 
 def simulate_later(out, earlier, models: list, names: list[str], sizes, density: float | None = None,
                    seed: int = 1, shift=(0.1, -0.08, 0.1), gap_m: float = 25.0, date: str | None = None,
-                   progress=None) -> dict:
+                   progress=None, furniture: list | None = None) -> dict:
     """Write the later survey of the city in folder ``earlier`` (its truth.json) to ``out``; ``sizes``: (n, 3) the
     models' length, width and height; ``date``: the survey's (``YYYY-MM-DD``, in the tiles' headers; None: 91 days
-    after the earlier survey's, if it has one). Returns the truth document (``events`` with ``expected``: the statuses
-    compare may give, only ``unobserved`` for a car the strip hides wholly, either for one on its edge)."""
+    after the earlier survey's, if it has one); ``furniture``: the catalogue's street furniture
+    (:func:`~.city.city_furniture`), needed when the earlier city has some. Returns the truth document (``events``
+    with ``expected``: the statuses compare may give, only ``unobserved`` for an object the strip hides wholly,
+    either for one on its edge)."""
     earlier = Path(earlier)
     truth0 = json.loads((earlier / "truth.json").read_text(encoding="utf-8"))
     side, tile, origin = truth0["side_m"], truth0["tile_m"], np.asarray(truth0["origin"], dtype=np.float64)
+    wanted = truth0.get("furniture")
+    if wanted and [name for _, name, _ in furniture or ()] != wanted:
+        raise ValueError(f"{earlier}: its street furniture is not the catalogue's ({', '.join(map(str, wanted))[:200]}"
+                         "); simulate the later epoch with the catalogue the earlier one was made with")
+    furniture = furniture if wanted else None
     placed = (park_layout(models, side, side, truth0["seed"]) if truth0.get("layout") == "parks"
-              else layout(models, side, side, truth0["seed"], truth0.get("street_spacing_m", 24.0)))
+              else layout(models, side, side, truth0["seed"], truth0.get("street_spacing_m", 24.0), furniture))
     if car_truth(placed, names, origin) != truth0["cars"]:
         raise ValueError(f"{earlier}: its cars are not the ones these models give; simulate the later epoch with "
                          "the catalogue the earlier one was made with")
@@ -123,22 +142,29 @@ def simulate_later(out, earlier, models: list, names: list[str], sizes, density:
     out.mkdir(parents=True, exist_ok=True)
     files, n_points = write_tiles(out, objects, side, tile, survey, truth0["crs"], origin, progress=progress)
     rows = []
+    names_f = wanted or []
     for e in events:
         p = e["before"] or e["after"]
-        half = max(sizes[m][0] for m in {x.model for x in (e["before"], e["after"]) if x is not None}) / 2 + 0.3
+        half = (p.radius if p.kind.startswith("furniture:") else
+                max(sizes[m][0] for m in {x.model for x in (e["before"], e["after"]) if x is not None}) / 2 + 0.3)
         hidden = gap[0] + half <= p.x <= gap[1] - half
         edge = gap[0] - half < p.x < gap[1] + half
         if e["before"] is None:  # an arrival: nothing to see in the strip, not scored on its edge
             expected = [] if hidden else (None if edge else ["arrived"])
         else:
             expected = ["unobserved"] if hidden else (["unobserved", e["event"]] if edge else [e["event"]])
-        rows.append({"event": e["event"], "before": _car(e["before"], names, origin),
-                     "after": _car(e["after"], names, origin), "expected": expected})
+        rows.append({"event": e["event"], "before": _car(e["before"], names, origin, names_f),
+                     "after": _car(e["after"], names, origin, names_f), "expected": expected})
     truth = {k: truth0[k] for k in ("crs", "origin", "tile_m", "seed", "street_spacing_m", "side_m", "layout")
              if k in truth0}
     truth |= {"density": survey.density, "date": date, "epoch_of": earlier.name, "survey_seed": survey.seed,
               "shift": list(shift), "gap_x": [g + origin[0] for g in gap], "n_points": n_points, "tiles": files,
               "cars": [c for c in (_car(p, names, origin) for p in objects if p.kind == "car")], "events": rows}
+    if wanted:
+        truth["furniture"] = wanted
+    truth["others"] = [{"kind": p.kind, "x": p.x + origin[0], "y": p.y + origin[1]}
+                       | ({"model": names_f[p.model]} if p.kind.startswith("furniture:") else {})
+                       for p in objects if p.kind not in ("car", "slot")]
     write_truth(out, truth)
     return truth
 

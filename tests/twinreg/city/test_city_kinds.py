@@ -69,3 +69,19 @@ def test_simulate_city_puts_the_catalogues_furniture_on_the_pavements(parametric
     plain = json.loads((tmp_path / "without" / "truth.json").read_text())
     assert res.exit_code == 0 and plain["cars"] == truth["cars"]  # the furniture changes nothing else
     assert not [o for o in plain["others"] if o["kind"].startswith("furniture:")]
+    # a later survey of the furnished city: the same furniture, some of it taken away, each item an event with its
+    # kind; with a catalogue whose furniture differs, refused in one line
+    res = CliRunner().invoke(app, [str(a) for a in [*args[:1], tmp_path / "later", *args[1:], "--epoch-of",
+                                                    tmp_path / "with"]])
+    assert res.exit_code == 0, res.output
+    later = json.loads((tmp_path / "later" / "truth.json").read_text())
+    events = [e for e in later["events"] if e["before"] is not None and "kind" in e["before"]]
+    assert len(events) == len(items) and {e["event"] for e in events} <= {"same", "left"}
+    kept = [o for o in later["others"] if o["kind"].startswith("furniture:")]
+    assert len(kept) == sum(e["event"] == "same" for e in events)
+    assert {(round(o["x"], 3), round(o["y"], 3)) for o in kept} <= {(round(o["x"], 3), round(o["y"], 3)) for o in items}
+    cat.remove("fire_hydrant")
+    res = CliRunner().invoke(app, [str(a) for a in [*args[:1], tmp_path / "later2", *args[1:], "--epoch-of",
+                                                    tmp_path / "with"]])
+    assert res.exit_code != 0 and "catalogue the earlier one was made with" in res.output
+    assert not (tmp_path / "later2").exists()
