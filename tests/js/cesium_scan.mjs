@@ -1,7 +1,8 @@
 // CesiumJS (the npm package's built bundle, served from 127.0.0.1; no ion, no imagery, no terrain) opens a twin's
 // tiles/tileset.json at its default detail (maximumScreenSpaceError 16) in headless Chromium: the camera frames the
 // whole twin, then comes down to street level over one point. For each view: the scan tiles requested (their
-// quadtree levels), the points CesiumJS selected to draw, and the car tiles. Prints one JSON line.
+// quadtree levels), the points CesiumJS selected to draw, and the car tiles; from the whole twin's view, the count
+// of the model tiles' features by their "kind" property. Prints one JSON line.
 // usage: node cesium_scan.mjs TWIN_DIR SHOT.png [LON LAT H]   (the street-level camera, H its ellipsoidal height;
 // default: 25 m above the tileset's centre)
 import http from "node:http";
@@ -93,6 +94,23 @@ try {
     await view("city", () => {
       const s = window.tileset.boundingSphere;
       window.viewer.camera.viewBoundingSphere(s, new Cesium.HeadingPitchRange(0, -Math.PI / 3, s.radius * 2.5));
+    });
+    // the model tiles' features as CesiumJS reads them: each feature's kind (the 3D Tiles metadata)
+    out.kinds = await page.evaluate(() => {
+      const kinds = {};
+      const walk = (tile) => {
+        const c = tile.content;
+        if (c && !tile.hasEmptyContent && c.featuresLength) {
+          for (let i = 0; i < c.featuresLength; i += 1) {
+            const f = c.getFeature(i);
+            const k = f.hasProperty && f.hasProperty("kind") ? String(f.getProperty("kind")) : "(none)";
+            kinds[k] = (kinds[k] || 0) + 1;
+          }
+        }
+        (tile.children || []).forEach(walk);
+      };
+      walk(window.tileset.root);
+      return kinds;
     });
     await view("street", ([x, y, z]) => {
       let at;

@@ -44,6 +44,8 @@ def test_the_street_places_every_model_on_the_pavement_or_the_kerb(street_lib):
 
 
 def test_a_twin_of_the_street_finds_its_furniture_with_its_kind(street_lib, tmp_path):
+    """build-twin on the street: the furniture found with its kind and only its own model, the cars as cars; the
+    CityJSON valid and read by cjio; CesiumJS reads each object's kind from the 3D Tiles."""
     from twinreg.geo.georef import georef_from_options
     from twinreg.io.ply import write_ply
     from twinreg.pipeline import build_twin
@@ -86,6 +88,21 @@ def test_a_twin_of_the_street_finds_its_furniture_with_its_kind(street_lib, tmp_
     from twinreg.export.cityjson import city_type
 
     assert all(doc["CityObjects"][o["id"]]["type"] == city_type(o["kind"])[0] for o in objs)
+    # CesiumJS (headless Chromium) opens the twin's 3D Tiles and reads every object's kind from the metadata of
+    # its instance: the furniture models' as well as the cars'
+    import subprocess
+    from collections import Counter
+
+    from tests.twinreg.helpers import CHROMIUM, ROOT
+
+    if not CHROMIUM.exists() or not (ROOT / "node_modules" / "cesium").is_dir():
+        pytest.fail("chromium or the npm packages are missing: run `make install`")
+    proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "cesium_scan.mjs"), str(tmp_path / "twin"),
+                           str(tmp_path / "cesium.png")], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["failed"] is None and got["errors"] == [], got
+    assert got["kinds"] == dict(Counter(o["kind"] for o in objs)), (got["kinds"], [o["kind"] for o in objs])
 
 
 def test_a_lamp_post_knocked_down_is_left(street_lib, tmp_path):
