@@ -28,10 +28,12 @@ from .report.scene import plot_taxonomy, warm_up, write_report
 from .stages import (
     checked_params,
     classify,
+    fuse,
     locate,
     place,
     recognise,
     require_models,
+    types_of,
     with_targets,
 )
 
@@ -165,7 +167,8 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
 
     from cosco.segment import point_spacing
 
-    clusters = classify(shapes, params, timing, progress, spacing=[point_spacing(c) for c in clouds])
+    spacing = [point_spacing(c) for c in clouds]
+    clusters = classify(shapes, params, timing, progress, spacing=spacing)
     with staged_folder(Path(out), protect=[scene_path, catalogue.folder], kind="twin") as stage:
         try:
             names = [f"obj{k + 1}" for k in range(len(targets))]
@@ -174,7 +177,8 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
-                           templates=templates, prober=prober, tick=tick, levels=levels, clouds=clouds)
+                           templates=templates, prober=prober, tick=tick, levels=levels, clouds=clouds,
+                           spacing=spacing)
             twin = _match_and_export(run)
         except BaseException:
             for helper in (painter, prober):  # a helper may be writing into the stage: stopped before it goes
@@ -190,7 +194,7 @@ class SceneRun:
     the detection ``det``, its ``targets`` and their ``shapes``, the taxonomy ``clusters``), with what
     (``catalogue``, ``georef``, ``params``), and how it runs (``progress``, ``timing``, ``t_start``, the picture
     helper ``painter`` and its ``taxonomy`` job, ``ply``, the distance helper ``prober``); each object's
-    ``levels`` of symmetry and points (``clouds``, the detection's, read once)."""
+    ``levels`` of symmetry, points (``clouds``, the detection's, read once) and point ``spacing``."""
 
     stage: Path
     scene_path: Path
@@ -213,6 +217,7 @@ class SceneRun:
     tick: object = None
     levels: list | None = None
     clouds: list | None = None
+    spacing: list | None = None
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -235,8 +240,11 @@ def _match_and_export(run: SceneRun) -> dict:
     _say(progress, "export")
     t = time.perf_counter()
     results, kinds = recognise(results, shapes, run.levels, catalogue, params)
+    types = types_of(clusters.labels, results, kinds, params, run.spacing)
+    _say(progress, "shapes of the types without a model")
+    fused = fuse(types, results, run.clouds, run.levels, params, timing, kinds)
     placed = place([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
-                   clusters.labels, [offset] * len(targets), georef, models, kinds, run.levels)
+                   clusters.labels, [offset] * len(targets), georef, models, kinds, run.levels, types, fused)
     objects = [p.doc for p in placed]
 
     sc = det.scene

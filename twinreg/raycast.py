@@ -95,3 +95,16 @@ def visible_surface(vertices: np.ndarray, faces: np.ndarray, spacing: float, vie
         keep = ~np.asarray(drop_faces, dtype=bool)[fids]
         pts = pts[keep]
     return pts + centre
+
+
+def surface_distances(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(n,) unsigned distance (m) of ``points`` to the mesh's surface (open3d, exact per triangle; centred on the
+    mesh inside, for float32)."""
+    from .o3d import load
+
+    o3d = load()
+    v = np.asarray(vertices, dtype=np.float64)
+    centre = v.mean(0) if len(v) else np.zeros(3)
+    scene = raycasting_scene(v - centre, faces)
+    query = (np.asarray(points, dtype=np.float64) - centre).astype(np.float32)
+    return scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)

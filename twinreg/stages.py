@@ -116,32 +116,93 @@ def apply_floor(outcomes: list, floor: float) -> list:
     return out
 
 
-def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: list, georef, models,
-          kinds: list | None = None, levels: list | None = None) -> list:
-    """Place every object: its :class:`~twinreg.export.objects.PlacedObject` (the mesh at its pose, where it is
-    on Earth, its kind and type, its twin.json record) from its matching outcome, its taxonomy label, ``offsets``
-    (each (3,), its local frame to the scene frame) and its recognised kind and level of symmetry
-    (:func:`recognise`; None: not recognised). Every object's lat/lon and bearing come from two vectorised
-    transformations (one per object took 8 s at 5,000 objects)."""
+def types_of(labels, outcomes: list, kinds: list | None, params: CoscoParams, spacing=None) -> list[int]:
+    """Each object's type (:func:`twinreg.recognition.kinds.object_types`): its taxonomy group split by kind, by
+    decided model and by size, two objects of a type no farther apart in size than the catalogue's size window
+    (``params.size_tol`` plus ``params.size_spacing_k`` times the objects' median point ``spacing``)."""
+    import numpy as np
+
+    from .recognition.kinds import object_types
+
+    s = float(np.median(spacing)) if spacing is not None and len(spacing) else 0.0
+    return object_types(labels, [k.kind for k in kinds] if kinds is not None else None,
+                        sizes=[res.shape.size.as_array() for res in outcomes],
+                        models=[res.match.name if res.match is not None else None for res in outcomes],
+                        tol=params.size_tol + params.size_spacing_k * s)
+
+
+def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: CoscoParams,
+         timing: dict | None = None, kinds: list | None = None) -> dict:
+    """The fused shape of every type whose members have no decided model (:func:`twinreg.shapes.fuse.fuse_type`:
+    the members co-registered, their points gathered and completed by the type's level of symmetry, meshed), by
+    type: ``(member indices, FusedShape)``. ``clouds``: each object's points (the scene frame); the type's level is
+    its members' most common one. Types whose members have too few points together (``params.fuse_min_points``)
+    keep their boxes, but for vehicles (``kinds``), which get the kind's template: a body lofted from each one's
+    own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``)."""
+    import time
     from collections import Counter
 
     import numpy as np
 
-    from .export.objects import place_object, pose
+    from .catalogue.categories import VEHICLES
+    from .shapes.fuse import FusedShape, fuse_type, generic_solid
+
+    t0 = time.perf_counter()
+    groups: dict = {}
+    for k, (t, res) in enumerate(zip(types, outcomes)):
+        if res.match is None:
+            groups.setdefault(t, []).append(k)
+    out = {}
+    for t, ks in groups.items():
+        if sum(len(clouds[k]) for k in ks) < params.fuse_min_points:
+            for k in ks:
+                if kinds is not None and kinds[k].kind in VEHICLES:
+                    v, f = generic_solid(outcomes[k].shape)
+                    out[f"{t}:{k}"] = ([k], FusedShape(v, f, np.eye(4)[None], {"members": 1}, np.zeros(1), "generic"))
+            continue
+        level = Counter(levels[k] for k in ks).most_common(1)[0][0] if levels is not None else "mirror"
+        out[t] = (ks, fuse_type([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params))
+    if timing is not None:
+        timing["shapes"] = time.perf_counter() - t0
+    return out
+
+
+def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: list, georef, models,
+          kinds: list | None = None, levels: list | None = None, types: list | None = None,
+          fused: dict | None = None) -> list:
+    """Place every object: its :class:`~twinreg.export.objects.PlacedObject` (the mesh at its pose, where it is
+    on Earth, its kind and type, its twin.json record) from its matching outcome, its taxonomy label, ``offsets``
+    (each (3,), its local frame to the scene frame) and its recognised kind and level of symmetry
+    (:func:`recognise`; None: not recognised), its ``types`` (:func:`types_of`; None: computed here) and the
+    ``fused`` shapes of types without a model (:func:`fuse`; None: boxes). Every object's lat/lon and bearing come
+    from two vectorised transformations (one per object took 8 s at 5,000 objects)."""
+    from collections import Counter
+
+    import numpy as np
+
+    from .export.objects import fused_pose, place_object, pose
     from .export.twin_json import object_record
     from .recognition.classify import near_candidates
 
+    if types is None:
+        types = types_of(labels, outcomes, kinds, models.params)
+    shaped = {}
+    for t, (ks, fs) in (fused or {}).items():
+        for i, k in enumerate(ks):
+            shaped[k] = (f"fused{t}" if fs.source == "fused" else f"generic_{ids[k]}", fs.vertices, fs.faces,
+                         fused_pose(outcomes[k].shape, fs.member_poses[i]),
+                         {**fs.quality, "rmse_m": round(float(fs.rmse_m[i]), 4)} if fs.source == "fused" else None,
+                         fs.source)
     poses = [pose(res) for res in outcomes]
+    poses = [(c, float(np.arctan2(shaped[k][3][1, 0], shaped[k][3][0, 0])) if k in shaped else h)
+             for k, (c, h) in enumerate(poses)]
     centres = np.array([c + np.asarray(off) for (c, _), off in zip(poses, offsets)]).reshape(-1, 3)
     lonlat, bearings = georef.placements(centres, [h for _, h in poses])
-    from .recognition.kinds import object_types
-
-    types = object_types(labels, [k.kind for k in kinds] if kinds is not None else None)
     members = Counter(types)
     placed = []
     for k, (oid, n, res, label, off) in enumerate(zip(ids, n_points, outcomes, labels, offsets)):
         p = place_object(oid, n, res, int(label), np.asarray(off),
-                         (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k])), models)
+                         (float(lonlat[k, 0]), float(lonlat[k, 1]), float(bearings[k])), models, shaped.get(k))
         p.type, p.members = types[k], members[types[k]]
         if kinds is not None:
             p.kind, p.level = kinds[k], levels[k]

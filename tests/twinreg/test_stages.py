@@ -61,13 +61,14 @@ def test_placing_all_at_once_is_placing_each_alone(parametric_catalogue):
     georef = georef_from_options(lat=53.35, lon=-6.26)
     offsets = [np.array([715_800.0 + k, 734_600.0, 20.0]) for k in range(4)]
     ids = [f"obj{k + 1}" for k in range(4)]
-    placed = place(ids, [s.n_points for s in shapes], results, [1, 1, 2, 2], offsets, georef, models)
+    placed = place(ids, [s.n_points for s in shapes], results, [1, 1, 2, 2], offsets, georef, models,
+                   types=[1, 1, 2, 2])
     for k, p in enumerate(placed):
         centre, heading = pose(results[k])
         ll, bearing = georef.placements((centre + offsets[k])[None], [heading])
         alone = place_object(ids[k], shapes[k].n_points, results[k], [1, 1, 2, 2][k], offsets[k],
                              (float(ll[0, 0]), float(ll[0, 1]), float(bearing[0])), models)
-        alone.type, alone.members = [1, 1, 2, 2][k], 2  # two objects of each label (not recognised: no kinds)
+        alone.type, alone.members = [1, 1, 2, 2][k], 2  # two objects of each type given
         alone.doc = object_record(alone, georef)
         assert p.doc == alone.doc and placemark_fields(p) == placemark_fields(alone) and p.mesh_key == alone.mesh_key
         assert np.array_equal(p.pose, alone.pose)
@@ -95,3 +96,19 @@ def test_recognition_keeps_a_model_only_at_the_floor_or_above(parametric_catalog
     assert [r.match for k, r in enumerate(kept) if k != 1] == [r.match for k, r in enumerate(results) if k != 1]
     none_withdrawn, _ = recognise(results, shapes, levels, parametric_catalogue, DEFAULT.with_(model_min_confidence=0))
     assert none_withdrawn[1].match is not None
+
+
+def test_types_split_by_model_and_size():
+    """A type is one design: objects the taxonomy grouped but matched to two models, or of sizes farther apart than
+    the catalogue's size window, are of different types; copies of one design stay together."""
+    from types import SimpleNamespace as NS
+
+    from twinreg.stages import types_of
+
+    def outcome(size, model=None):
+        return NS(shape=NS(size=NS(as_array=lambda: np.array(size))), match=NS(name=model) if model else None)
+
+    outs = [outcome([4.0, 1.8, 1.5]), outcome([4.1, 1.85, 1.5]), outcome([5.3, 2.2, 1.9]),
+            outcome([4.0, 1.8, 1.5], "a"), outcome([4.05, 1.8, 1.5], "b")]
+    types = types_of([1] * 5, outs, None, DEFAULT, spacing=[0.08] * 5)
+    assert types[0] == types[1] and len(set(types)) == 4

@@ -18,7 +18,7 @@ from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_docu
 from ..io import observed
 from ..io.outdir import staged_folder
 from .classified import FOLDER as CLASSIFIED
-from ..stages import place, recognise
+from ..stages import place, recognise, types_of
 from .resume import WORK
 
 def _cell_bounds(georef, cell) -> dict:
@@ -67,8 +67,10 @@ def export_city(run: CityRun) -> dict:
     t = time.perf_counter()
     levels = [o.level for o in run.objects]
     run.outcomes, kinds = recognise(run.outcomes, [o.shape for o in run.objects], levels, run.catalogue, run.params)
+    types = types_of(run.tax.labels, run.outcomes, kinds, run.params, [o.spacing for o in run.objects])
+    # (no fused shapes yet: the members' points stay in the cells' files on the workers)
     outs = place([o.id for o in run.objects], [o.n_points for o in run.objects], run.outcomes, run.tax.labels,
-                 [o.offset for o in run.objects], run.georef, run.models, kinds, levels)
+                 [o.offset for o in run.objects], run.georef, run.models, kinds, levels, types)
     run.timing["records"] = time.perf_counter() - t
     by_cell: dict = {}
     for item, o in zip(outs, run.objects):

@@ -49,7 +49,9 @@ def _summary(row) -> str:
 @app.command("add-model", cls=Command)
 @handled
 def add_model(
-    mesh: Annotated[Path, typer.Argument(help="Mesh file: OBJ, PLY, STL, OFF, GLB/glTF or DAE.")],
+    mesh: Annotated[Optional[Path], typer.Argument(
+        help="Mesh file: OBJ, PLY, STL, OFF, GLB/glTF or DAE; or one scanned object's points (XYZ, PLY points, "
+             "LAS/LAZ). Not with --from-twin.", show_default=False)] = None,
     name: Annotated[Optional[str], typer.Option(help="Unique name (default: the file name).")] = None,
     make: Annotated[Optional[str], typer.Option(help="Manufacturer.")] = None,
     model: Annotated[Optional[str], typer.Option(help="Model name.")] = None,
@@ -61,15 +63,36 @@ def add_model(
     up: UpOpt = "auto",
     front: FrontOpt = "auto",
     tag: Annotated[Optional[List[str]], typer.Option("--tag", metavar="TAG", help="A tag (repeatable).")] = None,
+    from_twin: Annotated[Optional[Path], typer.Option(
+        "--from-twin", metavar="OUT", help="A twin folder build-twin wrote: add its fused type --type as a model "
+                                           "(--name required; --category defaults to the type's kind).",
+        show_default=False)] = None,
+    type_: Annotated[Optional[int], typer.Option(
+        "--type", help="With --from-twin: the type's number (twin.json's objects carry theirs).",
+        show_default=False)] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
-    """Load, normalise, sample the visible surface, detect symmetry, cut cross-sections, measure size, store."""
+    """Load, normalise, sample the visible surface, detect symmetry, cut cross-sections, measure size, store.
+    With --from-twin OUT --type T --name N: a type fused from a twin's scans becomes a model."""
+    from ..errors import ParameterError
+
+    if (mesh is None) == (from_twin is None):
+        raise ParameterError("give a mesh file, or --from-twin OUT --type T --name N (not both)")
     cat = open_catalogue(library)
-    with err_console.status(f"measuring {mesh.name}"):
-        row = cat.add(mesh, name=name, make=make, model=model, body_class=body_class, tags=tag or (), unit=unit,
-                      up=up, front=front, category=category, scale=scale)
-        dups, warning = near_duplicate_report(cat, row)
+    if from_twin is not None:
+        if type_ is None or not name:
+            raise ParameterError("--from-twin needs --type T and --name N")
+        from ..shapes.promote import promote
+
+        with err_console.status(f"measuring type {type_} of {from_twin.name}"):
+            row = promote(cat, from_twin, type_, name, category)
+            dups, warning = near_duplicate_report(cat, row)
+    else:
+        with err_console.status(f"measuring {mesh.name}"):
+            row = cat.add(mesh, name=name, make=make, model=model, body_class=body_class, tags=tag or (), unit=unit,
+                          up=up, front=front, category=category, scale=scale)
+            dups, warning = near_duplicate_report(cat, row)
     if warning:  # a warning, not a failure: the model is stored
         info(warning)
     if json_:

@@ -102,9 +102,31 @@ def _tiles(f: TwinFiles):
                                  tile_meshes=_light(f.placed, f.models))}
 
 
+def _shapes(f: TwinFiles):
+    """Each fused shape as ``shapes/type_<T>.ply`` (the type's frame: metres, front +X, the ground at z = 0; what
+    ``add-model --from-twin`` promotes), and twin.json's ``shapes``: per type its kind, members, quality, file."""
+    from ..io.ply import write_ply
+
+    seen: dict = {}
+    for p in f.placed:
+        if p.shape_source == "fused":
+            seen.setdefault(p.type, []).append(p)
+    out = []
+    for t, ps in sorted(seen.items()):
+        name = f"shapes/type_{t}.ply"
+        (f.stage / "shapes").mkdir(exist_ok=True)
+        write_ply(f.stage / name, ps[0].mesh[0], ps[0].mesh[1],
+                  comments=[f"twinreg: the fused shape of type {t} of {f.scene[:80]}, {len(ps)} members",
+                            "metres; front +X; the ground at z = 0"])
+        kind = ps[0].kind.kind if ps[0].kind is not None else None
+        out.append({"type": int(t), "kind": kind, "members": [p.id for p in ps], "quality": ps[0].shape_quality
+                    and {k: v for k, v in ps[0].shape_quality.items() if k != "rmse_m"}, "file": name})
+    return {"shapes": out} if out else None
+
+
 #: the formats written in this process, in order, each ``(files) -> None``, a dict of twin.json's entries, or a
 #: job to ``wait()`` for (the KMZ on a helper): a new format is its module and one line here
-TWIN_FORMATS = (_kmz, _ply, _tiles)
+TWIN_FORMATS = (_kmz, _ply, _tiles, _shapes)
 
 
 def write_twin(f: TwinFiles, beside=None) -> dict:
@@ -137,9 +159,11 @@ def _instances(placed: list) -> list:
 
 
 def _light(placed: list, models) -> dict:
-    """The tiles' (and CityJSON's) lighter mesh of every model the objects show, by mesh key."""
+    """The tiles' (and CityJSON's) lighter mesh of every model the objects show, by mesh key; a fused shape's own
+    (already decimated)."""
     meshes = {p.mesh_key: (p.model_id, p.mesh[2]) for p in placed if p.model_id is not None}
-    return {key: (*models.light_mesh(model_id, TILE_MAX_TRIANGLES), rgb) for key, (model_id, rgb) in meshes.items()}
+    out = {key: (*models.light_mesh(model_id, TILE_MAX_TRIANGLES), rgb) for key, (model_id, rgb) in meshes.items()}
+    return out | {p.mesh_key: p.mesh for p in placed if p.shape_source in ("fused", "generic")}
 
 
 @dataclass

@@ -19,6 +19,8 @@ from .twin_ply import cluster_color
 
 #: the colour of an object with no model (its box), everywhere it is drawn
 BOX_RGB = (0.9, 0.2, 0.2)
+#: the colour of an object drawn with its type's fused shape (no model: built from the scans of its type)
+FUSED_RGB = (0.95, 0.6, 0.1)
 
 
 def box_mesh(length: float, width: float, height: float):
@@ -43,7 +45,8 @@ class PlacedObject:
     record (:func:`~twinreg.export.twin_json.object_record`); its recognised ``kind``
     (:class:`~twinreg.recognition.kinds.KindResult`, or None), its ``level`` of symmetry, its ``type`` (its
     taxonomy group split by kind: :func:`twinreg.recognition.kinds.object_types`) and the type's number of ``members``, and,
-    without a model, the near references (``candidates``)."""
+    without a model, the near references (``candidates``); ``shape_source`` (``model``, ``fused`` or ``box``) and,
+    for a fused shape, its ``shape_quality`` (:class:`twinreg.shapes.fuse.FusedShape`)."""
 
     id: str
     n_points: int
@@ -70,6 +73,8 @@ class PlacedObject:
     type: int = 0
     members: int = 1
     candidates: list = field(default_factory=list)
+    shape_source: str = "box"
+    shape_quality: dict | None = None
 
     @property
     def origin(self) -> np.ndarray:
@@ -93,14 +98,15 @@ class PlacedObject:
 
     def footprint(self) -> dict:
         """The top view's item: the placed mesh's minimum-area rectangle (``corners``, local frame), its
-        ``color``, ``centre``, a ``front`` point 1.5 m ahead and a short ``label`` (``?`` when no model fits)."""
+        ``color``, ``centre``, a ``front`` point 1.5 m ahead and a short ``label`` (``?`` when no model fits and
+        the box is drawn, ``~`` when its type's fused shape is)."""
         rect = min_area_rectangle(_place(self.outline, self.pose)[:, :2])
         ctr = np.asarray(self.centre)[:2]
         oid = self.id
         return {"corners": rect.corners(), "color": cluster_color(self.label) / 255.0, "centre": ctr,
                 "front": ctr + 1.5 * np.array([np.cos(self.heading), np.sin(self.heading)]),
                 "label": (oid[3:] if oid.startswith("obj") else oid.rsplit("-", 1)[-1])
-                + ("" if self.match is not None else "?")}
+                + {"model": "", "fused": "~", "generic": "~"}.get(self.shape_source, "?")}
 
 
 def _place(vertices, pose: np.ndarray) -> np.ndarray:
@@ -125,13 +131,22 @@ def pose(res) -> tuple[np.ndarray, float]:
     return np.asarray(res.shape.centroid, dtype=np.float64), float(res.shape.heading)
 
 
+def fused_pose(shape, member_pose: np.ndarray) -> np.ndarray:
+    """(4, 4) a type's fused shape (its frame) into one member's local frame: the member's pose in the type's
+    frame, then the member's object frame to the scene."""
+    f = shape.frame
+    return yaw_pose(f.heading, (f.origin_xy[0], f.origin_xy[1], f.ground_z)) @ member_pose
+
+
 def place_object(oid: str, n_points: int, res, label: int, offset: np.ndarray, where: tuple,
-                 models) -> PlacedObject:
+                 models, fused: tuple | None = None) -> PlacedObject:
     """One matched (or unmatched) object placed. ``res``: its :class:`~twinreg.matching.match.ObjectMatch`;
     ``offset``: (3,) added to the object's local frame gives the scene frame; ``where``: ``(lon, lat, bearing)``
     (:meth:`~twinreg.geo.georef.Georef.placements`, computed for many objects at once); ``models``: the matcher's
     :class:`~twinreg.matching.match.ModelCache` (rows, twin meshes and sections read once per model). Its
-    ``doc`` is left empty (:func:`twinreg.stages.place` fills it)."""
+    ``doc`` is left empty (:func:`twinreg.stages.place` fills it). ``fused``: for an object with no model, its
+    type's shape ``(mesh key, vertices, faces, pose (4, 4) in the local frame, quality, source)`` (``fused`` or
+    ``generic``); else its box."""
     shape, m = res.shape, res.match
     lon, lat, bearing = where
     common = dict(id=oid, n_points=int(n_points), label=int(label), outcome=res,
@@ -139,7 +154,7 @@ def place_object(oid: str, n_points: int, res, label: int, offset: np.ndarray, w
     if m is not None:
         row, (mv, mf) = models.row(m.model_id), models.mesh(m.model_id)
         reg = cosco.Registration(m.rmse, m.rz, m.tz, m.du)
-        return PlacedObject(**common, mesh_key=f"model{m.model_id}",
+        return PlacedObject(**common, mesh_key=f"model{m.model_id}", shape_source="model",
                             mesh=(mv, mf, tuple(cluster_color(label) / 255.0)),
                             pose=np.asarray(m.transform, dtype=np.float64), centre=np.asarray(m.centre),
                             heading=float(m.heading),
@@ -147,6 +162,11 @@ def place_object(oid: str, n_points: int, res, label: int, offset: np.ndarray, w
                             outline=models.outline(m.model_id), model_id=m.model_id, model=row,
                             model_sections=_registered_sections(models.geometry(m.model_id).sections, reg))
     s = shape.size
+    if fused is not None:
+        key, v, f, at, quality, source = fused
+        return PlacedObject(**common, mesh_key=key, mesh=(v, f, FUSED_RGB), pose=np.asarray(at, dtype=np.float64),
+                            centre=np.asarray(shape.centroid), heading=float(np.arctan2(at[1, 0], at[0, 0])),
+                            size=s.as_dict(), outline=v, shape_source=source, shape_quality=quality)
     bv, faces = box_mesh(s.length, s.width, s.height)
     return PlacedObject(**common, mesh_key=f"box_{oid}", mesh=(bv, faces, BOX_RGB),
                         pose=yaw_pose(shape.heading, shape.frame.to_scene(np.array([[0.0, 0.0, 0.0]]))[0]),

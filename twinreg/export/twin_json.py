@@ -141,7 +141,10 @@ def object_record(p, georef) -> dict:
                         "level": p.level},
            "cluster": int(p.label), "kind": kind, "kind_confidence": kind_confidence, "type": int(p.type),
            "match": match, "candidates": list(p.candidates),
-           "shape": {"source": "model" if match else "box", "type": int(p.type), "members": int(p.members)},
+           "shape": {"source": p.shape_source, "type": int(p.type), "members": int(p.members)}
+           | ({"quality": p.shape_quality} if p.shape_quality else {})
+           | ({"origin": [round(float(v), 4) for v in np.asarray(p.origin) + p.offset],
+               "heading_rad": round(float(p.heading), 6)} if p.shape_source in ("fused", "generic") else {}),
            "lat": float(p.lat), "lon": float(p.lon), "bearing_deg": round(p.bearing, 3)}
     if match is None:
         doc["reason"] = res.reason

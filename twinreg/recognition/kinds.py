@@ -126,16 +126,55 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
     return KindResult(kind, confidence, votes, near, margin)
 
 
-def object_types(labels, kinds: list | None) -> list[int]:
+def object_types(labels, kinds: list | None, sizes=None, models: list | None = None, tol: float = 0.4) -> list[int]:
     """Each object's type: its taxonomy group, split by kind (objects of one design are of one kind; a sparse
-    scan's taxonomy may join a car and a barrier of like sections), numbered from 1 in order of first appearance.
+    scan's taxonomy may join a car and a barrier of like sections), by decided model (``models``: a name or None
+    each; two models are two designs), and by size (``sizes`` (n, 3) L, W, H: copies of one design measure alike,
+    while the taxonomy's single links can chain a hatchback to an SUV; complete linkage, no two of a type more
+    than ``tol`` m apart in any dimension: :func:`size_groups`); numbered from 1 in order of first appearance.
 
     >>> object_types([1, 1, 2, 1], ["car", "barrier", "car", "car"])
     [1, 2, 3, 1]
+    >>> object_types([1, 1, 1], ["car"] * 3, sizes=[[4.0, 1.9, 1.5], [5.3, 2.2, 1.9], [4.1, 1.8, 1.5]])
+    [1, 2, 1]
     """
+    keys = [(int(label), kinds[k] if kinds is not None else None, models[k] if models is not None else None)
+            for k, label in enumerate(labels)]
+    group = [0] * len(keys)
+    if sizes is not None and len(keys):
+        size = np.asarray(sizes, dtype=np.float64).reshape(len(keys), 3)
+        members: dict = {}
+        for k, key in enumerate(keys):
+            members.setdefault(key, []).append(k)
+        for idx in members.values():
+            for k, g in zip(idx, size_groups(size[idx], tol)):
+                group[k] = g
     seen: dict = {}
     out = []
-    for k, label in enumerate(labels):
-        key = (int(label), kinds[k] if kinds is not None else None)
-        out.append(seen.setdefault(key, len(seen) + 1))
+    for k, key in enumerate(keys):
+        out.append(seen.setdefault((*key, group[k]), len(seen) + 1))
+    return out
+
+
+def size_groups(sizes: np.ndarray, tol: float) -> list[int]:
+    """Groups of (n, 3) sizes no two of which are more than ``tol`` apart in any dimension: in order of length,
+    each joins the first group whose leader is within ``tol`` / 2 of it, else leads a new one (linear in the
+    objects times the groups, never a matrix of pairs: a city's type may hold thousands).
+
+    >>> size_groups(np.array([[4.0, 1.8, 1.5], [5.3, 2.2, 1.9], [4.1, 1.9, 1.5]]), 0.4)
+    [0, 1, 0]
+    """
+    s = np.asarray(sizes, dtype=np.float64).reshape(-1, 3)
+    leaders: list = []
+    out = [0] * len(s)
+    for k in np.lexsort((s[:, 2], s[:, 1], s[:, 0])):
+        if leaders:
+            d = np.abs(np.asarray(leaders) - s[k]).max(axis=1)
+            j = int(np.argmax(d <= tol / 2)) if (d <= tol / 2).any() else -1
+        else:
+            j = -1
+        if j < 0:
+            leaders.append(s[k])
+            j = len(leaders) - 1
+        out[k] = j
     return out

@@ -150,6 +150,6 @@ def test_geojson_features_share_their_keys(real_twin):
         # holds cars only: a car, or unknown when no reference is near), with its confidence and the object's type
         assert p["kind"] == o["kind"] and p["kind"] in (("car",) if o["match"] else ("car", "unknown"))
         assert p["type"] == o["type"] and p["symmetry_level"] == o["symmetry"]["level"]
-        assert p["shape_source"] == ("model" if o["match"] else "box")
+        assert p["shape_source"] == o["shape"]["source"] and (p["shape_source"] == "model") == bool(o["match"])
         assert (p["reason_code"] in REASON_CODES) if not p["matched"] else p["reason_code"] is None
         assert "match_name" not in p and "match_model" not in p

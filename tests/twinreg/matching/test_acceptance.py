@@ -71,9 +71,10 @@ def test_real_cars_keep_their_models(street):
     assert len(doc["objects"]) == 6 and kml  # unmatched objects are still exported, as boxes
 
 
-def test_objects_without_a_model_are_scaled_boxes_in_the_tiles(street):
-    """An object with no model is one instance of the unit box, scaled to its measured size, in a GLB the Khronos
-    validator accepts; CityJSON and GeoJSON carry it too."""
+def test_objects_without_a_model_are_fused_shapes_or_scaled_boxes_in_the_tiles(street):
+    """An object with no model is an instance of its type's fused shape (one mesh a type), or, with too few
+    points for one, of the unit box scaled to its measured size, in a GLB the Khronos validator accepts; CityJSON
+    and GeoJSON carry it too."""
     from tests.twinreg.helpers import node_script as _node
     from twinreg.export.gltf import accessor_array, read_glb
 
@@ -81,13 +82,20 @@ def test_objects_without_a_model_are_scaled_boxes_in_the_tiles(street):
     unmatched = {o["id"]: o for o in doc["objects"] if o["match"] is None}
     assert unmatched
     gltf, binary = read_glb((out / "tiles" / "cells" / "scene.glb").read_bytes())
-    (box,) = [n for n in gltf["nodes"] if n["name"] == "box"]
-    attrs = box["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]
-    scale = accessor_array(gltf, binary, attrs["SCALE"])
-    assert sorted(box["extras"]["ids"]) == sorted(unmatched)
-    for oid, (sx, sy, sz) in zip(box["extras"]["ids"], scale):  # glTF (x, y, z) = (length, height, width)
-        size = unmatched[oid]["size"]
-        assert np.allclose([sx, sz, sy], [size["length"], size["width"], size["height"]], atol=1e-3)
+    boxes = {k: o for k, o in unmatched.items() if o["shape"]["source"] == "box"}
+    fused = {k: o for k, o in unmatched.items() if o["shape"]["source"] == "fused"}
+    assert len(boxes) + len(fused) == len(unmatched) and fused  # the non-cars have points enough for a shape
+    for t in {o["type"] for o in fused.values()}:
+        (node,) = [n for n in gltf["nodes"] if n["name"] == f"fused{t}"]
+        assert sorted(node["extras"]["ids"]) == sorted(k for k, o in fused.items() if o["type"] == t)
+        assert "SCALE" not in node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]  # the shape as fused
+    for box in [n for n in gltf["nodes"] if n["name"] == "box"]:
+        attrs = box["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]
+        scale = accessor_array(gltf, binary, attrs["SCALE"])
+        assert sorted(box["extras"]["ids"]) == sorted(boxes)
+        for oid, (sx, sy, sz) in zip(box["extras"]["ids"], scale):  # glTF (x, y, z) = (length, height, width)
+            size = boxes[oid]["size"]
+            assert np.allclose([sx, sz, sy], [size["length"], size["width"], size["height"]], atol=1e-3)
     for r in _node("validate_gltf.mjs", str(out / "tiles" / "cells" / "scene.glb"), str(out / "twin.glb")):
         assert r["errors"] == 0, r
     cj = json.loads((out / "twin.city.json").read_text())
