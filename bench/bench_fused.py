@@ -88,6 +88,16 @@ def poses(placed: list) -> dict:
     return {p.id: p.pose + np.c_[np.zeros((4, 3)), np.r_[p.offset, 0.0]] for p in placed}
 
 
+def drawn_mesh(placed: list) -> dict:
+    """Each object's drawn mesh (its fused shape, the kind's template, its model or its box) placed in the scene
+    frame, by id: what every format of the twin draws."""
+    out = {}
+    for p in placed:
+        at = poses([p])[p.id]
+        out[p.id] = (np.asarray(p.mesh[0], dtype=np.float64) @ at[:3, :3].T + at[:3, 3], np.asarray(p.mesh[1]))
+    return out
+
+
 def run_park(full, cat, meshes: dict, density: float, seed: int, tmp: Path) -> dict:
     """One park: the held-out cars' shapes against their true meshes, their types' purity, the timings."""
     import twinreg.pipeline as pipeline
@@ -111,6 +121,7 @@ def run_park(full, cat, meshes: dict, density: float, seed: int, tmp: Path) -> d
     finally:
         pipeline.place = real_place
     at = poses(captured["placed"])
+    drawn_of = drawn_mesh(captured["placed"])
     xy = np.array([[c.x, c.y] for c in park.cars])
     owner = objects_at(twin, xy)
     rows, type_of = [], {}
@@ -126,7 +137,10 @@ def run_park(full, cat, meshes: dict, density: float, seed: int, tmp: Path) -> d
             true = (transform(meshes[name][0], pose_matrix(car.x, car.y, car.heading,
                                                            float(ground_height(car.x, car.y)))), meshes[name][1])
             o["_pose"] = at[o["id"]]
-            drawn = placed_mesh(tmp / f"park_{density:g}_{seed}", o, meshes)
+            drawn = drawn_of[o["id"]]
+            if o["shape"]["source"] == "fused":  # the file users get is the mesh the twin draws
+                file = placed_mesh(tmp / f"park_{density:g}_{seed}", o, meshes)
+                assert np.allclose(file[0], drawn[0], atol=1e-6)
             box = dict(o, shape={"source": "box"}, _pose=box_frame(o))
             row.update(source=o["shape"]["source"], model=o["match"]["name"] if o["match"] else None,
                        confidence=o["match"]["confidence"] if o["match"] else None, type=o["type"],
@@ -256,7 +270,7 @@ def street_run(tmp: Path, density: float) -> dict:
         twin, seconds = build(cat, st.points, tmp / f"street_{density:g}")
     finally:
         pipeline.place = real_place
-    at = poses(captured["placed"])
+    drawn_of = drawn_mesh(captured["placed"])
     owner = objects_at(twin, np.array([[i.x, i.y] for i in st.items]))
     types, out = {}, []
     for item, k in zip(st.items, owner):
@@ -266,12 +280,12 @@ def street_run(tmp: Path, density: float) -> dict:
             continue
         row = {"item": item.name, "found": k >= 0}
         if k >= 0:
-            o = dict(twin["objects"][k], _pose=at[twin["objects"][k]["id"]])
+            o = twin["objects"][k]
             true = (transform(meshes[item.name][0], pose_matrix(item.x, item.y, item.heading,
                                                                 float(ground_height(item.x, item.y)))),
                     meshes[item.name][1])
             row.update(kind=o["kind"], source=o["shape"]["source"], members=o["shape"]["members"],
-                       drawn_m=round(sym_median(true, placed_mesh(tmp / f"street_{density:g}", o, meshes)), 4),
+                       drawn_m=round(sym_median(true, drawn_of[o["id"]]), 4),
                        box_m=round(sym_median(true, placed_mesh(tmp, dict(o, shape={"source": "box"},
                                                                           _pose=box_frame(o)), meshes)), 4))
         out.append(row)

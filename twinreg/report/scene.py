@@ -139,7 +139,8 @@ def text(x) -> str:
 
 
 def kinds_table(objects: list[dict]) -> str:
-    """The objects by kind (most common first): how many, how many with a model, their median kind confidence."""
+    """The objects by kind (most common first): how many, how many with a model, with a fused shape (their type's,
+    or the kind's template), their median kind confidence."""
     import statistics
     from collections import defaultdict
 
@@ -147,11 +148,13 @@ def kinds_table(objects: list[dict]) -> str:
     for o in objects:
         by[o.get("kind") or "unknown"].append(o)
     rows = "".join(
-        f"<tr><td>{text(k)}</td><td>{len(v)}</td><td>{sum(1 for o in v if o['match'])}</td><td>"
+        f"<tr><td>{text(k)}</td><td>{len(v)}</td><td>{sum(1 for o in v if o['match'])}</td>"
+        f"<td>{sum(1 for o in v if (o.get('shape') or {}).get('source') in ('fused', 'generic'))}</td><td>"
         + text("" if not [o for o in v if o.get("kind_confidence") is not None] else
                f"{statistics.median(o['kind_confidence'] for o in v if o.get('kind_confidence') is not None):.2f}")
         + "</td></tr>" for k, v in sorted(by.items(), key=lambda kv: -len(kv[1])))
-    return ("<table><tr><th>kind</th><th>objects</th><th>with a model</th><th>median kind confidence</th></tr>"
+    return ("<table><tr><th>kind</th><th>objects</th><th>with a model</th><th>with a fused shape</th>"
+            "<th>median kind confidence</th></tr>"
             f"{rows}</table>")
 
 

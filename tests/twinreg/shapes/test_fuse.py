@@ -90,6 +90,7 @@ def test_copies_of_a_car_not_catalogued_share_a_fused_shape(fused_park):
     entry = next(s for s in twin["shapes"] if s["type"] == t)
     assert sorted(entry["members"]) == sorted(o["id"] for _, o in copies)
     assert entry["quality"]["members"] == 5 and entry["quality"]["median_m"] < 0.05 and entry["quality"]["seen"] > 0.5
+    assert "with a fused shape" in (fused_park["root"] / "twin" / "report.html").read_text()
     mesh = o3d.io.read_triangle_mesh(str(fused_park["root"] / "twin" / entry["file"]))  # a real client reads it
     assert len(mesh.triangles) > 100
     # each copy's shape, placed as twin.ply places it, is nearer its true car than its own box is
