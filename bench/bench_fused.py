@@ -64,14 +64,27 @@ def placed_mesh(twin_dir: Path, doc: dict, models: dict):
 
 
 def build(cat, points: np.ndarray, out: Path):
+    """build-twin's code on ``points``: (twin.json's document, seconds, the placed objects)."""
+    import twinreg.pipeline as pipeline
     from twinreg.geo.georef import georef_from_options
     from twinreg.io.ply import write_ply
-    from twinreg.pipeline import build_twin
 
     scan = write_ply(out.with_suffix(".ply"), points)
-    t = time.perf_counter()
-    twin = build_twin(scan, cat, georef_from_options(53.35, -6.26), out, ply=False)
-    return twin, time.perf_counter() - t
+    captured = {}
+    real_place = pipeline.place
+
+    def place(*a, **k):
+        captured["placed"] = real_place(*a, **k)
+        return captured["placed"]
+
+    pipeline.place = place
+    try:
+        t = time.perf_counter()
+        twin = pipeline.build_twin(scan, cat, georef_from_options(53.35, -6.26), out, ply=False)
+        seconds = time.perf_counter() - t
+    finally:
+        pipeline.place = real_place
+    return twin, seconds, captured["placed"]
 
 
 def objects_at(twin: dict, xy: np.ndarray, reach: float = 1.0) -> list:
@@ -100,28 +113,15 @@ def drawn_mesh(placed: list) -> dict:
 
 def run_park(full, cat, meshes: dict, density: float, seed: int, tmp: Path) -> dict:
     """One park: the held-out cars' shapes against their true meshes, their types' purity, the timings."""
-    import twinreg.pipeline as pipeline
     from twinreg.sim.accuracy import density_passes
     from twinreg.sim.scan import car_park, ground_height, pose_matrix, transform
 
     kept = sorted(r.name for r in cat.list())
     names = [n for n in HELD for _ in range(5)] + kept
     park = car_park([meshes[n] for n in names], n_cars=len(names), seed=seed, passes=density_passes(density))
-    captured = {}
-    real_place = pipeline.place
-
-    def place(*a, **k):
-        placed = real_place(*a, **k)
-        captured["placed"] = placed
-        return placed
-
-    pipeline.place = place
-    try:
-        twin, seconds = build(cat, park.points, tmp / f"park_{density:g}_{seed}")
-    finally:
-        pipeline.place = real_place
-    at = poses(captured["placed"])
-    drawn_of = drawn_mesh(captured["placed"])
+    twin, seconds, placed = build(cat, park.points, tmp / f"park_{density:g}_{seed}")
+    at = poses(placed)
+    drawn_of = drawn_mesh(placed)
     xy = np.array([[c.x, c.y] for c in park.cars])
     owner = objects_at(twin, xy)
     rows, type_of = [], {}
@@ -216,7 +216,7 @@ def promote_next(cat_folder: Path, meshes: dict, density: float, tmp: Path) -> d
     cat = Catalogue(lib)
     names = [n for n in HELD for _ in range(5)] + sorted(r.name for r in cat.list())
     first = car_park([meshes[n] for n in names], n_cars=len(names), seed=1, passes=density_passes(density))
-    twin, _ = build(cat, first.points, tmp / f"first_{density:g}")
+    twin, _, _ = build(cat, first.points, tmp / f"first_{density:g}")
     owner = objects_at(twin, np.array([[c.x, c.y] for c in first.cars]))
     truth = {twin["objects"][k]["id"]: names[c.model] for c, k in zip(first.cars, owner) if k >= 0}
     promoted = {}
@@ -225,7 +225,7 @@ def promote_next(cat_folder: Path, meshes: dict, density: float, tmp: Path) -> d
         row = promote(cat, tmp / f"first_{density:g}", s["type"], f"fused_type{s['type']}")
         promoted[row.name] = who
     second = car_park([meshes[n] for n in names], n_cars=len(names), seed=2, passes=density_passes(density))
-    twin2, _ = build(cat, second.points, tmp / f"second_{density:g}")
+    twin2, _, _ = build(cat, second.points, tmp / f"second_{density:g}")
     owner = objects_at(twin2, np.array([[c.x, c.y] for c in second.cars]))
     got = Counter()
     for c, k in zip(second.cars, owner):
@@ -247,8 +247,6 @@ def street_run(tmp: Path, density: float) -> dict:
     from twinreg.sim.scan import ground_height, pose_matrix, transform
     from twinreg.sim.street import street
 
-    import twinreg.pipeline as pipeline
-
     cat = catalogue(tmp / "street_cat")
     rows = sorted(cat.list(), key=lambda r: r.name)
     meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
@@ -258,19 +256,8 @@ def street_run(tmp: Path, density: float) -> dict:
     furniture = [(r.category, r.name, meshes[r.name]) for r in rows if r.category != "car" and r.name not in STREET_HELD]
     furniture += [(r.category, r.name, meshes[r.name]) for r in rows if r.name in STREET_HELD for _ in range(5)]
     st = street(cars, furniture, n_cars=6, seed=1, passes=density_passes(density))
-    captured = {}
-    real_place = pipeline.place
-
-    def place(*a, **k):
-        captured["placed"] = real_place(*a, **k)
-        return captured["placed"]
-
-    pipeline.place = place
-    try:
-        twin, seconds = build(cat, st.points, tmp / f"street_{density:g}")
-    finally:
-        pipeline.place = real_place
-    drawn_of = drawn_mesh(captured["placed"])
+    twin, _, placed = build(cat, st.points, tmp / f"street_{density:g}")
+    drawn_of = drawn_mesh(placed)
     owner = objects_at(twin, np.array([[i.x, i.y] for i in st.items]))
     types, out = {}, []
     for item, k in zip(st.items, owner):

@@ -1,7 +1,8 @@
 """The stages a scene and a city both run, one copy: the run's parameters checked (:func:`checked_params`), the
 catalogue checked (:func:`require_models`), the scan placed on Earth (:func:`locate`), the objects' taxonomy
 (:func:`classify`), the objects' kinds and the models under the confidence floor withdrawn (:func:`recognise`),
-every object placed (:func:`place`). The per-scene pipeline
+their types (:func:`types_of`), the shapes of the types without a model (:func:`fuse`), every object placed
+(:func:`place`). The per-scene pipeline
 (:mod:`twinreg.pipeline`) runs them on one scene; the city engine (:mod:`twinreg.city`) maps them over cells and
 batches; the simulator's accuracy runs use them too. Nothing here imports the pipeline or the city engine."""
 
@@ -9,7 +10,6 @@ from __future__ import annotations
 
 import time
 
-import cosco
 from cosco.params import CoscoParams
 
 from .errors import CatalogueError
@@ -139,7 +139,6 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     its members' most common one. Types whose members have too few points together (``params.fuse_min_points``)
     keep their boxes, but for vehicles (``kinds``), which get the kind's template: a body lofted from each one's
     own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``)."""
-    import time
     from collections import Counter
 
     import numpy as np
