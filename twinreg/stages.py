@@ -155,9 +155,9 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     for t, ks in groups.items():
         if sum(len(clouds[k]) for k in ks) < params.fuse_min_points:
             for k in ks:
-                if kinds is not None and kinds[k].kind in VEHICLES:
-                    v, f = generic_solid(outcomes[k].shape)
-                    out[f"{t}:{k}"] = ([k], FusedShape(v, f, np.eye(4)[None], {"members": 1}, np.zeros(1), "generic"))
+                got = generic_solid(outcomes[k].shape) if kinds is not None and kinds[k].kind in VEHICLES else None
+                if got is not None:
+                    out[f"{t}:{k}"] = ([k], FusedShape(*got, np.eye(4)[None], {"members": 1}, np.zeros(1), "generic"))
             continue
         level = Counter(levels[k] for k in ks).most_common(1)[0][0] if levels is not None else "mirror"
         out[t] = (ks, fuse_type([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params))

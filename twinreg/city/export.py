@@ -18,7 +18,7 @@ from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_docu
 from ..io import observed
 from ..io.outdir import staged_folder
 from .classified import FOLDER as CLASSIFIED
-from ..stages import place, recognise, types_of
+from ..stages import fuse, place, recognise, types_of
 from .resume import WORK
 
 def _cell_bounds(georef, cell) -> dict:
@@ -62,15 +62,34 @@ class CityRun:
     classified: dict | None = None
 
 
+def _unmatched_clouds(run: CityRun) -> list:
+    """Each object's point sample (its local frame, as its shape's) for the objects without a model, read from
+    their cells' files (each file opened once; the run holds no sample beyond these); None for the others."""
+    from .cellfile import load_clouds
+
+    clouds = [o.cloud for o in run.objects]
+    wanted: dict = {}
+    k = 0
+    for r in run.results:
+        for i in range(len(r.objects)):
+            if clouds[k] is None and run.outcomes[k].match is None:
+                wanted.setdefault(str(run.store.path(r.name, r.key)), []).append((k, i))
+            k += 1
+    for path, items in wanted.items():
+        for (k, _), cloud in zip(items, load_clouds(path, [i for _, i in items])):
+            clouds[k] = cloud
+    return clouds
+
+
 def export_city(run: CityRun) -> dict:
     """Write a tiled run's twin (see the module's text); returns twin.json's document."""
     t = time.perf_counter()
     levels = [o.level for o in run.objects]
     run.outcomes, kinds = recognise(run.outcomes, [o.shape for o in run.objects], levels, run.catalogue, run.params)
     types = types_of(run.tax.labels, run.outcomes, kinds, run.params, [o.spacing for o in run.objects])
-    # (no fused shapes yet: the members' points stay in the cells' files on the workers)
+    fused = fuse(types, run.outcomes, _unmatched_clouds(run), levels, run.params, run.timing, kinds)
     outs = place([o.id for o in run.objects], [o.n_points for o in run.objects], run.outcomes, run.tax.labels,
-                 [o.offset for o in run.objects], run.georef, run.models, kinds, levels, types)
+                 [o.offset for o in run.objects], run.georef, run.models, kinds, levels, types, fused)
     run.timing["records"] = time.perf_counter() - t
     by_cell: dict = {}
     for item, o in zip(outs, run.objects):

@@ -248,8 +248,12 @@ def generic_solid(shape, cell: float = 0.2, faces: int = 1000):
     """The kind's generic template for a vehicle too sparsely seen to fuse (:data:`~cosco.params.CoscoParams`
     ``fuse_min_points``): a body lofted from the object's own sections, the height over each point of its footprint
     the lower of its longitudinal section's top there and its transverse section's (its frame: u along the heading,
-    v across, the ground at 0). Returns (vertices, faces) in the object's frame."""
+    v across, the ground at 0). Returns (vertices, faces) in the object's frame, or None for an object too thin
+    to loft (its box stays)."""
     size = shape.size
+    if min(size.length, size.width, size.height) <= 0.05:
+        return None  # nothing to loft: the box stays
+    cell = min(cell, size.width / 3, size.length / 3)
     lon = np.asarray(shape.sections.longitudinal, dtype=np.float64).reshape(-1, 2)
     tra = np.asarray(shape.sections.transverse, dtype=np.float64).reshape(-1, 2)
     u = np.arange(-size.length / 2 + cell / 2, size.length / 2, cell)
