@@ -142,7 +142,8 @@ class CoscoParams:
     ``kind_vote_floor``); farther than ``kind_unknown_distance`` the kind is unknown; the kind's confidence is the
     logistic of its margin over the nearest other kind (or the unknown distance) in ``kind_confidence_scale``. Tuned on the even-numbered
     DALES objects (docs/PERFORMANCE.md). A model whose confidence is under ``model_min_confidence`` is not
-    claimed (``--min-confidence``; chosen on the calibration of docs/PERFORMANCE.md, "Kinds"). A type whose
+    claimed (``--min-confidence``; chosen on the calibration of docs/PERFORMANCE.md, "Kinds"). A mesh model's plan
+    size, for the kinds, is its points' above ``kind_seen_height`` m (what a scan's ground filter leaves). A type whose
     members have no model gets a fused shape when they hold ``fuse_min_points`` points together.
 
     Clustering (paper 3.3):
@@ -305,6 +306,7 @@ class CoscoParams:
     kind_confidence_scale: float = 0.28
     model_min_confidence: float = 0.3
     fuse_min_points: int = 60
+    kind_seen_height: float = 0.2
 
     cluster_threshold: float = 0.065
     linkage: str = "average"

@@ -81,7 +81,7 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
     from cosco.segment import point_spacing
 
     floor = MIN_CONFIDENCE if min_confidence is None else require_probability("--min-confidence", min_confidence)
-    refs = References.of(catalogue.list()) if catalogue.exists else References.of([])
+    refs = References.of_catalogue(catalogue, params)
     shapes = [o.shape for o in objects]
     # the threshold at least cluster_spacing_k point spacings, as a twin's
     labels = (taxonomy_of(shapes, params, spacing=[point_spacing(o.points) for o in objects]).labels

@@ -38,6 +38,19 @@ class References:
         return len(self.ids)
 
     @classmethod
+    def of_catalogue(cls, catalogue, params: CoscoParams = DEFAULT) -> "References":
+        """The catalogue's references, each mesh model's plan size as a scan sees it (:func:`seen_size`): what
+        stands under ``params.kind_seen_height`` m (a cone's flat base, a wheel's contact) is ground to a scan."""
+        rows = catalogue.list() if catalogue.exists else []
+        refs = cls.of(rows)
+        sizes = refs.sizes.copy()
+        for k, r in enumerate(rows):
+            if (r.source or "mesh") == "mesh":
+                sizes[k, :2] = seen_size(catalogue.geometry(r, with_mesh=False).points, params.kind_seen_height,
+                                         sizes[k, :2])
+        return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels)
+
+    @classmethod
     def of(cls, rows) -> "References":
         """From catalogue rows (:class:`~twinreg.catalogue.models.RefModel`)."""
         return cls(np.array([r.id for r in rows], dtype=np.int64), [r.name for r in rows],
@@ -79,6 +92,25 @@ def distances(size, level: str, refs: References, params: CoscoParams = DEFAULT)
     ratio = np.abs(np.log(np.maximum(_plan_sorted(size), floor) / np.maximum(_plan_sorted(refs.sizes), floor)))
     d = params.kind_length_weight * ratio[:, 0] + ratio[:, 1] + ratio[:, 2]
     return d + params.kind_level_penalty * (refs.levels != level)
+
+
+def seen_size(points: np.ndarray, above: float, fallback) -> np.ndarray:
+    """(2,) the plan length and width of a model's sampled ``points`` (its frame, the ground at z = 0) higher than
+    ``above`` m (the fallback when fewer than ten are).
+
+    >>> cone = np.array([[r * np.cos(a), r * np.sin(a), 1.0 - r] for r in np.linspace(0.05, 0.5, 10)
+    ...                  for a in np.linspace(0, 2 * np.pi, 8, endpoint=False)] + [[0.9, 0, 0.01], [-0.9, 0, 0.01]])
+    >>> seen_size(cone, 0.2, (1.8, 1.8)).round(1).tolist()  # the base plate (1.8 m) is the ground's
+    [0.9, 0.9]
+    """
+    from cosco.footprint import min_area_rectangle
+
+    p = np.asarray(points, dtype=np.float64)
+    p = p[p[:, 2] > above]
+    if len(p) < 10:
+        return np.asarray(fallback, dtype=np.float64)
+    r = min_area_rectangle(p[:, :2])
+    return np.array([r.length, r.width])
 
 
 def _plan_sorted(sizes) -> np.ndarray:
