@@ -118,10 +118,10 @@ def apply_floor(outcomes: list, floor: float) -> list:
 
 def types_of(labels, outcomes: list, kinds: list | None, params: CoscoParams, spacing=None) -> list[int]:
     """Each object's type (:func:`twinreg.recognition.kinds.object_types`): its taxonomy group split by kind, by
-    decided model and by size, two objects of a type no farther apart in size than twice the catalogue's size
-    window (``params.size_tol`` plus ``params.size_spacing_k`` times the objects' median point ``spacing``: a
-    sparse scan measures one design's copies that far apart; once the window split five copies of a car into
-    three types at 20 pts/m2 and Autzen's cars into 131)."""
+    decided model and by size, two objects of a type no farther apart in size than the catalogue's size window
+    (``params.size_tol`` plus ``params.size_spacing_k`` times the objects' median point ``spacing``). Twice the
+    window grouped more of a sparse scan's copies, but let a type's shape outgrow a member cut by the scan's edge
+    by over 3 m on an AHN tile."""
     import numpy as np
 
     from .recognition.kinds import object_types
@@ -130,7 +130,7 @@ def types_of(labels, outcomes: list, kinds: list | None, params: CoscoParams, sp
     return object_types(labels, [k.kind for k in kinds] if kinds is not None else None,
                         sizes=[res.shape.size.as_array() for res in outcomes],
                         models=[res.match.name if res.match is not None else None for res in outcomes],
-                        tol=2 * (params.size_tol + params.size_spacing_k * s))
+                        tol=params.size_tol + params.size_spacing_k * s)
 
 
 def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: CoscoParams,
