@@ -231,13 +231,17 @@ async function main() {
   // the whole twin in view, seen from the south and above
   stage.frame(new THREE.Box3().setFromObject(world), new THREE.Vector3(0.1, 0.85, 0.52));
   const matched = twin.objects.filter((o) => o.match).length;
+  // the shapes drawn for objects without a model: their type's fused shape or the kind's template (orange), or a box
+  // (red)
+  const fused = twin.objects.filter((o) => !o.match && o.shape && ["fused", "generic"].includes(o.shape.source)).length;
   document.getElementById("title").textContent = `twinreg: ${twin.scene}`;
   document.getElementById("search").oninput = (e) => search(e.target.value);
   kindOptions();
   await updateScan();
   controls.addEventListener("change", () => { updateScan(); });
   document.getElementById("summary").textContent =
-    `${twin.objects.length} objects, ${matched} with a model; ${stats.instances} instances in ${stats.tiles} tiles; ` +
+    `${twin.objects.length} objects, ${matched} with a model, ${fused} with a fused shape (orange), ` +
+    `${twin.objects.length - matched - fused} as boxes (red); ${stats.instances} instances in ${stats.tiles} tiles; ` +
     `the scan streamed by level of detail (${stats.scanPoints.toLocaleString()} points in view)`;
   stage.render();
   stats.ms = performance.now() - t0;
