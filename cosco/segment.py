@@ -507,11 +507,13 @@ def _with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: floa
     pieces of a wall become one wall again; a car's body neither joins nor links. Overhangs touching nothing form
     components of their own (they count only once joined to something standing under them: the caller's rule).
     The overhangs come after ``cand``'s own points in the result."""
-    over = over[~_over_bodies(pts, hag, cand, comp, over, params)]
     if len(over) == 0 or len(cand) == 0:
         return cand, comp
     labels, _, members = _members(comp)
     body = _boxes(pts[cand], hag[cand], labels, members, params)[4]
+    over = over[~_over_bodies(pts, cand, body[np.searchsorted(labels, comp)], over, params)]
+    if len(over) == 0:
+        return cand, comp
     both = np.r_[cand, over]
     vc, _, _ = voxel_components(pts[both] - origin, voxel)
     n = len(cand)
@@ -580,13 +582,9 @@ def _standing_overhangs(p, hag, comp, n_kept: int, params: CoscoParams) -> np.nd
     return out | np.isin(rest, ok)
 
 
-def _over_bodies(pts, hag, cand, comp, over, params: CoscoParams) -> np.ndarray:
-    """(len(over),) bool: the overhang points in a column (``seg_column``) of a car body's points."""
-    if len(over) == 0 or len(cand) == 0:
-        return np.zeros(len(over), dtype=bool)
-    labels, _, members = _members(comp)
-    body = _boxes(pts[cand], hag[cand], labels, members, params)[4]
-    inside = body[np.searchsorted(labels, comp)]
+def _over_bodies(pts, cand, inside: np.ndarray, over, params: CoscoParams) -> np.ndarray:
+    """(len(over),) bool: the overhang points in a column (``seg_column``) of a car body's points (``inside``:
+    which of ``cand`` are)."""
     ij = np.floor(pts[np.r_[cand[inside], over], :2] / params.seg_column).astype(np.int64)
     key = cell_keys(ij)
     return np.isin(key[int(inside.sum()):], key[:int(inside.sum())])

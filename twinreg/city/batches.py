@@ -95,15 +95,21 @@ class MatchBatch:
 
 def batch_clouds(batch: MatchBatch) -> list:
     """The batch's point samples, those left in the cell files read from there (each file opened once)."""
+    if any(c is None and (batch.samples is None or batch.samples[k] is None) for k, c in enumerate(batch.clouds)):
+        raise ValueError("an object of the batch has no point sample")
+    return read_clouds(batch.clouds, batch.samples)
+
+
+def read_clouds(clouds: list, samples: list | None) -> list:
+    """``clouds`` with each None whose ``samples`` entry says where it is (``(cell file, index of the object in
+    it)``) read from that file, each file opened once; the others as they are."""
     from .cellfile import load_clouds
 
-    clouds = list(batch.clouds)
+    clouds = list(clouds)
     wanted: dict = {}
     for k, c in enumerate(clouds):
-        if c is None:
-            if batch.samples is None or batch.samples[k] is None:
-                raise ValueError("an object of the batch has no point sample")
-            path, index = batch.samples[k]
+        if c is None and samples is not None and samples[k] is not None:
+            path, index = samples[k]
             wanted.setdefault(str(path), []).append((k, int(index)))
     for path, items in wanted.items():
         for (k, _), cloud in zip(items, load_clouds(path, [i for _, i in items])):

@@ -64,21 +64,13 @@ class CityRun:
 
 def _unmatched_clouds(run: CityRun) -> list:
     """Each object's point sample (its local frame, as its shape's) for the objects without a model, read from
-    their cells' files (each file opened once; the run holds no sample beyond these); None for the others."""
-    from .cellfile import load_clouds
+    their cells' files (:func:`~.batches.read_clouds`: each file opened once; the run holds no sample beyond
+    these); None for the others."""
+    from .batches import read_clouds
 
-    clouds = [o.cloud for o in run.objects]
-    wanted: dict = {}
-    k = 0
-    for r in run.results:
-        for i in range(len(r.objects)):
-            if clouds[k] is None and run.outcomes[k].match is None:
-                wanted.setdefault(str(run.store.path(r.name, r.key)), []).append((k, i))
-            k += 1
-    for path, items in wanted.items():
-        for (k, _), cloud in zip(items, load_clouds(path, [i for _, i in items])):
-            clouds[k] = cloud
-    return clouds
+    where = [(str(run.store.path(r.name, r.key)), i) for r in run.results for i in range(len(r.objects))]
+    return read_clouds([o.cloud for o in run.objects],
+                       [w if res.match is None else None for w, res in zip(where, run.outcomes)])
 
 
 def export_city(run: CityRun) -> dict:

@@ -111,10 +111,11 @@ def _shapes(f: TwinFiles):
     for p in f.placed:
         if p.shape_source == "fused":
             seen.setdefault(p.type, []).append(p)
+    if seen:
+        (f.stage / "shapes").mkdir(exist_ok=True)
     out = []
     for t, ps in sorted(seen.items()):
         name = f"shapes/type_{t}.ply"
-        (f.stage / "shapes").mkdir(exist_ok=True)
         write_ply(f.stage / name, ps[0].mesh[0], ps[0].mesh[1],
                   comments=[f"twinreg: the fused shape of type {t} of {f.scene[:80]}, {len(ps)} members",
                             "metres; front +X; the ground at z = 0"])
