@@ -162,3 +162,18 @@ def test_a_strangers_twin_decides_no_path(fused_park, tmp_path):
                                        "--library", str(lib.folder)])
         assert res.exit_code != 0 and len(res.output.strip().splitlines()) == 1, res.output
     assert len(lib.list()) == before
+
+
+def test_from_twin_misuse_is_one_line_and_changes_nothing(fused_park, tmp_path):
+    """A folder that is no twin, a mesh beside --from-twin, --from-twin without --type or --name: one line, a
+    non-zero exit, the catalogue unchanged."""
+    root, lib = fused_park["root"], fused_park["lib"]
+    before = len(lib.list())
+    (tmp_path / "empty").mkdir()
+    for args in (["--from-twin", str(tmp_path / "empty"), "--type", "1", "--name", "x"],
+                 [str(root / "park.ply"), "--from-twin", str(root / "twin"), "--type", "1", "--name", "x"],
+                 ["--from-twin", str(root / "twin"), "--name", "x"],
+                 ["--from-twin", str(root / "twin"), "--type", "1"]):
+        res = CliRunner().invoke(app, ["add-model", *args, "--library", str(lib.folder)])
+        assert res.exit_code != 0 and len(res.output.strip().splitlines()) == 1, (args, res.output)
+    assert len(lib.list()) == before
