@@ -139,12 +139,16 @@ class CoscoParams:
     Kinds (twinreg/recognition/kinds.py): an object's distance to a reference sums the absolute log ratios of
     their sizes (each at least ``kind_min_size`` m; the length weighted by ``kind_length_weight``) and
     ``kind_level_penalty`` when their levels of symmetry differ; the ``kind_k`` nearest vote by 1 / (distance +
-    ``kind_vote_floor``); farther than ``kind_unknown_distance`` the kind is unknown; the kind's confidence is the
+    ``kind_vote_floor``); farther than ``kind_unknown_distance``, or more than ``kind_max_height_ratio`` times
+    taller or shorter than every reference, the kind is unknown; the kind's confidence is the
     logistic of its margin over the nearest other kind (or the unknown distance) in ``kind_confidence_scale``. Tuned on the even-numbered
     DALES objects (docs/PERFORMANCE.md). A model whose confidence is under ``model_min_confidence`` is not
     claimed (``--min-confidence``; chosen on the calibration of docs/PERFORMANCE.md, "Kinds"). A mesh model's plan
     size, for the kinds, is its points' above ``kind_seen_height`` m (what a scan's ground filter leaves). A type whose
-    members have no model gets a fused shape when they hold ``fuse_min_points`` points together.
+    members have no model gets a fused shape when they hold ``fuse_min_points`` points together. An object with no
+    model ``type_pole_ratio`` times taller than its plan is wide is typed by kind and size alone (a thin pole's
+    sections do not group copies of one lamp post). A fused shape's columns whose points all stand higher than
+    ``fuse_hang_height`` hang from their lowest point (not vehicles': a van's roof is all a scan sees of it).
 
     Clustering (paper 3.3):
 
@@ -303,9 +307,12 @@ class CoscoParams:
     kind_k: int = 2
     kind_vote_floor: float = 0.05
     kind_unknown_distance: float = 3.0
+    kind_max_height_ratio: float = 2.5
     kind_confidence_scale: float = 0.28
     model_min_confidence: float = 0.3
     fuse_min_points: int = 60
+    type_pole_ratio: float = 3.0
+    fuse_hang_height: float = 2.0
     kind_seen_height: float = 0.2
 
     cluster_threshold: float = 0.065

@@ -121,7 +121,7 @@ def types_of(labels, outcomes: list, kinds: list | None, params: CoscoParams, sp
     decided model and by size, two objects of a type no farther apart in size than the catalogue's size window
     (``params.size_tol`` plus ``params.size_spacing_k`` times the objects' median point ``spacing``). Twice the
     window grouped more of a sparse scan's copies, but let a type's shape outgrow a member cut by the scan's edge
-    by over 3 m on an AHN tile."""
+    by over 3 m on an AHN tile. Poles without a model group by kind and size alone (``params.type_pole_ratio``)."""
     import numpy as np
 
     from .recognition.kinds import object_types
@@ -130,7 +130,7 @@ def types_of(labels, outcomes: list, kinds: list | None, params: CoscoParams, sp
     return object_types(labels, [k.kind for k in kinds] if kinds is not None else None,
                         sizes=[res.shape.size.as_array() for res in outcomes],
                         models=[res.match.name if res.match is not None else None for res in outcomes],
-                        tol=params.size_tol + params.size_spacing_k * s)
+                        tol=params.size_tol + params.size_spacing_k * s, pole_ratio=params.type_pole_ratio)
 
 
 def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: CoscoParams,
@@ -140,7 +140,9 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     type: ``(member indices, FusedShape)``. ``clouds``: each object's points (the scene frame); the type's level is
     its members' most common one. Types whose members have too few points together (``params.fuse_min_points``)
     keep their boxes, but for vehicles (``kinds``), which get the kind's template: a body lofted from each one's
-    own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``)."""
+    own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``). But for vehicles (a van's
+    roof is seen from above only), parts whose points all stand over ``params.fuse_hang_height`` hang (a lamp's
+    arm, a sign's plate, a shelter's roof)."""
     from collections import Counter
 
     import numpy as np
@@ -162,7 +164,9 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
                     out[f"{t}:{k}"] = ([k], FusedShape(*got, np.eye(4)[None], {"members": 1}, np.zeros(1), "generic"))
             continue
         level = Counter(levels[k] for k in ks).most_common(1)[0][0] if levels is not None else "mirror"
-        out[t] = (ks, fuse_type([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params))
+        vehicles = kinds is not None and Counter(kinds[k].kind for k in ks).most_common(1)[0][0] in VEHICLES
+        out[t] = (ks, fuse_type([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params,
+                                hang=None if vehicles else params.fuse_hang_height))
     if timing is not None:
         timing["shapes"] = time.perf_counter() - t0
     return out

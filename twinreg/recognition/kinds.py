@@ -8,7 +8,9 @@ The distance of an object to a reference is the sum over length, width and heigh
 its margin: how much nearer the winner's nearest reference is than the nearest of any other kind (or than
 ``kind_unknown_distance``, whichever is nearer), over ``kind_confidence_scale`` (fit on the DALES objects of even
 id; on the held-out ones, claimed 0.61 / 0.82 / 0.94 / 0.996 were right 61 / 84 / 91 / 99 %). When the nearest
-reference is farther than ``kind_unknown_distance`` the kind is ``unknown``: nothing in the catalogue is near.
+reference is farther than ``kind_unknown_distance`` the kind is ``unknown``: nothing in the catalogue is near; a
+reference more than ``kind_max_height_ratio`` times taller or shorter than the object does not vote (a 9 m lamp
+post is no bus shelter, however alike their plans).
 Pure numpy: references in, kinds out.
 """
 
@@ -135,11 +137,19 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
     ('car', True)
     >>> recognise_kind([40.0, 30.0, 20.0], "none", refs).kind
     'unknown'
+    >>> recognise_kind([4.4, 1.8, 4.0], "mirror", refs).kind  # no car is 4 m tall, no pole this short
+    'unknown'
     """
     if len(refs) == 0:
         return KindResult(UNKNOWN, 0.0, {})
     d = distances(size, level, refs, params)
+    height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kind_min_size)
+                           / np.maximum(refs.sizes[:, 2], params.kind_min_size)))
+    d = np.where(height > np.log(params.kind_max_height_ratio), np.inf, d)
     order = np.argsort(d, kind="stable")[:params.kind_k]
+    order = order[np.isfinite(d[order])]
+    if len(order) == 0:
+        return KindResult(UNKNOWN, 0.0, {})
     weights = 1.0 / (d[order] + params.kind_vote_floor)
     shares = weights / weights.sum()
     near = tuple(Near(int(refs.ids[j]), str(refs.names[j]), str(refs.kinds[j]), float(d[j]), float(w))
@@ -158,23 +168,37 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
     return KindResult(kind, confidence, votes, near, margin)
 
 
-def object_types(labels, kinds: list | None, sizes=None, models: list | None = None, tol: float = 0.4) -> list[int]:
+def object_types(labels, kinds: list | None, sizes=None, models: list | None = None, tol: float = 0.4,
+                 pole_ratio: float | None = None) -> list[int]:
     """Each object's type: its taxonomy group, split by kind (objects of one design are of one kind; a sparse
     scan's taxonomy may join a car and a barrier of like sections), by decided model (``models``: a name or None
     each; two models are two designs), and by size (``sizes`` (n, 3) L, W, H: copies of one design measure alike,
     while the taxonomy's single links can chain a hatchback to an SUV; complete linkage, no two of a type more
     than ``tol`` m apart in any dimension: :func:`size_groups`); numbered from 1 in order of first appearance.
 
+    A pole (no model, at least ``pole_ratio`` times taller than its plan is wide) is grouped by kind and size
+    alone (its plan's longer side first): a thin pole's sections hold a few points across, and its arm or plate
+    stands at its own heading, so the taxonomy leaves copies of one lamp post apart.
+
     >>> object_types([1, 1, 2, 1], ["car", "barrier", "car", "car"])
     [1, 2, 3, 1]
     >>> object_types([1, 1, 1], ["car"] * 3, sizes=[[4.0, 1.9, 1.5], [5.3, 2.2, 1.9], [4.1, 1.8, 1.5]])
     [1, 2, 1]
+    >>> lamps = [[3.1, 0.4, 9.2], [0.5, 3.2, 9.3], [3.2, 0.4, 6.0]]
+    >>> object_types([1, 2, 3], ["unknown"] * 3, sizes=lamps, pole_ratio=3.0)
+    [1, 1, 2]
     """
-    keys = [(int(label), kinds[k] if kinds is not None else None, models[k] if models is not None else None)
-            for k, label in enumerate(labels)]
+    size = (np.asarray(sizes, dtype=np.float64).reshape(len(labels), 3) if sizes is not None else None)
+    pole = np.zeros(len(labels), dtype=bool)
+    if size is not None and pole_ratio is not None:
+        pole = size[:, 2] >= pole_ratio * np.minimum(size[:, 0], size[:, 1])
+        if models is not None:
+            pole &= np.array([m is None for m in models], dtype=bool)
+        size = np.where(pole[:, None], _plan_sorted(size), size)
+    keys = [(-1 if pole[k] else int(label), kinds[k] if kinds is not None else None,
+             models[k] if models is not None else None) for k, label in enumerate(labels)]
     group = [0] * len(keys)
-    if sizes is not None and len(keys):
-        size = np.asarray(sizes, dtype=np.float64).reshape(len(keys), 3)
+    if size is not None and len(keys):
         members: dict = {}
         for k, key in enumerate(keys):
             members.setdefault(key, []).append(k)

@@ -70,11 +70,14 @@ def completed(points: np.ndarray, level: str, turns: int = 8) -> np.ndarray:
     return p
 
 
-def height_solid(points: np.ndarray, cell: float = 0.1, q: float = 0.9, fill: int = 2):
+def height_solid(points: np.ndarray, cell: float = 0.1, q: float = 0.9, fill: int = 2, hang: float | None = None,
+                 thick: float = 0.15):
     """A closed mesh of ``points`` (n, 3; the ground at z = 0) as an airborne scan sees an object: on a grid of
     ``cell`` m, each occupied column's top (the ``q`` quantile of its heights), the footprint's holes up to
     ``fill`` cells closed (their tops from their neighbours), walls down to the ground at the footprint's edge and
-    a floor. Returns (vertices, faces)."""
+    a floor. With ``hang`` (m), a column whose lowest point is higher than that hangs (a lamp's arm, a sign's
+    plate, a roof, a crown): it reaches down to its lowest point, at least ``thick`` m under its top, not to the
+    ground (a column under a lamp's arm would be a wall 9 m tall). Returns (vertices, faces)."""
     from scipy import ndimage
 
     p = np.asarray(points, dtype=np.float64)
@@ -88,36 +91,45 @@ def height_solid(points: np.ndarray, cell: float = 0.1, q: float = 0.9, fill: in
     counts = np.diff(np.r_[starts, len(key_s)])
     top = z_s[starts + np.minimum((q * (counts - 1)).round().astype(np.int64), counts - 1)]
     grid = np.zeros(shape)
+    low = np.zeros(shape)
     occ = np.zeros(shape, dtype=bool)
     grid.flat[key_s[starts]] = top
+    low.flat[key_s[starts]] = z_s[starts]
     occ.flat[key_s[starts]] = True
-    # close small holes: a cell inside the occupied footprint takes its neighbours' mean top
+    # close small holes: a cell inside the occupied footprint takes its neighbours' mean top (and lowest point)
     closed = ndimage.binary_closing(occ, iterations=fill) | occ
     closed = ndimage.binary_fill_holes(closed)
     for _ in range(4 * fill + 4):
         missing = closed & ~occ
         if not missing.any():
             break
-        s = ndimage.uniform_filter(np.where(occ, grid, 0.0), 3)
         n = ndimage.uniform_filter(occ.astype(float), 3)
         grow = missing & (n > 0)
-        grid[grow] = s[grow] / n[grow]
+        for g in (grid, low):
+            s = ndimage.uniform_filter(np.where(occ, g, 0.0), 3)
+            g[grow] = s[grow] / n[grow]
         occ = occ | grow
     occ &= closed
-    return _grid_solid(grid, occ, lo, cell)
+    bottom = None
+    if hang is not None:
+        bottom = np.where(occ & (low > hang), np.minimum(low, grid - thick), 0.0)
+        bottom = np.maximum(bottom, 0.0)
+    return _grid_solid(grid, occ, lo, cell, bottom)
 
 
-def _grid_solid(grid: np.ndarray, occ: np.ndarray, lo: np.ndarray, cell: float):
-    """A watertight solid of square columns: each occupied cell's top at its height, a floor at z = 0, and side
-    walls where a column stands above its neighbour (or the footprint's edge), each wall split at every height its
-    two corners carry so that the walls, tops and floors share their edges (no T-junction)."""
+def _grid_solid(grid: np.ndarray, occ: np.ndarray, lo: np.ndarray, cell: float, bottom: np.ndarray | None = None):
+    """A watertight solid of square columns: each occupied cell from its ``bottom`` (default the ground, z = 0)
+    to its top, and side walls where a column stands out of its neighbour's span (or the footprint's edge), each
+    wall split at every height its two corners carry so that the walls, tops and floors share their edges (no
+    T-junction)."""
     nx, ny = occ.shape
     h = np.where(occ, grid, 0.0)
-    # each corner's heights: 0 and the tops of the columns around it
+    b = np.zeros_like(h) if bottom is None else np.where(occ, bottom, 0.0)
+    # each corner's heights: the bottoms and tops of the columns around it
     zs: dict = {}
     for i, j in zip(*np.nonzero(occ)):
         for c in ((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)):
-            zs.setdefault(c, {0.0}).add(float(h[i, j]))
+            zs.setdefault(c, set()).update((float(b[i, j]), float(h[i, j])))
     verts: dict = {}
     vlist: list = []
     faces: list = []
@@ -129,26 +141,36 @@ def _grid_solid(grid: np.ndarray, occ: np.ndarray, lo: np.ndarray, cell: float):
             vlist.append((lo[0] + c[0] * cell, lo[1] + c[1] * cell, z))
         return verts[k]
 
+    def wall(e0, e1, z0, z1):
+        left = sorted(v for v in zs[e0] if z0 <= v <= z1)
+        right = sorted(v for v in zs[e1] if z0 <= v <= z1)
+        li = ri = 0
+        while li < len(left) - 1 or ri < len(right) - 1:
+            if ri < len(right) - 1 and (li == len(left) - 1 or right[ri + 1] <= left[li + 1]):
+                faces.append((vid(e0, left[li]), vid(e1, right[ri]), vid(e1, right[ri + 1])))
+                ri += 1
+            else:
+                faces.append((vid(e0, left[li]), vid(e1, right[ri]), vid(e0, left[li + 1])))
+                li += 1
+
     for i, j in zip(*np.nonzero(occ)):
-        z = float(h[i, j])
-        a, b, c, d = (i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)
-        faces += [(vid(a, z), vid(b, z), vid(c, z)), (vid(a, z), vid(c, z), vid(d, z))]
-        faces += [(vid(a, 0.0), vid(c, 0.0), vid(b, 0.0)), (vid(a, 0.0), vid(d, 0.0), vid(c, 0.0))]
-        for di, dj, e0, e1 in ((1, 0, b, c), (-1, 0, d, a), (0, 1, c, d), (0, -1, a, b)):
+        z, z0 = float(h[i, j]), float(b[i, j])
+        a, bb, c, d = (i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)
+        faces += [(vid(a, z), vid(bb, z), vid(c, z)), (vid(a, z), vid(c, z), vid(d, z))]
+        faces += [(vid(a, z0), vid(c, z0), vid(bb, z0)), (vid(a, z0), vid(d, z0), vid(c, z0))]
+        for di, dj, e0, e1 in ((1, 0, bb, c), (-1, 0, d, a), (0, 1, c, d), (0, -1, a, bb)):
             ni, nj = i + di, j + dj
-            zn = float(h[ni, nj]) if 0 <= ni < nx and 0 <= nj < ny and occ[ni, nj] else 0.0
-            if zn >= z:
+            if 0 <= ni < nx and 0 <= nj < ny and occ[ni, nj]:
+                nz0, nz = float(b[ni, nj]), float(h[ni, nj])
+            else:
+                nz0 = nz = z + 1.0  # no neighbour: the whole span is exposed
+            if nz0 >= z or nz <= z0:  # the spans do not overlap: all of this one's side shows
+                wall(e0, e1, z0, z)
                 continue
-            left = sorted(v for v in zs[e0] if zn <= v <= z)
-            right = sorted(v for v in zs[e1] if zn <= v <= z)
-            li = ri = 0
-            while li < len(left) - 1 or ri < len(right) - 1:
-                if ri < len(right) - 1 and (li == len(left) - 1 or right[ri + 1] <= left[li + 1]):
-                    faces.append((vid(e0, left[li]), vid(e1, right[ri]), vid(e1, right[ri + 1])))
-                    ri += 1
-                else:
-                    faces.append((vid(e0, left[li]), vid(e1, right[ri]), vid(e0, left[li + 1])))
-                    li += 1
+            if nz < z:
+                wall(e0, e1, nz, z)
+            if nz0 > z0:
+                wall(e0, e1, z0, nz0)
     return np.array(vlist, dtype=np.float64).reshape(-1, 3), np.array(faces, dtype=np.int64).reshape(-1, 3)
 
 
@@ -181,13 +203,14 @@ def decimated(vertices: np.ndarray, faces: np.ndarray, target: int):
 
 
 def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFAULT, cell: float | None = None,
-              faces: int = 2000, seen_m: float | None = None) -> FusedShape:
+              faces: int = 2000, seen_m: float | None = None, hang: float | None = None) -> FusedShape:
     """The fused shape of one type: its members' points ``clouds`` (each (n, 3), scene frame) and shapes
     (:class:`cosco.ObjectShape`), ``level`` the type's level of symmetry. The reference member is the one with
     most points; each member's points are taken into its own frame (ground at 0), registered onto the reference,
     gathered and completed by the symmetry; the solid is built on a grid of ``cell`` m (default: 1.5 times the
-    gathered points' spacing, 0.1-0.3 m, and no more than a fifth of the object's width) and decimated to
-    ``faces`` triangles. A rotational type's members are not registered; those of a rotational type and of one
+    gathered points' spacing, 0.1-0.3 m, and no more than a tenth of the object's width) and decimated to
+    ``faces`` triangles; with ``hang``, columns whose points all stand higher hang (:func:`height_solid`). A
+    rotational type's members are not registered; those of a rotational type and of one
     with two mirror planes are centred each on the middle of its points' plan extent (where the planes cross)."""
     from scipy.spatial import cKDTree
 
@@ -212,9 +235,10 @@ def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFA
     if cell is None:
         extent = np.ptp(full[:, :2], axis=0)
         area = max(float(np.prod(extent)), 1e-6)
-        # 1.5 point spacings, 0.1-0.3 m, and at least five cells across the object (a bin, a post)
-        cell = float(min(np.clip(np.sqrt(area / max(len(full), 1)) * 1.5, 0.1, 0.3), max(extent.min() / 5, 0.03)))
-    v, f = height_solid(full, cell=cell)
+        # 1.5 point spacings, 0.1-0.3 m, and at least ten cells across the object (a bin, a post: its outline
+        # overshoots by half a column)
+        cell = float(min(np.clip(np.sqrt(area / max(len(full), 1)) * 1.5, 0.1, 0.3), max(extent.min() / 10, 0.03)))
+    v, f = height_solid(full, cell=cell, hang=hang)
     v, f = decimated(v, f, faces)
     # quality: the members' points to the shape (median: near 0 where each cell holds one point, so also) the
     # members' agreement (each half's points to the solid of the other half, median), and the share of the shape's
@@ -230,7 +254,7 @@ def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFA
         half = [h[h[:, 2] > 0.0] for h in half]
         dd = []
         for side in (0, 1):
-            hv, hf = height_solid(completed(half[side], level), cell=cell)
+            hv, hf = height_solid(completed(half[side], level), cell=cell, hang=hang)
             other = half[1 - side]
             other = other if len(other) <= 10000 else other[rng.choice(len(other), 10000, replace=False)]
             dd.append(surface_distances(hv, hf, other))

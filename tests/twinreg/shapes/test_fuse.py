@@ -44,6 +44,26 @@ def test_the_height_solid_is_closed_and_holds_the_points():
     assert abs(volume - want) < 0.12 * want
 
 
+def test_a_hanging_column_reaches_down_to_its_lowest_point_not_the_ground():
+    """A lamp post seen from above: a pole's columns to the ground, its arm's (no point under 8.8 m) a slab: still
+    closed, no wall under the arm, and the volume a pole's and an arm's, not a 9 m wall's."""
+    rng = np.random.default_rng(2)
+    pole = np.c_[rng.uniform(-0.1, 0.1, (2000, 2)), rng.uniform(0.0, 9.0, 2000)]
+    arm = np.c_[rng.uniform(0.1, 3.0, 1000), rng.uniform(-0.1, 0.1, 1000), rng.uniform(8.85, 9.0, 1000)]
+    p = np.r_[pole, arm]
+    v, f = height_solid(p, cell=0.1, fill=0, hang=2.0)
+    e = np.sort(np.r_[f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    assert (counts % 2 == 0).all()
+    tri = v[f]
+    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6
+    assert volume < 1.0  # a 9 m wall under the arm would hold over 2 m3
+    under = v[(v[:, 0] > 0.6) & (v[:, 2] < 8.0)]
+    assert len(under) == 0
+    v0, f0 = height_solid(p, cell=0.1, fill=0)  # without ``hang``: columns to the ground, as before
+    assert (v0[v0[:, 0] > 0.6][:, 2] < 0.01).any()
+
+
 @pytest.fixture(scope="module")
 def fused_park(parametric_catalogue, parametric_objs, tmp_path_factory):
     """A catalogue of the parametric cars but one; a car park of four copies of that one and four catalogued cars,
