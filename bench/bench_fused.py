@@ -323,8 +323,9 @@ def main() -> None:
         for density in (150.0, 20.0):
             doc[f"promote_{density:g}"] = promote_next(tmp / "cat12", meshes, density, tmp)
             print(f"promote {density:g}: {json.dumps(doc[f'promote_{density:g}'])}", file=sys.stderr)
-        doc["street_150"] = street_run(tmp, 150.0)
-        print(f"street: {json.dumps(doc['street_150'])}", file=sys.stderr)
+        for density in (150.0, 20.0):
+            doc[f"street_{density:g}"] = street_run(tmp, density)
+            print(f"street {density:g}: {json.dumps(doc[f'street_{density:g}'])}", file=sys.stderr)
     doc["total_s"] = round(time.perf_counter() - t0, 1)
     print(json.dumps({k: ({kk: vv for kk, vv in v.items() if kk != "runs"} if isinstance(v, dict) else v)
                       for k, v in doc.items()}, indent=1))

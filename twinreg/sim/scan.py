@@ -138,9 +138,10 @@ def _ground_mesh(xmin, xmax, ymin, ymax, step=1.0):
 
 
 def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DEFAULT_PASSES,
-             noise: float = 0.02, distractors: bool = True) -> CarPark:
+             noise: float = 0.02, distractors: bool = True, kiosk: bool = False, ground=None) -> CarPark:
     """Cars in two facing rows with ``gaps`` (m) between neighbours, on a sloped ground with a ramp, a kerb, a
-    wall, a tree whose canopy overhangs a car, and a lamp pole; scanned by airborne passes.
+    wall, a tree whose canopy overhangs a car, and a lamp pole (and with ``kiosk`` a 2 m kiosk beyond the kerb);
+    scanned by airborne passes. ``ground``: (xmin, xmax, ymin, ymax) of the ground (default: around the park).
 
     models : list of ``(vertices, faces[, glass])`` normalised cars (metres, Z up, front +X, footprint centred,
     z_min 0).
@@ -187,11 +188,13 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
         canopy.apply_translation([tx, ty + 0.8, gz + 2.3 + 1.32])
         extra.append(("tree trunk", _box([0.35, 0.35, 3.0], [tx, ty, gz + 1.5])))
         extra.append(("tree canopy", (canopy.vertices, canopy.faces)))
+        if kiosk:
+            extra.append(("kiosk", _box([2.4, 2.0, 2.0], [-11.0, 0.0, float(ground_height(-11.0, 0.0)) + 1.0])))
         for k, (name, mesh) in enumerate(extra):
             meshes.append(mesh)
             labels_of_mesh.append(-2 - k)
             names.append(name)
-    meshes.append(_ground_mesh(-16.0, 10.0, ymin, ymax))
+    meshes.append(_ground_mesh(*(ground if ground is not None else (-16.0, 10.0, ymin, ymax))))
     labels_of_mesh.append(-1)
     scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed)
     labels = np.asarray(labels_of_mesh)[scan.labels]
