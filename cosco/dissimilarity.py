@@ -156,6 +156,12 @@ def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndar
 
     ``n_du`` > 1: the candidates are a grid, each tz repeated for ``n_du`` consecutive values of du (a meshgrid of
     tz by du, raveled): the look-ups that do not depend on du are made once per tz."""
+    if not exact:
+        from .kernels import section_sums
+
+        got = section_sums(a, b, r, du, tz, cap, one_way, n_du)
+        if got is not None:  # compiled: every move in one call, the same sums as below
+            return got
     total = np.zeros(len(tz))
     directions = ((a, b, True),) if one_way else ((b, a, False), (a, b, True))
     for src, dst, inverse in directions:
@@ -183,7 +189,9 @@ def _field_sums(f: DistanceField, base: np.ndarray, shifts: np.ndarray, cap: flo
     if f.cap is not None and cap > f.cap:
         raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare them "
                          "with the same parameters")
-    return _capped_square_sums(f.nearest_shifted(base, shifts), cap)
+    from .kernels import field_sums  # compiled where numba is; its numpy reference is nearest_shifted's arithmetic
+
+    return field_sums(f.values, f.origin, f.cell, f.start, base, shifts, cap)
 
 
 def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params: CoscoParams,

@@ -150,6 +150,9 @@ class CoscoParams:
     sections do not group copies of one lamp post). A fused shape's columns whose points all stand higher than
     ``fuse_hang_height`` hang from their lowest point (not vehicles': a van's roof is all a scan sees of it).
 
+    Compiled kernels (cosco/kernels.py): a scene of ``jit_min_objects`` objects or more uses them (numba's import,
+    about half a second, is more than they save on a car park of a dozen cars); a city always.
+
     Clustering (paper 3.3):
 
     cluster_threshold : float
@@ -313,6 +316,7 @@ class CoscoParams:
     fuse_min_points: int = 60
     type_pole_ratio: float = 3.0
     fuse_hang_height: float = 2.0
+    jit_min_objects: int = 100
     kind_seen_height: float = 0.2
 
     cluster_threshold: float = 0.065

@@ -90,12 +90,19 @@ class _Objective:
 
         self.pts = pts
         self.side_share = side_share
+        from .kernels import MirrorIndex
+
         self.tree = cKDTree(pts) if tree is None else tree
         self.tol = tol
+        # the compiled look-up (cosco.kernels), None where numba is missing: the KD-tree answers the same
+        self.index = MirrorIndex.of(pts, 3 * tol, targets=self.tree.data)
 
     def distances(self, phi: float, rho: float) -> np.ndarray:
-        d, _ = self.tree.query(reflect(self.pts, phi, rho), k=1, distance_upper_bound=3 * self.tol)
-        return np.minimum(d, 3 * self.tol)
+        if self.index is not None:
+            return self.index.distances(phi, rho)
+        from .kernels import mirror_distances_numpy
+
+        return mirror_distances_numpy(self.tree, self.pts, phi, rho, 3 * self.tol)
 
     def soft(self, phi: float, rho: float) -> float:
         """Smooth PCR: mean of a Gaussian of the mirror distances (1 = perfect)."""
@@ -135,11 +142,15 @@ def _start_angles(xy: np.ndarray, params: CoscoParams, rect=None) -> np.ndarray:
     return np.mod(np.concatenate([guided, sweep]), np.pi)
 
 
-def _refine_pairs(pts: np.ndarray, tree: cKDTree, phi: float, rho: float, tol: float, steps: int):
+def _refine_pairs(pts: np.ndarray, tree: cKDTree, phi: float, rho: float, tol: float, steps: int, index=None):
     """Closed-form refinement: fit the plane through midpoints of mirror pairs (total least squares), on the
-    voxel centroids of the reference set (density-equalised, and a third of the points of a dense scan)."""
+    voxel centroids of the reference set (density-equalised, and a third of the points of a dense scan).
+    ``index``: the tree's points' :class:`~cosco.kernels.MirrorIndex` (compiled look-ups), None for the tree's."""
+    from .kernels import mirror_nearest_numpy
+
     for _ in range(steps):
-        d, idx = tree.query(reflect(pts, phi, rho), k=1, distance_upper_bound=tol)
+        d, idx = (index.nearest(pts, phi, rho, tol) if index is not None
+                  else mirror_nearest_numpy(tree, pts, phi, rho, tol))
         ok = np.isfinite(d)
         if ok.sum() < 10:
             break
@@ -222,7 +233,7 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
                      "initial_simplex": [[phi0, rho0], [phi0 + params.sym_simplex_turn, rho0],
                                          [phi0, rho0 + params.sym_simplex_shift]]},
         )
-        return _refine_pairs(ref, ref_tree, res.x[0], res.x[1], tol, params.sym_refine_steps)
+        return _refine_pairs(ref, ref_tree, res.x[0], res.x[1], tol, params.sym_refine_steps, obj.index)
 
     # the best start overall, and the best start whose plane contains the footprint's long axis (a vehicle's
     # mirror plane does; a box-like van is nearly symmetric front to back too)

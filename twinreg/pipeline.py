@@ -158,6 +158,10 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
         what = "objects" if params.seg_targets == "all" else "car-sized objects"
         raise SceneReadError(f"{scene_path}: no {what} were found; check --unit (the scene's unit) and that the "
                              "scan covers what the catalogue holds")
+    if len(targets) >= params.jit_min_objects:  # the compiled kernels pay for numba's import (cosco.kernels)
+        from cosco.kernels import enable
+
+        timing["kernels"] = enable()
     _say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes = describe_detected(det, params)

@@ -54,6 +54,7 @@ class Engine:
         self.per_worker = per_worker
         self.cluster = None
         self.client = None
+        self.kernels_s = 0.0
 
     def __enter__(self) -> "Engine":
         from distributed import Client, LocalCluster
@@ -76,7 +77,8 @@ class Engine:
 
                 from ..memory import WORKER_ENV
 
-                environ = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENV}
+                environ = {**dask.config.get("distributed.nanny.pre-spawn-environ", {}), **WORKER_ENV,
+                           **self._kernels()}
                 with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
                     self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                                 memory_limit=memory, dashboard_address=None,
@@ -92,6 +94,21 @@ class Engine:
             raise EngineError(f"{where}: cannot start or reach the Dask cluster ({first}); check the address "
                               "(tcp://HOST:PORT) and that the scheduler runs") from exc
         return self
+
+    def _kernels(self) -> dict:
+        """The compiled kernels (:mod:`cosco.kernels`) compiled, or loaded from the user's cache, here before the
+        workers start (two workers compiling at once may both write one cache file: a known numba crash), and the
+        environment that has the workers use them (none where numba is missing)."""
+        import time
+
+        from cosco import kernels
+
+        t = time.perf_counter()
+        kernels.enable()
+        self.kernels_s = time.perf_counter() - t
+        if kernels.jit() is None:
+            return {}
+        return {"TWINREG_JIT": "1", "NUMBA_CACHE_DIR": str(kernels.cache_dir())}
 
     def __exit__(self, *exc):
         if self.client is not None:

@@ -1,0 +1,255 @@
+"""The numba kernels of :mod:`cosco.kernels` (imported by it alone, after it has pointed numba's cache at the user's
+cache folder). Each mirrors a numpy reference there; tests/cosco/test_kernels.py checks that both agree."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+_OPTS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
+
+
+@numba.njit(**_OPTS)
+def field_sums(values, origin, cell, start, base, shifts, cap):
+    nx, ny = values.shape
+    n, s = base.shape[0], shifts.shape[0]
+    gi = np.empty(n, dtype=np.int64)
+    gj = np.empty(n, dtype=np.int64)
+    for p in range(n):
+        gi[p] = np.int64(np.rint((base[p, 0] - origin[0]) / cell)) - start[0]
+        gj[p] = np.int64(np.rint((base[p, 1] - origin[1]) / cell)) - start[1]
+    cap32 = np.float32(cap)
+    out = np.empty(s, dtype=np.float64)
+    for k in range(s):
+        oi = np.int64(np.rint(shifts[k, 0] / cell))
+        oj = np.int64(np.rint(shifts[k, 1] / cell))
+        acc = 0.0
+        for p in range(n):
+            i = oi + gi[p]
+            if i < 0:
+                i = 0
+            elif i > nx - 1:
+                i = nx - 1
+            j = oj + gj[p]
+            if j < 0:
+                j = 0
+            elif j > ny - 1:
+                j = ny - 1
+            v = values[i, j]
+            if v > cap32:
+                v = cap32
+            d = np.float64(v)
+            acc += d * d
+        out[k] = acc
+    return out
+
+
+@numba.njit(**_OPTS)
+def _move_sums(total, values, origin, cell, start, probes, scale, du_coef, tz_sign, du, tz, cap32, free, n_du):
+    """One look-up of :func:`section_sums`: the probes (their u scaled by ``scale``) at each candidate's shift
+    (``du_coef`` du, ``tz_sign`` tz) on one field, the capped squares summed and added to ``total``; a move that
+    ``free``-ly ignores du on a tz-by-du grid (``n_du`` > 1) is summed once per tz."""
+    nx, ny = values.shape
+    n = probes.shape[0]
+    gi = np.empty(n, dtype=np.int64)
+    gj = np.empty(n, dtype=np.int64)
+    for p in range(n):
+        gi[p] = np.int64(np.rint((probes[p, 0] * scale - origin[0]) / cell)) - start[0]
+        gj[p] = np.int64(np.rint((probes[p, 1] - origin[1]) / cell)) - start[1]
+    s = tz.shape[0]
+    last = 0.0
+    for k in range(s):
+        if free and n_du > 1 and k % n_du != 0:
+            total[k] += last
+            continue
+        oi = np.int64(np.rint(du_coef * du[k] / cell)) if not free else np.int64(0)
+        oj = np.int64(np.rint(tz_sign * tz[k] / cell))
+        acc = 0.0
+        for p in range(n):
+            i = oi + gi[p]
+            if i < 0:
+                i = 0
+            elif i > nx - 1:
+                i = nx - 1
+            j = oj + gj[p]
+            if j < 0:
+                j = 0
+            elif j > ny - 1:
+                j = ny - 1
+            v = values[i, j]
+            if v > cap32:
+                v = cap32
+            d = np.float64(v)
+            acc += d * d
+        last = acc
+        total[k] += acc
+
+
+@numba.njit(**_OPTS)
+def section_sums(a_lon, a_tra, b_lon, b_tra, fa_lon, fa_tra, fb_lon, fb_tra, oa_lon, oa_tra, ob_lon, ob_tra,
+                 sa_lon, sa_tra, sb_lon, sb_tra, cell, r, du, tz, cap, one_way, n_du):
+    """:func:`cosco.dissimilarity._sq_sums` on the distance fields, every move in one call: A's and B's probes
+    (``a_lon``...), their fields' values (``fa_lon``...), origins (``oa_lon``...) and starts (``sa_lon``...), on
+    one ``cell``; rotation ``r`` (0-3); the candidates (du, tz); the moves in _moves's order."""
+    cr = (1.0, 0.0, -1.0, 0.0)[r]
+    sr = (0.0, 1.0, 0.0, -1.0)[r]
+    total = np.zeros(tz.shape[0])
+    cap32 = np.float32(cap)
+    for direction in range(2):
+        if one_way and direction == 0:
+            continue
+        inverse = direction == 1
+        if not inverse:  # B's probes into A's frame: A's fields
+            lon, tra = b_lon, b_tra
+            f_lon, f_tra, o_lon, o_tra, s_lon, s_tra = fa_lon, fa_tra, oa_lon, oa_tra, sa_lon, sa_tra
+        else:
+            lon, tra = a_lon, a_tra
+            f_lon, f_tra, o_lon, o_tra, s_lon, s_tra = fb_lon, fb_tra, ob_lon, ob_tra, sb_lon, sb_tra
+        if not inverse:
+            if sr == 0.0:
+                _move_sums(total, f_lon, o_lon, cell, s_lon, lon, cr, 1.0, 1.0, du, tz, cap32, False, n_du)
+                _move_sums(total, f_tra, o_tra, cell, s_tra, tra, cr, 0.0, 1.0, du, tz, cap32, True, n_du)
+            else:
+                _move_sums(total, f_tra, o_tra, cell, s_tra, lon, sr, 0.0, 1.0, du, tz, cap32, True, n_du)
+                _move_sums(total, f_lon, o_lon, cell, s_lon, tra, -sr, 1.0, 1.0, du, tz, cap32, False, n_du)
+        else:
+            if sr == 0.0:
+                _move_sums(total, f_lon, o_lon, cell, s_lon, lon, cr, -cr, -1.0, du, tz, cap32, False, n_du)
+                _move_sums(total, f_tra, o_tra, cell, s_tra, tra, cr, 0.0, -1.0, du, tz, cap32, True, n_du)
+            else:
+                _move_sums(total, f_tra, o_tra, cell, s_tra, lon, -sr, sr, -1.0, du, tz, cap32, False, n_du)
+                _move_sums(total, f_lon, o_lon, cell, s_lon, tra, sr, 0.0, -1.0, du, tz, cap32, True, n_du)
+    return total
+
+
+@numba.njit(**_OPTS)
+def grid_build(points, cell):
+    """A voxel index of (n, 3) points on a grid of ``cell`` m: their order sorted by voxel, each voxel's start in
+    that order, the grid's origin and shape (the callers' radius is at most ``cell``)."""
+    n = points.shape[0]
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for a in range(3):
+        lo[a] = points[0, a]
+        hi[a] = points[0, a]
+    for p in range(n):
+        for a in range(3):
+            v = points[p, a]
+            if v < lo[a]:
+                lo[a] = v
+            if v > hi[a]:
+                hi[a] = v
+    shape = np.empty(3, dtype=np.int64)
+    for a in range(3):
+        shape[a] = np.int64(np.floor((hi[a] - lo[a]) / cell)) + 1
+    key = np.empty(n, dtype=np.int64)
+    for p in range(n):
+        ci = np.int64(np.floor((points[p, 0] - lo[0]) / cell))
+        cj = np.int64(np.floor((points[p, 1] - lo[1]) / cell))
+        ck = np.int64(np.floor((points[p, 2] - lo[2]) / cell))
+        key[p] = (ci * shape[1] + cj) * shape[2] + ck
+    order = np.argsort(key, kind="mergesort")
+    ncell = shape[0] * shape[1] * shape[2]
+    starts = np.zeros(ncell + 1, dtype=np.int64)
+    for p in range(n):
+        starts[key[p] + 1] += 1
+    for c in range(ncell):
+        starts[c + 1] += starts[c]
+    sorted_pts = np.empty((n, 3))
+    for q in range(n):
+        for a in range(3):
+            sorted_pts[q, a] = points[order[q], a]
+    return sorted_pts, order, starts, lo, shape
+
+
+@numba.njit(**_OPTS)
+def mirror_distances(points, phi, rho, grid_pts, starts, lo, shape, cell, bound):
+    """(n,) each point mirrored in the vertical plane (phi, rho), its distance to the nearest of ``grid_pts``
+    (sorted by voxel by :func:`grid_build`), ``bound`` where none lies nearer than ``bound`` (<= ``cell``)."""
+    n = points.shape[0]
+    nx, ny = np.cos(phi), np.sin(phi)
+    out = np.empty(n)
+    b2 = bound * bound
+    for p in range(n):
+        d = points[p, 0] * nx + points[p, 1] * ny - rho
+        x = points[p, 0] - 2.0 * d * nx
+        y = points[p, 1] - 2.0 * d * ny
+        z = points[p, 2]
+        ci = np.int64(np.floor((x - lo[0]) / cell))
+        cj = np.int64(np.floor((y - lo[1]) / cell))
+        ck = np.int64(np.floor((z - lo[2]) / cell))
+        best = np.inf
+        for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
+            for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
+                row = (i * shape[1] + j) * shape[2]
+                k0 = max(ck - 1, 0)
+                k1 = min(ck + 2, shape[2])
+                if k0 >= k1:
+                    continue
+                for q in range(starts[row + k0], starts[row + k1]):
+                    dx = grid_pts[q, 0] - x
+                    dy = grid_pts[q, 1] - y
+                    dz = grid_pts[q, 2] - z
+                    dd = dx * dx + dy * dy + dz * dz
+                    if dd < best:
+                        best = dd
+        out[p] = np.sqrt(best) if best < b2 else bound
+    return out
+
+
+@numba.njit(**_OPTS)
+def mirror_nearest(points, phi, rho, grid_pts, order, starts, lo, shape, cell, bound):
+    """(n,) distances and (n,) rows (into the points :func:`grid_build` indexed) of each point's mirror image's
+    nearest point nearer than ``bound`` (<= ``cell``): inf and the point count where none is, as a KD-tree's
+    bounded query answers."""
+    n = points.shape[0]
+    m = grid_pts.shape[0]
+    nx, ny = np.cos(phi), np.sin(phi)
+    dist = np.empty(n)
+    rows = np.empty(n, dtype=np.int64)
+    b2 = bound * bound
+    for p in range(n):
+        d = points[p, 0] * nx + points[p, 1] * ny - rho
+        x = points[p, 0] - 2.0 * d * nx
+        y = points[p, 1] - 2.0 * d * ny
+        z = points[p, 2]
+        ci = np.int64(np.floor((x - lo[0]) / cell))
+        cj = np.int64(np.floor((y - lo[1]) / cell))
+        ck = np.int64(np.floor((z - lo[2]) / cell))
+        best = np.inf
+        arg = -1
+        for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
+            for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
+                row = (i * shape[1] + j) * shape[2]
+                k0 = max(ck - 1, 0)
+                k1 = min(ck + 2, shape[2])
+                if k0 >= k1:
+                    continue
+                for q in range(starts[row + k0], starts[row + k1]):
+                    dx = grid_pts[q, 0] - x
+                    dy = grid_pts[q, 1] - y
+                    dz = grid_pts[q, 2] - z
+                    dd = dx * dx + dy * dy + dz * dz
+                    if dd < best or (dd == best and order[q] < arg):
+                        best = dd
+                        arg = order[q]
+        if best < b2:
+            dist[p] = np.sqrt(best)
+            rows[p] = arg
+        else:
+            dist[p] = np.inf
+            rows[p] = m
+    return dist, rows
+
+
+def warm() -> None:
+    """Compile (or load) every kernel on small inputs of the types the callers pass."""
+    v = np.zeros((4, 4), dtype=np.float32)
+    field_sums(v, np.zeros(2), 0.1, np.zeros(2, dtype=np.int64), np.zeros((3, 2)), np.zeros((2, 2)), 1.0)
+    pts = np.random.default_rng(0).random((20, 3))
+    grid, order, starts, lo, shape = grid_build(pts, 0.3)
+    mirror_distances(pts, 0.3, 0.1, grid, starts, lo, shape, 0.3, 0.3)
+    mirror_nearest(pts, 0.3, 0.1, grid, order, starts, lo, shape, 0.3, 0.3)
+    p2, o2, s2 = np.zeros((3, 2)), np.zeros(2), np.zeros(2, dtype=np.int64)
+    section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,
+                 False, 1)

@@ -1,0 +1,184 @@
+"""Compiled kernels for the loops a city spends its time in, each beside its numpy reference (which stays the
+definition, and the answer where numba is missing or ``TWINREG_NO_NUMBA`` is set).
+
+The kernels (:mod:`cosco._jit`) are numba functions compiled with ``cache=True``; the cache lives in the user's cache
+folder (``$XDG_CACHE_HOME/twinreg/numba``, else ``~/.cache/twinreg/numba``; ``NUMBA_CACHE_DIR`` wins when set), never
+beside the installed code. :func:`enable` compiles them all once (a fresh install's first run, a few seconds; then a
+read of the cache, about half a second, numba's import): the city engine calls it before its Dask workers start, so
+that no two workers write one cache at once, and a scene's run when it holds many objects. Importing this module
+imports neither numba nor the kernels: a command that does not match starts as fast as before, and a run that does
+not enable them gives the same answers from the references.
+
+    >>> import numpy as np
+    >>> values = np.arange(12, dtype=np.float32).reshape(3, 4)
+    >>> base, shifts = np.array([[0.0, 0.0], [0.1, 0.2]]), np.array([[0.0, 0.0], [0.1, 0.0]])
+    >>> field_sums(values, np.zeros(2), 0.1, (0, 0), base, shifts, 5.0).tolist()
+    [25.0, 41.0]
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+_STATE: dict = {}
+
+
+def cache_dir() -> Path:
+    """Where numba keeps the compiled kernels: ``NUMBA_CACHE_DIR``, else the user's cache folder."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "twinreg" / "numba"
+
+
+def jit():
+    """The compiled kernels' module, or None: the numpy references answer. None until :func:`enable` was called in
+    this process or ``TWINREG_JIT`` is set (a parent that enabled them sets it for the workers it starts), and
+    always where numba is missing or ``TWINREG_NO_NUMBA`` is set."""
+    if "jit" not in _STATE:
+        if not (_STATE.get("enabled") or os.environ.get("TWINREG_JIT")) or os.environ.get("TWINREG_NO_NUMBA"):
+            return None
+        os.environ.setdefault("NUMBA_CACHE_DIR", str(cache_dir()))
+        try:
+            from . import _jit as mod
+        except ImportError:  # numba is not installed: the numpy references
+            mod = None
+        _STATE["jit"] = mod
+    return _STATE["jit"]
+
+
+def enable(workers: bool = False) -> float:
+    """Use the compiled kernels in this process (and with ``workers``, in the processes it starts from now on:
+    ``TWINREG_JIT`` is set), compiling them first (or loading them from the cache); seconds taken. Call it in one
+    process before starting workers, so that no two of them write one cache at once. A small run does not call it:
+    importing numba alone takes longer than its kernels save on a car park (docs/PERFORMANCE.md)."""
+    _STATE["enabled"] = True
+    t = warm()
+    if workers and jit() is not None:
+        os.environ["TWINREG_JIT"] = "1"
+    return t
+
+
+def warm() -> float:
+    """Compile (or load from the cache) every kernel, when they are in use (:func:`jit`); seconds taken."""
+    import time
+
+    t = time.perf_counter()
+    mod = jit()
+    if mod is not None:
+        mod.warm()
+    return time.perf_counter() - t
+
+
+# ---------------------------------------------------------------- the registrations' distance-field look-ups
+
+
+def field_sums_numpy(values, origin, cell, start, base, shifts, cap) -> np.ndarray:
+    """(s,) for each shift, the sum over the (n, 2) ``base`` points of the squared distance found at
+    ``base + shift`` on the grid ``values`` (nearest node, clamped to the grid), each capped at ``cap``: the
+    numpy reference (:meth:`cosco.dissimilarity.DistanceField.nearest_shifted`)."""
+    nx, ny = values.shape
+    g = np.rint((base - origin) / cell).astype(np.int64)
+    g -= np.asarray(start, dtype=np.int64)
+    o = np.rint(shifts / cell).astype(np.int64)
+    i = np.add.outer(o[:, 0], g[:, 0])
+    np.minimum(np.maximum(i, 0, out=i), nx - 1, out=i)
+    j = np.add.outer(o[:, 1], g[:, 1])
+    np.minimum(np.maximum(j, 0, out=j), ny - 1, out=j)
+    i *= ny
+    i += j
+    d = np.minimum(values.ravel().take(i), cap).astype(np.float64)
+    return np.multiply(d, d, out=d).sum(1)
+
+
+def field_sums(values, origin, cell, start, base, shifts, cap) -> np.ndarray:
+    """:func:`field_sums_numpy`, compiled where numba is (no (s, n) index arrays: a registration's every
+    candidate shift in one pass)."""
+    mod = jit()
+    if mod is None:
+        return field_sums_numpy(values, origin, cell, start, base, shifts, cap)
+    return mod.field_sums(np.ascontiguousarray(values, dtype=np.float32), np.asarray(origin, dtype=np.float64),
+                          float(cell), np.asarray(start, dtype=np.int64),
+                          np.ascontiguousarray(base, dtype=np.float64), np.ascontiguousarray(shifts, dtype=np.float64),
+                          float(np.float32(cap)))
+
+
+def section_sums(a, b, r: int, du, tz, cap: float, one_way: bool, n_du: int):
+    """The compiled :func:`cosco.dissimilarity._sq_sums` on the distance fields (every look-up of one rotation in
+    one call; its numpy reference is that function's own loop), or None where numba is not in use."""
+    mod = jit()
+    if mod is None:
+        return None
+    fields = [a.fields["lon"], a.fields["tra"], b.fields["lon"], b.fields["tra"]]
+    cell = fields[0].cell
+    for f in fields:
+        if f.cap is not None and cap > f.cap:
+            raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare them "
+                             "with the same parameters")
+        if f.cell != cell:
+            return None
+    return mod.section_sums(a.probes["lon"], a.probes["tra"], b.probes["lon"], b.probes["tra"],
+                            *[f.values for f in fields], *[f.origin for f in fields],
+                            *[np.asarray(f.start, dtype=np.int64) for f in fields], float(cell), int(r),
+                            np.ascontiguousarray(du, dtype=np.float64), np.ascontiguousarray(tz, dtype=np.float64),
+                            float(np.float32(cap)), bool(one_way), int(n_du))
+
+
+# ---------------------------------------------------------------- the symmetry search's mirror correspondences
+
+
+def mirror_distances_numpy(tree, points, phi, rho, bound) -> np.ndarray:
+    """(n,) each of ``points`` (n, 3) mirrored in the vertical plane (phi, rho), its distance to the nearest point
+    of ``tree`` (a cKDTree), at most ``bound``: the numpy reference."""
+    from .symmetry import reflect
+
+    d, _ = tree.query(reflect(points, phi, rho), k=1, distance_upper_bound=bound)
+    return np.minimum(d, bound)
+
+
+class MirrorIndex:
+    """The compiled :func:`mirror_distances_numpy` for one object's points (a grid of ``bound`` m voxels, the
+    voxels along z of a plan cell contiguous, built once, asked for many planes). :meth:`of` gives None where numba
+    is missing or the grid would be large (more than ``max_cells`` voxels): the caller keeps its KD-tree."""
+
+    def __init__(self, mod, points: np.ndarray, targets: np.ndarray, bound: float):
+        self.mod, self.points, self.targets, self.bound = mod, points, targets, float(bound)
+        self.grid, self.order, self.starts, self.lo, self.shape = mod.grid_build(targets, self.bound)
+
+    @classmethod
+    def of(cls, points: np.ndarray, bound: float, targets: np.ndarray | None = None,
+           max_cells: int = 4_000_000) -> "MirrorIndex | None":
+        """``points`` are mirrored, their nearest among ``targets`` (default: the points themselves) found."""
+        mod = jit()
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        tgt = pts if targets is None else np.ascontiguousarray(targets, dtype=np.float64)
+        if mod is None or len(pts) == 0 or len(tgt) == 0 or not bound > 0:
+            return None
+        extent = np.ptp(tgt, axis=0) / bound + 1
+        if float(np.prod(extent)) > max_cells:
+            return None
+        return cls(mod, pts, tgt, bound)
+
+    def distances(self, phi: float, rho: float) -> np.ndarray:
+        return self.mod.mirror_distances(self.points, float(phi), float(rho), self.grid, self.starts, self.lo,
+                                         self.shape, self.bound, self.bound)
+
+    def nearest(self, points: np.ndarray, phi: float, rho: float, bound: float) -> tuple[np.ndarray, np.ndarray]:
+        """Each of ``points`` mirrored in (phi, rho): the distance to its nearest target nearer than ``bound`` (at
+        most the index's) and that target's row; inf and the target count where none is (a KD-tree's bounded
+        query, :func:`mirror_nearest_numpy`)."""
+        if bound > self.bound:
+            raise ValueError(f"a mirror index of {self.bound} m asked for neighbours up to {bound} m")
+        return self.mod.mirror_nearest(np.ascontiguousarray(points, dtype=np.float64), float(phi), float(rho),
+                                       self.grid, self.order, self.starts, self.lo, self.shape, self.bound,
+                                       float(bound))
+
+
+def mirror_nearest_numpy(tree, points, phi, rho, bound) -> tuple[np.ndarray, np.ndarray]:
+    """The numpy reference of :meth:`MirrorIndex.nearest`: a KD-tree's bounded query of the mirrored points."""
+    from .symmetry import reflect
+
+    return tree.query(reflect(points, phi, rho), k=1, distance_upper_bound=bound)

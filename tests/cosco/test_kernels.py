@@ -1,0 +1,111 @@
+"""The compiled kernels (cosco/_jit.py, numba) give their numpy references' answers (cosco/kernels.py)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from cosco import kernels
+
+kernels.enable()
+pytestmark = pytest.mark.skipif(kernels.jit() is None, reason="numba is not installed")
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_field_sums_agree_with_the_numpy_reference(seed):
+    """Random fields, probes partly off the grid (clamped), shifts of every size, caps under and over the field's
+    values: the same sums (float32 distances capped as numpy caps them, summed in float64)."""
+    rng = np.random.default_rng(seed)
+    values = rng.uniform(0, 0.5, (rng.integers(5, 60), rng.integers(5, 60))).astype(np.float32)
+    origin, cell = rng.uniform(-2, 2, 2), float(rng.uniform(0.005, 0.05))
+    start = tuple(int(v) for v in rng.integers(0, 3, 2))
+    base = origin + rng.uniform(-0.2, 1.0, (int(rng.integers(1, 300)), 2)) * np.array(values.shape) * cell
+    shifts = rng.normal(0, 5 * cell, (int(rng.integers(1, 80)), 2))
+    for cap in (0.1, 0.3, 1.0):
+        want = kernels.field_sums_numpy(values, origin, cell, start, base, shifts, cap)
+        got = kernels.jit().field_sums(values, origin, cell, np.asarray(start, dtype=np.int64), base, shifts,
+                                       float(np.float32(cap)))
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mirror_distances_agree_with_the_kd_tree(seed):
+    """An object's points mirrored in many planes: the grid's nearest distances are the KD-tree's, to 1e-12 m,
+    capped at the bound alike."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 2000))
+    pts = rng.normal(0, 1, (n, 3)) * [2.0, 0.9, 0.6]
+    targets = pts if seed % 2 else np.r_[pts, rng.normal(0, 1, (n // 2, 3))]  # the tree may hold other points
+    tree = cKDTree(targets)
+    bound = float(rng.uniform(0.03, 0.3))
+    index = kernels.MirrorIndex.of(pts, bound, targets=tree.data)
+    assert index is not None
+    for phi, rho in rng.uniform([-np.pi, -0.5], [np.pi, 0.5], (12, 2)):
+        want = kernels.mirror_distances_numpy(tree, pts, phi, rho, bound)
+        got = index.distances(phi, rho)
+        assert np.allclose(got, want, rtol=0, atol=1e-12)
+        assert (got <= bound).all()
+        near = bound * 0.6
+        want_d, want_i = kernels.mirror_nearest_numpy(tree, pts, phi, rho, near)
+        got_d, got_i = index.nearest(pts, phi, rho, near)
+        assert np.array_equal(np.isfinite(got_d), np.isfinite(want_d))
+        assert np.allclose(got_d[np.isfinite(got_d)], want_d[np.isfinite(want_d)], rtol=0, atol=1e-12)
+        assert np.array_equal(got_i, want_i)
+
+
+def test_a_huge_plan_keeps_the_kd_tree():
+    """An object whose plan grid would hold too many columns gets no index (the caller's KD-tree answers)."""
+    pts = np.array([[0.0, 0.0, 0.0], [5000.0, 5000.0, 0.0]])
+    assert kernels.MirrorIndex.of(pts, 0.05) is None
+
+
+def test_the_cache_is_the_users_and_the_references_answer_without_numba(tmp_path):
+    """The cache is written under XDG_CACHE_HOME/twinreg/numba, not beside the code; with TWINREG_NO_NUMBA, or
+    without enable(), the module answers with its references and never imports numba."""
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    code = "import cosco.kernels as k; k.enable(); print(k.cache_dir())"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == str(tmp_path / "twinreg" / "numba")
+    assert any((tmp_path / "twinreg" / "numba").rglob("*.nbi"))
+    code = ("import sys, numpy as np, cosco.kernels as k; "
+            "print(k.field_sums(np.ones((3, 3), np.float32), np.zeros(2), 0.1, (0, 0), np.zeros((20, 2)), "
+            "np.zeros((5, 2)), 0.5).tolist(), 'numba' in sys.modules)")
+    for extra in ({"TWINREG_NO_NUMBA": "1", "TWINREG_JIT": "1"}, {}):
+        out = subprocess.run([sys.executable, "-c", code], env={**env, **extra}, capture_output=True, text=True,
+                             check=True)
+        assert out.stdout.strip() == "[5.0, 5.0, 5.0, 5.0, 5.0] False"
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_section_sums_agree_with_the_numpy_moves(seed, monkeypatch):
+    """A registration's every candidate on the distance fields, every rotation, both ways and one way, on a tz by
+    du grid and candidate by candidate: the compiled single call gives the numpy loop's sums (to 1e-12)."""
+    from cosco.dissimilarity import SectionPair, _grid, _sq_sums
+    from cosco.sections import Sections
+
+    rng = np.random.default_rng(seed)
+
+    def pair(length):
+        u = rng.uniform(-length / 2, length / 2, 240)
+        lon = np.column_stack([u, 1.4 - 0.2 * (u / length) ** 2 + rng.normal(0, 0.01, 240)])
+        tra = np.column_stack([rng.uniform(-0.9, 0.9, 120), 1.4 + rng.normal(0, 0.01, 120)])
+        return SectionPair(Sections(lon[::3], tra[::3], 0.1, longitudinal_fine=lon, transverse_fine=tra))
+
+    a, b = pair(4.2), pair(float(rng.uniform(3.5, 5.0)))
+    tzs, dus = _grid(0.03, 0.4, 0.04), _grid(-0.02, 0.2, 0.1)
+    T, D = np.meshgrid(tzs, dus, indexing="ij")
+    for r in range(4):
+        for one_way in (False, True):
+            for n_du, du, tz in ((len(dus), D.ravel(), T.ravel()), (1, rng.normal(0, 0.2, 7), rng.normal(0, 0.2, 7))):
+                got = kernels.section_sums(a, b, r, du, tz, 0.1, one_way, n_du)
+                with monkeypatch.context() as m:
+                    m.setattr(kernels, "jit", lambda: None)
+                    assert kernels.section_sums(a, b, r, du, tz, 0.1, one_way, n_du) is None
+                    want = _sq_sums(a, b, r, du, tz, 0.1, one_way=one_way, n_du=n_du)
+                assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
