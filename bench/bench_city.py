@@ -194,14 +194,14 @@ def car_park_6x6(cat, path: Path) -> int:
 
 
 def run(points=(10, 30, 100), cars=(12, 100, 400), keep: Path | None = None, parks=(), park6x6: bool = True,
-        ) -> list[Row]:
+        densities=(150.0, 300.0)) -> list[Row]:
     rows = []
     root = keep or Path(tempfile.mkdtemp(prefix="twinreg-city-bench-"))
     root.mkdir(parents=True, exist_ok=True)
     lib = root / "lib16"
     cat = catalogue16(lib)
     for size in parks:
-        rows += compare_layouts(cat, lib, root, size)
+        rows += compare_layouts(cat, lib, root, size, densities)
     if park6x6:
         rows += _park6x6(cat, lib, root)
     return rows + _cities(cat, lib, root, points, cars)
@@ -309,12 +309,14 @@ def main():
     ap.add_argument("--keep", type=Path, default=None, help="keep the cities and outputs here (reused)")
     ap.add_argument("--parks", default="", help="dense car-park cities (150 and 300 pts/m2) beside a street city "
                                                 "of the same size, in millions of points (e.g. 10,100)")
+    ap.add_argument("--densities", default="150,300", help="the car-park cities' densities (pts/m2)")
     ap.add_argument("--no-park6x6", action="store_true", help="leave out issue 9's car park repeated 6 x 6")
     args = ap.parse_args()
     pts = [int(v) for v in args.points.split(",") if v]
     cars = [int(v) for v in args.cars.split(",") if v]
     parks = [int(v) for v in args.parks.split(",") if v]
-    rows = run(pts, cars, args.keep, parks, not args.no_park6x6)
+    rows = run(pts, cars, args.keep, parks, not args.no_park6x6,
+               tuple(float(v) for v in args.densities.split(",") if v))
     print(f"machine: {machine()}")
     for r in rows:
         print(f"| {r['what']} | {r['data']} | {r['figure']} | {r['target']} |")
