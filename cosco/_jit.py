@@ -10,41 +10,6 @@ _OPTS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"
 
 
 @numba.njit(**_OPTS)
-def field_sums(values, origin, cell, start, base, shifts, cap):
-    nx, ny = values.shape
-    n, s = base.shape[0], shifts.shape[0]
-    gi = np.empty(n, dtype=np.int64)
-    gj = np.empty(n, dtype=np.int64)
-    for p in range(n):
-        gi[p] = np.int64(np.rint((base[p, 0] - origin[0]) / cell)) - start[0]
-        gj[p] = np.int64(np.rint((base[p, 1] - origin[1]) / cell)) - start[1]
-    cap32 = np.float32(cap)
-    out = np.empty(s, dtype=np.float64)
-    for k in range(s):
-        oi = np.int64(np.rint(shifts[k, 0] / cell))
-        oj = np.int64(np.rint(shifts[k, 1] / cell))
-        acc = 0.0
-        for p in range(n):
-            i = oi + gi[p]
-            if i < 0:
-                i = 0
-            elif i > nx - 1:
-                i = nx - 1
-            j = oj + gj[p]
-            if j < 0:
-                j = 0
-            elif j > ny - 1:
-                j = ny - 1
-            v = values[i, j]
-            if v > cap32:
-                v = cap32
-            d = np.float64(v)
-            acc += d * d
-        out[k] = acc
-    return out
-
-
-@numba.njit(**_OPTS)
 def _move_sums(total, values, origin, cell, start, probes, scale, du_coef, tz_sign, du, tz, cap32, free, n_du):
     """One look-up of :func:`section_sums`: the probes (their u scaled by ``scale``) at each candidate's shift
     (``du_coef`` du, ``tz_sign`` tz) on one field, the capped squares summed and added to ``total``; a move that
@@ -163,41 +128,6 @@ def grid_build(points, cell):
 
 
 @numba.njit(**_OPTS)
-def mirror_distances(points, phi, rho, grid_pts, starts, lo, shape, cell, bound):
-    """(n,) each point mirrored in the vertical plane (phi, rho), its distance to the nearest of ``grid_pts``
-    (sorted by voxel by :func:`grid_build`), ``bound`` where none lies nearer than ``bound`` (<= ``cell``)."""
-    n = points.shape[0]
-    nx, ny = np.cos(phi), np.sin(phi)
-    out = np.empty(n)
-    b2 = bound * bound
-    for p in range(n):
-        d = points[p, 0] * nx + points[p, 1] * ny - rho
-        x = points[p, 0] - 2.0 * d * nx
-        y = points[p, 1] - 2.0 * d * ny
-        z = points[p, 2]
-        ci = np.int64(np.floor((x - lo[0]) / cell))
-        cj = np.int64(np.floor((y - lo[1]) / cell))
-        ck = np.int64(np.floor((z - lo[2]) / cell))
-        best = np.inf
-        for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
-            for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
-                row = (i * shape[1] + j) * shape[2]
-                k0 = max(ck - 1, 0)
-                k1 = min(ck + 2, shape[2])
-                if k0 >= k1:
-                    continue
-                for q in range(starts[row + k0], starts[row + k1]):
-                    dx = grid_pts[q, 0] - x
-                    dy = grid_pts[q, 1] - y
-                    dz = grid_pts[q, 2] - z
-                    dd = dx * dx + dy * dy + dz * dz
-                    if dd < best:
-                        best = dd
-        out[p] = np.sqrt(best) if best < b2 else bound
-    return out
-
-
-@numba.njit(**_OPTS)
 def mirror_nearest(points, phi, rho, grid_pts, order, starts, lo, shape, cell, bound):
     """(n,) distances and (n,) rows (into the points :func:`grid_build` indexed) of each point's mirror image's
     nearest point nearer than ``bound`` (<= ``cell``): inf and the point count where none is, as a KD-tree's
@@ -245,10 +175,8 @@ def mirror_nearest(points, phi, rho, grid_pts, order, starts, lo, shape, cell, b
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
-    field_sums(v, np.zeros(2), 0.1, np.zeros(2, dtype=np.int64), np.zeros((3, 2)), np.zeros((2, 2)), 1.0)
     pts = np.random.default_rng(0).random((20, 3))
     grid, order, starts, lo, shape = grid_build(pts, 0.3)
-    mirror_distances(pts, 0.3, 0.1, grid, starts, lo, shape, 0.3, 0.3)
     mirror_nearest(pts, 0.3, 0.1, grid, order, starts, lo, shape, 0.3, 0.3)
     p2, o2, s2 = np.zeros((3, 2)), np.zeros(2), np.zeros(2, dtype=np.int64)
     section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,

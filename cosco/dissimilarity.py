@@ -189,9 +189,7 @@ def _field_sums(f: DistanceField, base: np.ndarray, shifts: np.ndarray, cap: flo
     if f.cap is not None and cap > f.cap:
         raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare them "
                          "with the same parameters")
-    from .kernels import field_sums  # compiled where numba is; its numpy reference is nearest_shifted's arithmetic
-
-    return field_sums(f.values, f.origin, f.cell, f.start, base, shifts, cap)
+    return _capped_square_sums(f.nearest_shifted(base, shifts), cap)
 
 
 def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params: CoscoParams,

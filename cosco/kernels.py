@@ -9,11 +9,8 @@ that no two workers write one cache at once, and a scene's run when it holds man
 imports neither numba nor the kernels: a command that does not match starts as fast as before, and a run that does
 not enable them gives the same answers from the references.
 
-    >>> import numpy as np
-    >>> values = np.arange(12, dtype=np.float32).reshape(3, 4)
-    >>> base, shifts = np.array([[0.0, 0.0], [0.1, 0.2]]), np.array([[0.0, 0.0], [0.1, 0.0]])
-    >>> field_sums(values, np.zeros(2), 0.1, (0, 0), base, shifts, 5.0).tolist()
-    [25.0, 41.0]
+    >>> cache_dir().parts[-2:]
+    ('twinreg', 'numba')
 """
 
 from __future__ import annotations
@@ -50,16 +47,13 @@ def jit():
     return _STATE["jit"]
 
 
-def enable(workers: bool = False) -> float:
-    """Use the compiled kernels in this process (and with ``workers``, in the processes it starts from now on:
-    ``TWINREG_JIT`` is set), compiling them first (or loading them from the cache); seconds taken. Call it in one
-    process before starting workers, so that no two of them write one cache at once. A small run does not call it:
-    importing numba alone takes longer than its kernels save on a car park (docs/PERFORMANCE.md)."""
+def enable() -> float:
+    """Use the compiled kernels in this process, compiling them first (or loading them from the cache); seconds
+    taken. Call it in one process before starting workers (and give them ``TWINREG_JIT=1``), so that no two of them
+    write one cache at once. A small run does not call it: importing numba alone takes longer than its kernels save
+    on a car park (docs/PERFORMANCE.md)."""
     _STATE["enabled"] = True
-    t = warm()
-    if workers and jit() is not None:
-        os.environ["TWINREG_JIT"] = "1"
-    return t
+    return warm()
 
 
 def warm() -> float:
@@ -76,39 +70,10 @@ def warm() -> float:
 # ---------------------------------------------------------------- the registrations' distance-field look-ups
 
 
-def field_sums_numpy(values, origin, cell, start, base, shifts, cap) -> np.ndarray:
-    """(s,) for each shift, the sum over the (n, 2) ``base`` points of the squared distance found at
-    ``base + shift`` on the grid ``values`` (nearest node, clamped to the grid), each capped at ``cap``: the
-    numpy reference (:meth:`cosco.dissimilarity.DistanceField.nearest_shifted`)."""
-    nx, ny = values.shape
-    g = np.rint((base - origin) / cell).astype(np.int64)
-    g -= np.asarray(start, dtype=np.int64)
-    o = np.rint(shifts / cell).astype(np.int64)
-    i = np.add.outer(o[:, 0], g[:, 0])
-    np.minimum(np.maximum(i, 0, out=i), nx - 1, out=i)
-    j = np.add.outer(o[:, 1], g[:, 1])
-    np.minimum(np.maximum(j, 0, out=j), ny - 1, out=j)
-    i *= ny
-    i += j
-    d = np.minimum(values.ravel().take(i), cap).astype(np.float64)
-    return np.multiply(d, d, out=d).sum(1)
-
-
-def field_sums(values, origin, cell, start, base, shifts, cap) -> np.ndarray:
-    """:func:`field_sums_numpy`, compiled where numba is (no (s, n) index arrays: a registration's every
-    candidate shift in one pass)."""
-    mod = jit()
-    if mod is None:
-        return field_sums_numpy(values, origin, cell, start, base, shifts, cap)
-    return mod.field_sums(np.ascontiguousarray(values, dtype=np.float32), np.asarray(origin, dtype=np.float64),
-                          float(cell), np.asarray(start, dtype=np.int64),
-                          np.ascontiguousarray(base, dtype=np.float64), np.ascontiguousarray(shifts, dtype=np.float64),
-                          float(np.float32(cap)))
-
-
 def section_sums(a, b, r: int, du, tz, cap: float, one_way: bool, n_du: int):
     """The compiled :func:`cosco.dissimilarity._sq_sums` on the distance fields (every look-up of one rotation in
-    one call; its numpy reference is that function's own loop), or None where numba is not in use."""
+    one call, no (candidates x probes) index arrays; its numpy reference is that function's own loop over
+    :meth:`~cosco.dissimilarity.DistanceField.nearest_shifted`), or None where numba is not in use."""
     mod = jit()
     if mod is None:
         return None
@@ -163,8 +128,9 @@ class MirrorIndex:
         return cls(mod, pts, tgt, bound)
 
     def distances(self, phi: float, rho: float) -> np.ndarray:
-        return self.mod.mirror_distances(self.points, float(phi), float(rho), self.grid, self.starts, self.lo,
-                                         self.shape, self.bound, self.bound)
+        d, _ = self.nearest(self.points, phi, rho, self.bound)
+        d[~np.isfinite(d)] = self.bound
+        return d
 
     def nearest(self, points: np.ndarray, phi: float, rho: float, bound: float) -> tuple[np.ndarray, np.ndarray]:
         """Each of ``points`` mirrored in (phi, rho): the distance to its nearest target nearer than ``bound`` (at
