@@ -38,6 +38,12 @@ def jit():
     if "jit" not in _STATE:
         if not (_STATE.get("enabled") or os.environ.get("TWINREG_JIT")) or os.environ.get("TWINREG_NO_NUMBA"):
             return None
+        try:  # a home that cannot be written to (a locked-down CI): a cache for this process only
+            cache_dir().mkdir(parents=True, exist_ok=True)
+        except OSError:
+            import tempfile
+
+            os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="twinreg-numba-")
         os.environ.setdefault("NUMBA_CACHE_DIR", str(cache_dir()))
         try:
             from . import _jit as mod

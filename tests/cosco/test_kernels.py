@@ -48,8 +48,9 @@ def test_a_huge_plan_keeps_the_kd_tree():
 
 
 def test_the_cache_is_the_users_and_the_references_answer_without_numba(tmp_path):
-    """The cache is written under XDG_CACHE_HOME/twinreg/numba, not beside the code; with TWINREG_NO_NUMBA, or
-    without enable(), the module answers with its references and never imports numba."""
+    """The cache is written under XDG_CACHE_HOME/twinreg/numba, not beside the code (a process whose cache folder
+    cannot be made still compiles, for itself); with TWINREG_NO_NUMBA, or without enable(), the module answers with
+    its references and never imports numba."""
     env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     env.pop("NUMBA_CACHE_DIR", None)
     code = "import cosco.kernels as k; k.enable(); print(k.cache_dir())"
@@ -59,6 +60,11 @@ def test_the_cache_is_the_users_and_the_references_answer_without_numba(tmp_path
     code = ("import sys, numpy as np, cosco.kernels as k; from cosco.symmetry import detect_symmetry; "
             "s = detect_symmetry(np.random.default_rng(0).uniform([-2, -0.8, 0], [2, 0.8, 1.4], (500, 3))); "
             "print(k.jit(), s.found, 'numba' in sys.modules)")
+    locked = tmp_path / "locked"
+    locked.write_text("a file where the cache folder would go")
+    out = subprocess.run([sys.executable, "-c", "import cosco.kernels as k; k.enable(); print(k.jit() is not None)"],
+                         env={**env, "XDG_CACHE_HOME": str(locked)}, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"  # an unwritable cache folder: compiled for the process alone
     for extra in ({"TWINREG_NO_NUMBA": "1", "TWINREG_JIT": "1"}, {}):
         out = subprocess.run([sys.executable, "-c", code], env={**env, **extra}, capture_output=True, text=True,
                              check=True)
