@@ -148,7 +148,8 @@ class CoscoParams:
     members have no model gets a fused shape when they hold ``fuse_min_points`` points together. An object with no
     model ``type_pole_ratio`` times taller than its plan is wide is typed by kind and size alone (a thin pole's
     sections do not group copies of one lamp post). A fused shape's columns whose points all stand higher than
-    ``fuse_hang_height`` hang from their lowest point (not vehicles': a van's roof is all a scan sees of it).
+    ``fuse_hang_height`` hang from their lowest point (not vehicles': a van's roof is all a scan sees of it). A
+    type's shape is gathered from its ``fuse_max_members`` members with most points (every member is registered).
 
     Compiled kernels (cosco/kernels.py): a scene of ``jit_min_objects`` objects or more uses them (numba's import,
     about half a second, is more than they save on a car park of a dozen cars); a city always.
@@ -316,6 +317,7 @@ class CoscoParams:
     fuse_min_points: int = 60
     type_pole_ratio: float = 3.0
     fuse_hang_height: float = 2.0
+    fuse_max_members: int = 40
     jit_min_objects: int = 100
     kind_seen_height: float = 0.2
 

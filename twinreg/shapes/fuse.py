@@ -209,7 +209,8 @@ def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFA
     most points; each member's points are taken into its own frame (ground at 0), registered onto the reference,
     gathered and completed by the symmetry; the solid is built on a grid of ``cell`` m (default: 1.5 times the
     gathered points' spacing, 0.1-0.3 m, and no more than a tenth of the object's width) and decimated to
-    ``faces`` triangles; with ``hang``, columns whose points all stand higher hang (:func:`height_solid`). A
+    ``faces`` triangles; with ``hang``, columns whose points all stand higher hang (:func:`height_solid`). Every
+    member is registered (its pose), the shape gathered from at most ``params.fuse_max_members`` of them. A
     rotational type's members are not registered; those of a rotational type and of one
     with two mirror planes are centred each on the middle of its points' plan extent (where the planes cross)."""
     from scipy.spatial import cKDTree
@@ -228,7 +229,10 @@ def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFA
             turned = local[:, :2] @ to_ref[k][:2, :2].T
             to_ref[k, :2, 3] = -(turned.min(0) + turned.max(0)) / 2
             to_ref[k, 2, 3] = 0.0
-    gathered = [local @ to_ref[k][:3, :3].T + to_ref[k][:3, 3] for k, local in enumerate(locals_)]
+    # the shape from the members with most points (``params.fuse_max_members``): beyond ten members the curve of
+    # docs/PERFORMANCE.md gains nothing, and a city's type of thousands would gather millions of points
+    used = sorted(order[:max(params.fuse_max_members, 1)])
+    gathered = [locals_[k] @ to_ref[k][:3, :3].T + to_ref[k][:3, 3] for k in used]
     allp = np.vstack(gathered)
     allp = allp[allp[:, 2] > 0.0]
     full = completed(allp, level)
