@@ -175,9 +175,12 @@ def plot_curve(runs: list[dict], path: Path) -> None:
     b.set_ylim(0, max(4.5, float(m.max()) * 1.2))
     b.axhline(4.0, color="grey", ls="--", lw=0.8)
     b.set_xlabel("points (millions)")
+    for ax in (a, b):  # the runs' own sizes as ticks (log axes' minor labels overlap)
+        ax.set_xticks(n, [f"{v:.0f}" for v in n])
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     b.set_ylabel("peak memory of the process tree (GiB)")
     b.set_title("memory")
-    fig.suptitle("twinreg build-twin on dense car-park cities (16 shared cars, 150 pts/m2, 2 workers)", fontsize=10)
+    fig.suptitle("twinreg build-twin on simulated cities (16 shared cars, 150 pts/m2, 2 workers)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
