@@ -160,12 +160,12 @@ def mirror_nearest(points, phi, rho, grid_pts, order, starts, lo, shape, cell, b
                     dy = grid_pts[q, 1] - y
                     dz = grid_pts[q, 2] - z
                     dd = dx * dx + dy * dy + dz * dz
-                    if dd < best or (dd == best and order[q] < arg):
+                    if dd < best:
                         best = dd
-                        arg = order[q]
+                        arg = q
         if best < b2:
             dist[p] = np.sqrt(best)
-            rows[p] = arg
+            rows[p] = order[arg]
         else:
             dist[p] = np.inf
             rows[p] = m
