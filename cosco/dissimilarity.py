@@ -157,6 +157,10 @@ def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndar
     ``n_du`` > 1: the candidates are a grid, each tz repeated for ``n_du`` consecutive values of du (a meshgrid of
     tz by du, raveled): the look-ups that do not depend on du are made once per tz."""
     if not exact:
+        for f in [*(() if one_way else a.fields.values()), *b.fields.values()]:  # the fields looked up
+            if f.cap is not None and cap > f.cap:
+                raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare "
+                                 "them with the same parameters")
         from .kernels import section_sums
 
         got = section_sums(a, b, r, du, tz, cap, one_way, n_du)
@@ -185,10 +189,8 @@ def _capped_square_sums(d: np.ndarray, cap: float) -> np.ndarray:
 
 
 def _field_sums(f: DistanceField, base: np.ndarray, shifts: np.ndarray, cap: float) -> np.ndarray:
-    """For each shift, the sum of the squared field distances at ``base + shift``, each capped at ``cap``."""
-    if f.cap is not None and cap > f.cap:
-        raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare them "
-                         "with the same parameters")
+    """For each shift, the sum of the squared field distances at ``base + shift``, each capped at ``cap`` (at most
+    the field's own, :func:`_sq_sums` checks)."""
     return _capped_square_sums(f.nearest_shifted(base, shifts), cap)
 
 

@@ -85,12 +85,8 @@ def section_sums(a, b, r: int, du, tz, cap: float, one_way: bool, n_du: int):
         return None
     fields = [a.fields["lon"], a.fields["tra"], b.fields["lon"], b.fields["tra"]]
     cell = fields[0].cell
-    for f in fields:
-        if f.cap is not None and cap > f.cap:
-            raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare them "
-                             "with the same parameters")
-        if f.cell != cell:
-            return None
+    if any(f.cell != cell for f in fields):  # (the caps are checked by the caller, _sq_sums)
+        return None
     return mod.section_sums(a.probes["lon"], a.probes["tra"], b.probes["lon"], b.probes["tra"],
                             *[f.values for f in fields], *[f.origin for f in fields],
                             *[np.asarray(f.start, dtype=np.int64) for f in fields], float(cell), int(r),
@@ -104,9 +100,7 @@ def section_sums(a, b, r: int, du, tz, cap: float, one_way: bool, n_du: int):
 def mirror_distances_numpy(tree, points, phi, rho, bound) -> np.ndarray:
     """(n,) each of ``points`` (n, 3) mirrored in the vertical plane (phi, rho), its distance to the nearest point
     of ``tree`` (a cKDTree), at most ``bound``: the numpy reference."""
-    from .symmetry import reflect
-
-    d, _ = tree.query(reflect(points, phi, rho), k=1, distance_upper_bound=bound)
+    d, _ = mirror_nearest_numpy(tree, points, phi, rho, bound)
     return np.minimum(d, bound)
 
 
@@ -116,7 +110,7 @@ class MirrorIndex:
     is missing or the grid would be large (more than ``max_cells`` voxels): the caller keeps its KD-tree."""
 
     def __init__(self, mod, points: np.ndarray, targets: np.ndarray, bound: float):
-        self.mod, self.points, self.targets, self.bound = mod, points, targets, float(bound)
+        self.mod, self.points, self.bound = mod, points, float(bound)
         self.grid, self.order, self.starts, self.lo, self.shape = mod.grid_build(targets, self.bound)
 
     @classmethod

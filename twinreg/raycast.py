@@ -99,12 +99,23 @@ def visible_surface(vertices: np.ndarray, faces: np.ndarray, spacing: float, vie
 
 def surface_distances(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
     """(n,) unsigned distance (m) of ``points`` to the mesh's surface (open3d, exact per triangle; centred on the
-    mesh inside, for float32)."""
-    from .o3d import load
+    mesh inside, for float32). Many queries of one mesh: :class:`CentredScene` once, then its ``distances``."""
+    return CentredScene(vertices, faces).distances(points)
 
-    o3d = load()
-    v = np.asarray(vertices, dtype=np.float64)
-    centre = v.mean(0) if len(v) else np.zeros(3)
-    scene = raycasting_scene(v - centre, faces)
-    query = (np.asarray(points, dtype=np.float64) - centre).astype(np.float32)
-    return scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)
+
+class CentredScene:
+    """A mesh's :func:`raycasting_scene`, centred on its vertices' mean (float32 inside), for distance queries of
+    points in the mesh's frame."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        v = np.asarray(vertices, dtype=np.float64)
+        self.centre = v.mean(0) if len(v) else np.zeros(3)
+        self.scene = raycasting_scene(v - self.centre, faces)
+
+    def distances(self, points: np.ndarray) -> np.ndarray:
+        """Unsigned distance (m) of (n, 3) points, in the mesh's frame, to its surface."""
+        from .o3d import load
+
+        o3d = load()
+        query = (np.asarray(points, dtype=np.float64) - self.centre).astype(np.float32)
+        return self.scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)

@@ -140,9 +140,9 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     type: ``(member indices, FusedShape)``. ``clouds``: each object's points (the scene frame); the type's level is
     its members' most common one. Types whose members have too few points together (``params.fuse_min_points``)
     keep their boxes, but for vehicles (``kinds``), which get the kind's template: a body lofted from each one's
-    own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``). But for vehicles (a van's
-    roof is seen from above only), parts whose points all stand over ``params.fuse_hang_height`` hang (a lamp's
-    arm, a sign's plate, a shelter's roof)."""
+    own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``). In a type that is not
+    of vehicles (a van's roof is all a scan sees of it), parts whose points all stand over
+    ``params.fuse_hang_height`` hang (a lamp's arm, a sign's plate, a shelter's roof)."""
     from collections import Counter
 
     import numpy as np

@@ -77,22 +77,17 @@ def sample_cloud(points: np.ndarray, max_points: int) -> np.ndarray:
 
 
 class SurfaceIndex:
-    """A mesh ready for distance queries in its own frame (built once per model, queried for many objects)."""
+    """A mesh ready for distance queries in its own frame (built once per model, queried for many objects):
+    :class:`twinreg.raycast.CentredScene`."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        from ..raycast import raycasting_scene
+        from ..raycast import CentredScene
 
-        v = np.asarray(vertices, dtype=np.float64)
-        self.centre = v.mean(0)
-        self.scene = raycasting_scene(v - self.centre, faces)
+        self._scene = CentredScene(vertices, faces)
 
     def distances(self, points: np.ndarray) -> np.ndarray:
         """Unsigned distance (m) of (n, 3) points, in the mesh's frame, to its surface."""
-        from ..o3d import load
-
-        o3d = load()
-        query = (np.asarray(points, dtype=np.float64) - self.centre).astype(np.float32)
-        return self.scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)
+        return self._scene.distances(points)
 
 
 def verdict(distances: np.ndarray, noise: float, spacing: float, params: CoscoParams = DEFAULT) -> Verdict:
