@@ -172,6 +172,94 @@ def mirror_nearest(points, phi, rho, grid_pts, order, starts, lo, shape, cell, b
     return dist, rows
 
 
+@numba.njit(**_OPTS)
+def _cross(o, a, b):
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+@numba.njit(**_OPTS)
+def plan_hull(xy):
+    """The convex hull of (n, 2) points, counter-clockwise (Andrew's monotone chain; collinear points dropped),
+    after the points strictly inside the quadrilateral of their extreme x and y are left out (Akl-Toussaint)."""
+    n = xy.shape[0]
+    keep = np.ones(n, dtype=np.bool_)
+    if n > 32:
+        e = np.zeros(4, dtype=np.int64)  # min x, min y, max x, max y: counter-clockwise around the points
+        for p in range(1, n):
+            if xy[p, 0] < xy[e[0], 0]:
+                e[0] = p
+            if xy[p, 1] < xy[e[1], 1]:
+                e[1] = p
+            if xy[p, 0] > xy[e[2], 0]:
+                e[2] = p
+            if xy[p, 1] > xy[e[3], 1]:
+                e[3] = p
+        for p in range(n):
+            inside = True
+            for k in range(4):
+                if not _cross(xy[e[k]], xy[e[(k + 1) % 4]], xy[p]) > 0.0:
+                    inside = False
+                    break
+            if inside:
+                keep[p] = False
+    rows = np.flatnonzero(keep)
+    pts = xy[rows]
+    order = np.argsort(pts[:, 1], kind="mergesort")
+    order = order[np.argsort(pts[order, 0], kind="mergesort")]  # by x, then y
+    m = len(order)
+    hull = np.empty((2 * m + 1, 2))
+    k = 0
+    for q in range(m):  # the lower chain
+        p = pts[order[q]]
+        while k >= 2 and _cross(hull[k - 2], hull[k - 1], p) <= 0.0:
+            k -= 1
+        hull[k] = p
+        k += 1
+    low = k + 1
+    for q in range(m - 2, -1, -1):  # the upper chain
+        p = pts[order[q]]
+        while k >= low and _cross(hull[k - 2], hull[k - 1], p) <= 0.0:
+            k -= 1
+        hull[k] = p
+        k += 1
+    return hull[:max(k - 1, 0)].copy()
+
+
+@numba.njit(**_OPTS)
+def min_area_rectangle(xy):
+    """:func:`cosco.footprint.min_area_rectangle` on the hull of :func:`plan_hull`: (angle, length along it,
+    width across, centre x, centre y) before the long side is made the length, and False as the last value
+    where the hull has fewer than three corners (the reference answers then)."""
+    hull = plan_hull(xy)
+    h = hull.shape[0]
+    if h < 3:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, False
+    angles = np.empty(h)
+    quarter = np.pi / 2
+    for k in range(h):
+        nxt = (k + 1) % h
+        angles[k] = np.arctan2(hull[nxt, 1] - hull[k, 1], hull[nxt, 0] - hull[k, 0]) % quarter
+    angles.sort()
+    best_area = np.inf
+    best = (0.0, 0.0, 0.0, 0.0, 0.0)
+    for k in range(h):
+        a = angles[k]
+        if k > 0 and a == angles[k - 1]:
+            continue
+        c, s = np.cos(a), np.sin(a)
+        u0, u1, v0, v1 = np.inf, -np.inf, np.inf, -np.inf
+        for q in range(h):
+            u = hull[q, 0] * c + hull[q, 1] * s
+            v = -hull[q, 0] * s + hull[q, 1] * c
+            u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
+        area = (u1 - u0) * (v1 - v0)
+        if area < best_area:
+            best_area = area
+            cu, cv = (u1 + u0) / 2, (v1 + v0) / 2
+            best = (a, u1 - u0, v1 - v0, cu * c - cv * s, cu * s + cv * c)
+    return best[0], best[1], best[2], best[3], best[4], True
+
+
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
@@ -181,3 +269,4 @@ def warm() -> None:
     p2, o2, s2 = np.zeros((3, 2)), np.zeros(2), np.zeros(2, dtype=np.int64)
     section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,
                  False, 1)
+    min_area_rectangle(np.random.default_rng(0).random((40, 2)))

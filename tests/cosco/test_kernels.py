@@ -98,3 +98,35 @@ def test_section_sums_agree_with_the_numpy_moves(seed, monkeypatch):
                     assert kernels.section_sums(a, b, r, du, tz, 0.1, one_way, n_du) is None
                     want = _sq_sums(a, b, r, du, tz, 0.1, one_way=one_way, n_du=n_du)
                 assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_min_area_rectangle_agrees_with_scipys_hull(seed):
+    """The compiled footprint rectangle (monotone-chain hull, Akl-Toussaint filter) is the reference's (scipy's
+    Qhull) on clouds of every size and shape: car-like boxes, thin poles, rings, a few points, duplicates."""
+    from cosco.footprint import min_area_rectangle, min_area_rectangle_numpy
+
+    rng = np.random.default_rng(seed)
+    clouds = [rng.uniform(-1, 1, (n, 2)) * [rng.uniform(0.1, 5), rng.uniform(0.1, 3)] for n in (3, 4, 7, 33, 500)]
+    t = rng.uniform(0, 2 * np.pi, 3000)
+    clouds += [np.c_[np.cos(t), np.sin(t)] * 0.2 + 0.01 * rng.normal(size=(3000, 2)),  # a pole's ring
+               np.round(rng.uniform(0, 4, (2000, 2)), 2),  # many duplicates and collinear rows
+               np.c_[rng.uniform(0, 20, 800), rng.normal(0, 0.02, 800)]]  # a wall
+    a = rng.uniform(0, np.pi)
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    clouds = [c @ rot.T + rng.uniform(-500, 500, 2) for c in clouds]
+    for xy in clouds:
+        want, got = min_area_rectangle_numpy(xy), min_area_rectangle(xy)
+        assert np.allclose(got.centre, want.centre, rtol=0, atol=1e-9)
+        assert abs(got.length - want.length) < 1e-9 and abs(got.width - want.width) < 1e-9
+        turn = abs(got.angle - want.angle) % np.pi
+        assert min(turn, np.pi - turn) < 1e-9 or abs(want.length - want.width) < 1e-9
+
+
+def test_min_area_rectangle_of_collinear_points_is_the_references():
+    """Points on one line have no hull of three corners: the reference answers (the same rectangle either way)."""
+    from cosco.footprint import min_area_rectangle, min_area_rectangle_numpy
+
+    xy = np.c_[np.linspace(0, 3, 20), np.linspace(1, 2, 20)]
+    got, want = min_area_rectangle(xy), min_area_rectangle_numpy(xy)
+    assert np.allclose(got.centre, want.centre) and got.length == want.length and got.width == want.width
