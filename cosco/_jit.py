@@ -260,6 +260,103 @@ def min_area_rectangle(xy):
     return best[0], best[1], best[2], best[3], best[4], True
 
 
+@numba.njit(**_OPTS)
+def _linear(values, x, y):
+    """scipy.ndimage.map_coordinates(values, [[x], [y]], order=1, mode="nearest", prefilter=False): its weights
+    and its sum in its order (bit for bit)."""
+    nx, ny = values.shape
+    fx, fy = np.floor(x), np.floor(y)
+    wx1 = x - fx
+    wx0 = 1.0 - wx1
+    wx1 = 1.0 - wx0
+    wy1 = y - fy
+    wy0 = 1.0 - wy1
+    wy1 = 1.0 - wy0
+    i0, j0 = np.int64(fx), np.int64(fy)
+    i1, j1 = min(max(i0 + 1, 0), nx - 1), min(max(j0 + 1, 0), ny - 1)
+    i0, j0 = min(max(i0, 0), nx - 1), min(max(j0, 0), ny - 1)
+    t = 0.0
+    t += values[i0, j0] * wx0 * wy0
+    t += values[i0, j1] * wx0 * wy1
+    t += values[i1, j0] * wx1 * wy0
+    t += values[i1, j1] * wx1 * wy1
+    return t
+
+
+@numba.njit(**_OPTS)
+def grid_heights(pts, origin, cell, values):
+    """:meth:`cosco.ground._Grid.height`: each point's z minus the bilinear surface under it (the edge cells'
+    values beyond the window)."""
+    n = pts.shape[0]
+    out = np.empty(n)
+    for p in range(n):
+        x = (pts[p, 0] - origin[0]) / cell - 0.5
+        y = (pts[p, 1] - origin[1]) / cell - 0.5
+        out[p] = pts[p, 2] - _linear(values, x, y)
+    return out
+
+
+@numba.njit(**_OPTS)
+def ground_heights(pts, origin, cell, block, n_cols, keys, tiles):
+    """:meth:`cosco.ground.Ground.height` for the points whose four surrounding cells lie in one stored block:
+    their heights, and a mask of those (the others, at block edges, are the caller's)."""
+    n = pts.shape[0]
+    out = np.empty(n)
+    done = np.zeros(n, dtype=np.bool_)
+    nk = keys.shape[0]
+    for p in range(n):
+        x = (pts[p, 0] - origin[0]) / cell - 0.5
+        y = (pts[p, 1] - origin[1]) / cell - 0.5
+        i, j = np.int64(np.floor(x)), np.int64(np.floor(y))
+        if i < 0 or j < 0:
+            continue
+        bi, bj = i // block, j // block
+        if bj >= n_cols:
+            continue
+        if i - bi * block >= block - 1 or j - bj * block >= block - 1:
+            continue
+        key = bi * n_cols + bj
+        lo, hi = 0, nk
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if keys[mid] < key:
+                lo = mid + 1
+            else:
+                hi = mid
+        if lo == nk or keys[lo] != key:
+            continue
+        out[p] = pts[p, 2] - _linear(tiles[lo], x - bi * block, y - bj * block)
+        done[p] = True
+    return out, done
+
+
+@numba.njit(**_OPTS)
+def _voxel(pts, p, lo, v, dims):
+    """The C-order index of point ``p``'s voxel on a grid of ``dims`` voxels of ``v`` m at ``lo`` (truncation
+    is floor: the offsets are non-negative)."""
+    flat = np.int64((pts[p, 0] - lo[0]) / v)
+    flat = flat * dims[1] + np.int64((pts[p, 1] - lo[1]) / v)
+    return flat * dims[2] + np.int64((pts[p, 2] - lo[2]) / v)
+
+
+@numba.njit(**_OPTS)
+def voxel_counts(pts, lo, v, dims):
+    """Points in each voxel of a dense grid (:func:`cosco.segment.far_outliers`'s bincount, one pass)."""
+    counts = np.zeros(dims[0] * dims[1] * dims[2], dtype=np.int64)
+    for p in range(pts.shape[0]):
+        counts[_voxel(pts, p, lo, v, dims)] += 1
+    return counts
+
+
+@numba.njit(**_OPTS)
+def in_voxels(pts, lo, v, dims, chosen):
+    """(n,) bool: whether each point's voxel is ``chosen`` (a flat bool per voxel)."""
+    out = np.empty(pts.shape[0], dtype=np.bool_)
+    for p in range(pts.shape[0]):
+        out[p] = chosen[_voxel(pts, p, lo, v, dims)]
+    return out
+
+
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
@@ -270,3 +367,8 @@ def warm() -> None:
     section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,
                  False, 1)
     min_area_rectangle(np.random.default_rng(0).random((40, 2)))
+    z = np.zeros((4, 4))
+    grid_heights(pts, np.zeros(2), 0.5, z)
+    ground_heights(pts, np.zeros(2), 0.5, 4, 1, np.zeros(1, dtype=np.int64), z[None])
+    dims = np.array([2, 2, 2], dtype=np.int64)
+    in_voxels(pts, np.zeros(3), 1.0, dims, voxel_counts(pts, np.zeros(3), 1.0, dims) > 0)

@@ -44,7 +44,13 @@ class _Grid:
         beyond the window)."""
         from scipy import ndimage
 
-        pts = np.asarray(points, dtype=np.float64)
+        from .kernels import jit
+
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        mod = jit()
+        if mod is not None:  # compiled (cosco.kernels): the same heights bit for bit, no (2, n) positions
+            return mod.grid_heights(pts, np.asarray(self.origin, dtype=np.float64), float(self.cell),
+                                    np.ascontiguousarray(self.z, dtype=np.float64))
         z = ndimage.map_coordinates(self.z, _grid_positions(pts, self.origin, self.cell), order=1, mode="nearest",
                                     prefilter=False)
         return np.subtract(pts[:, 2], z, out=z)
@@ -92,7 +98,7 @@ class Ground:
         b = self.block
         key = (i // b) * self.n_block_cols + (j // b)
         pos = np.clip(np.searchsorted(self.keys, key), 0, len(self.keys) - 1)
-        ok = (self.keys[pos] == key) & (i >= 0) & (j >= 0)
+        ok = (self.keys[pos] == key) & (i >= 0) & (j >= 0) & (j // b < self.n_block_cols)  # (no wrap to the next row)
         out = np.full(len(i), np.nan)
         out[ok] = self.tiles[pos[ok], i[ok] % b, j[ok] % b]
         return out
@@ -100,6 +106,25 @@ class Ground:
     def height(self, points: np.ndarray) -> np.ndarray:
         """Height above ground (m) of (n, 3) points, bilinear under each point (nearest stored cell beyond the
         edges of the stored blocks)."""
+        from .kernels import jit
+
+        mod = jit()
+        if mod is None:
+            return self.height_numpy(points)
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        # compiled (cosco.kernels): the points inside a stored block's cells, bit for bit the reference's heights;
+        # the few whose cells straddle a block's edge, the reference's
+        h, done = mod.ground_heights(pts, np.asarray(self.origin, dtype=np.float64), float(self.cell),
+                                     int(self.block), int(self.n_block_cols),
+                                     np.ascontiguousarray(self.keys, dtype=np.int64),
+                                     np.ascontiguousarray(self.tiles, dtype=np.float64))
+        rest = np.flatnonzero(~done)
+        if len(rest):
+            h[rest] = self.height_numpy(pts[rest])
+        return h
+
+    def height_numpy(self, points: np.ndarray) -> np.ndarray:
+        """The numpy reference of :meth:`height`."""
         from scipy import ndimage
 
         pts = np.asarray(points, dtype=np.float64)
@@ -110,6 +135,7 @@ class Ground:
         pos = np.clip(np.searchsorted(self.keys, key), 0, len(self.keys) - 1)
         # a point whose four surrounding cells lie in one stored block: interpolated inside that block (C speed)
         inner = (self.keys[pos] == key) & (i >= 0) & (j >= 0) & (i % b < b - 1) & (j % b < b - 1)
+        inner &= j // b < self.n_block_cols  # a point east of the last block column is not in the next row's first
         del key
         z = np.empty(len(pts))
         if len(self.keys) == 1 and inner.all():  # one block holds every point (a scene, a city cell)

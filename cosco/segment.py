@@ -127,15 +127,27 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
         # the usual case: a small grid of coarse voxels, counted and labelled densely in O(n)
         from scipy import ndimage
 
-        flat = ((pts[:, 0] - lo[0]) / v).astype(np.int64)  # the C-order index of each point's voxel
-        for c in (1, 2):
-            flat *= dims[c]
-            flat += ((pts[:, c] - lo[c]) / v).astype(np.int64)
-        counts = np.bincount(flat, minlength=int(np.prod(dims)))
+        from .kernels import jit
+
+        mod = jit()
+        if mod is not None:  # compiled (cosco.kernels): the same voxels, one pass, no (n,) index kept
+            pts = np.ascontiguousarray(pts)
+            counts = mod.voxel_counts(pts, lo, float(v), dims)
+        else:
+            flat = ((pts[:, 0] - lo[0]) / v).astype(np.int64)  # the C-order index of each point's voxel
+            for c in (1, 2):
+                flat *= dims[c]
+                flat += ((pts[:, c] - lo[c]) / v).astype(np.int64)
+            counts = np.bincount(flat, minlength=int(np.prod(dims)))
         labels, _ = ndimage.label((counts > 0).reshape(dims), structure=np.ones((3, 3, 3)))
-        comp = labels.ravel()[flat]
-        sizes = np.bincount(comp)
+        labels = labels.ravel()
+        sizes = np.bincount(labels, weights=counts).astype(np.int64)  # each component's points
         sizes[0] = 0
+        if np.count_nonzero(sizes) < 2:
+            return np.zeros(len(pts), dtype=bool)
+        if mod is not None:
+            return mod.in_voxels(pts, lo, float(v), dims, sizes[labels] <= params.outlier_points)
+        comp = labels[flat]
     if np.count_nonzero(sizes) < 2:
         return np.zeros(len(pts), dtype=bool)
     return sizes[comp] <= params.outlier_points

@@ -130,3 +130,58 @@ def test_min_area_rectangle_of_collinear_points_is_the_references():
     xy = np.c_[np.linspace(0, 3, 20), np.linspace(1, 2, 20)]
     got, want = min_area_rectangle(xy), min_area_rectangle_numpy(xy)
     assert np.allclose(got.centre, want.centre) and got.length == want.length and got.width == want.width
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_ground_heights_are_the_references_bit_for_bit(seed):
+    """Heights above a ground of several blocks (points inside blocks, across their edges and beyond the stored
+    ones) and above one window (points beyond its edge cells): the compiled heights equal the references exactly."""
+    from dataclasses import replace
+
+    from cosco.ground import _Grid, estimate_ground
+    from cosco.params import DEFAULT
+
+    rng = np.random.default_rng(seed)
+    n = 60_000
+    xy = rng.uniform(0, 700, (n, 2))  # blocks of 64 cells of 0.5 m: many blocks and edges
+    z = 0.02 * xy[:, 0] + np.sin(xy[:, 1] / 30) + rng.normal(0, 0.02, n)
+    pts = np.c_[xy, z]
+    ground = estimate_ground(pts, replace(DEFAULT, ground_block=64, ground_halo=16))
+    assert len(ground.keys) > 4
+    query = np.r_[pts, np.c_[rng.uniform(-50, 750, (5000, 2)), rng.normal(0, 1, 5000)]]
+    got = ground.height(query)
+    assert np.array_equal(got, ground.height_numpy(query))
+    # beyond the last block column: the nearest stored cell's surface, not the next row's first block's
+    east = query[:, 1] > 704
+    surface = query[east, 2] - got[east]
+    assert np.abs(surface - (0.02 * np.clip(query[east, 0], 0, 700) + np.sin(700 / 30))).max() < 0.5
+    grid = _Grid(origin=np.array([10.0, 20.0]), cell=0.5, z=rng.normal(0, 1, (300, 200)))
+    mod = kernels.jit()
+    kernels._STATE["jit"] = None
+    try:
+        want = grid.height(query)
+    finally:
+        kernels._STATE["jit"] = mod
+    assert np.array_equal(grid.height(query), want)
+
+
+def test_far_outliers_are_the_references():
+    """Birds, a stray return and a lone pair far from a scan: the compiled voxel passes find the reference's
+    outliers; a scan of one piece has none."""
+    from cosco.params import DEFAULT
+    from cosco.segment import far_outliers
+
+    rng = np.random.default_rng(5)
+    scan = np.c_[rng.uniform(0, 300, (200_000, 2)), rng.normal(0, 0.3, 200_000)]
+    stray = np.array([[150.0, 150.0, 80.0], [150.5, 150.0, 80.2], [20.0, 290.0, -40.0], [299.0, 1.0, 60.0]])
+    pts = np.r_[scan, stray, rng.uniform(0, 300, (30, 3)) + [0, 0, 100]]
+    mod = kernels.jit()
+    kernels._STATE["jit"] = None
+    try:
+        want = far_outliers(pts, DEFAULT)
+        alone = far_outliers(scan, DEFAULT)
+    finally:
+        kernels._STATE["jit"] = mod
+    got = far_outliers(pts, DEFAULT)
+    assert np.array_equal(got, want) and got[len(scan):len(scan) + 4].all()
+    assert not far_outliers(scan, DEFAULT).any() and not alone.any()
