@@ -357,6 +357,74 @@ def in_voxels(pts, lo, v, dims, chosen):
     return out
 
 
+@numba.njit(**_OPTS)
+def cell_lowest(pts, origin, cell, ny, n_cells):
+    """:func:`cosco.ground._window_ground`'s first pass: each point's cell (C order, ``ny`` cells a row; truncation
+    is floor) and each cell's lowest z (inf where empty)."""
+    n = pts.shape[0]
+    flat = np.empty(n, dtype=np.int64)
+    zmin = np.full(n_cells, np.inf)
+    for p in range(n):
+        f = np.int64((pts[p, 0] - origin[0]) / cell) * ny + np.int64((pts[p, 1] - origin[1]) / cell)
+        flat[p] = f
+        if pts[p, 2] < zmin[f]:
+            zmin[f] = pts[p, 2]
+    return flat, zmin
+
+
+@numba.njit(**_OPTS)
+def near_surface(pts, origin, cell, values, ground, flat, tol):
+    """(n,) bool: the points within ``tol`` of the bilinear surface ``values`` (as :func:`grid_heights`) whose
+    cell (``flat``) is ground."""
+    n = pts.shape[0]
+    out = np.empty(n, dtype=np.bool_)
+    for p in range(n):
+        if not ground[flat[p]]:
+            out[p] = False
+            continue
+        x = (pts[p, 0] - origin[0]) / cell - 0.5
+        y = (pts[p, 1] - origin[1]) / cell - 0.5
+        out[p] = abs(pts[p, 2] - _linear(values, x, y)) < tol
+    return out
+
+
+@numba.njit(**_OPTS)
+def block_counts(pts, origin, cell, block, n_cols, n_blocks):
+    """Points in each block of ``block`` cells (key ``bi * n_cols + bj``, cells truncated as 32-bit integers like
+    :func:`cosco.ground.estimate_ground`'s)."""
+    counts = np.zeros(n_blocks, dtype=np.int64)
+    for p in range(pts.shape[0]):
+        ci = np.int64(np.int32((pts[p, 0] - origin[0]) / cell))
+        cj = np.int64(np.int32((pts[p, 1] - origin[1]) / cell))
+        counts[(ci // block) * n_cols + cj // block] += 1
+    return counts
+
+
+@numba.njit(**_OPTS)
+def window_rows(pts, origin, cell, bounds):
+    """The rows of the points whose cell (i, j) lies in each window ``bounds[k]`` = (i0, i1, j0, j1) (half-open),
+    in order: window k's are ``rows[starts[k]:starts[k + 1]]`` (two passes over the points for every window)."""
+    n, m = pts.shape[0], bounds.shape[0]
+    starts = np.zeros(m + 1, dtype=np.int64)
+    for rnd in range(2):
+        if rnd == 1:
+            for k in range(m):
+                starts[k + 1] += starts[k]
+            rows = np.empty(starts[m], dtype=np.int64)
+            fill = starts[:m].copy()
+        for p in range(n):
+            ci = np.int64(np.int32((pts[p, 0] - origin[0]) / cell))
+            cj = np.int64(np.int32((pts[p, 1] - origin[1]) / cell))
+            for k in range(m):
+                if ci >= bounds[k, 0] and ci < bounds[k, 1] and cj >= bounds[k, 2] and cj < bounds[k, 3]:
+                    if rnd == 0:
+                        starts[k + 1] += 1
+                    else:
+                        rows[fill[k]] = p
+                        fill[k] += 1
+    return rows, starts
+
+
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
@@ -371,4 +439,8 @@ def warm() -> None:
     grid_heights(pts, np.zeros(2), 0.5, z)
     ground_heights(pts, np.zeros(2), 0.5, 4, 1, np.zeros(1, dtype=np.int64), z[None])
     dims = np.array([2, 2, 2], dtype=np.int64)
+    flat, zmin = cell_lowest(pts, np.zeros(2), 0.5, 4, 16)
+    near_surface(pts, np.zeros(2), 0.5, z, zmin < 1.0, flat, 0.1)
+    block_counts(pts, np.zeros(2), 0.5, 2, 2, 4)
+    window_rows(pts, np.zeros(2), 0.5, np.array([[0, 1, 0, 1]], dtype=np.int64))
     in_voxels(pts, np.zeros(3), 1.0, dims, voxel_counts(pts, np.zeros(3), 1.0, dims) > 0)

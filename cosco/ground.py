@@ -218,10 +218,18 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
     """The filter on one dense window of ``shape`` cells at ``origin`` (every point inside it): the surface z."""
     from scipy import ndimage
 
+    from .kernels import jit
+
     cell = params.ground_cell
-    flat = _cell_index(pts, origin, cell, shape)
-    zmin = np.full(shape[0] * shape[1], np.inf)
-    np.minimum.at(zmin, flat, pts[:, 2])
+    mod = jit()
+    if mod is not None:  # compiled (cosco.kernels): the same cells and lowest points in one pass
+        pts = np.ascontiguousarray(pts, dtype=np.float64)
+        origin = np.asarray(origin, dtype=np.float64)
+        flat, zmin = mod.cell_lowest(pts, origin, float(cell), int(shape[1]), int(shape[0] * shape[1]))
+    else:
+        flat = _cell_index(pts, origin, cell, shape)
+        zmin = np.full(shape[0] * shape[1], np.inf)
+        np.minimum.at(zmin, flat, pts[:, 2])
     zmin = zmin.reshape(shape)
     occupied = np.isfinite(zmin)
     surface = _fill_nearest(np.where(occupied, zmin, 0.0), occupied)
@@ -244,11 +252,14 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
     z = _fill_smooth(np.where(ground, zmin, 0.0), ground, sigma_cells=max(1.0, 2.0 / cell))
     # the lowest point of a cell sits a few range-noise sigmas under the true ground: a second pass takes the
     # median of the points near that first surface in each ground cell
-    first = _Grid(origin=origin, cell=cell, z=z)
-    h = first.height(pts)
-    near = np.abs(h, out=h) < params.ground_tol
-    del h
-    near &= ground.ravel()[flat]
+    if mod is not None:  # the same test, compiled: no (n,) heights
+        near = mod.near_surface(pts, origin, float(cell), np.ascontiguousarray(z, dtype=np.float64), ground.ravel(),
+                                flat, float(params.ground_tol))
+    else:
+        h = _Grid(origin=origin, cell=cell, z=z).height(pts)
+        near = np.abs(h, out=h) < params.ground_tol
+        del h
+        near &= ground.ravel()[flat]
     if near.any():
         zmed = np.full(shape[0] * shape[1], np.nan)
         flat = flat[near]
@@ -275,8 +286,24 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     # largest coordinate's
     extent = ((column_max(pts[:, :2]) - origin) / cell).astype(np.int64) + 1
     n_cols = int(extent[1] // b + 1)
+    from .kernels import jit
+
+    mod = jit()
+    compiled = mod is not None and not (extent <= b).all()
     if (extent <= b).all():  # one block (a scene or a city cell of up to 512 m): no grouping of the points
         keys, ci, cj = np.zeros(1, dtype=np.int64), None, None
+    elif compiled:  # (cosco.kernels) the blocks holding points counted in one pass, no (n,) cells kept
+        pts = np.ascontiguousarray(pts)
+        n_rows = int(extent[0] // b + 1)
+        keys = np.flatnonzero(mod.block_counts(pts, origin, float(cell), int(b), n_cols, n_rows * n_cols))
+        ci = cj = None
+        bounds = []
+        for key in keys:
+            bi, bj = divmod(int(key), n_cols)
+            lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
+            hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
+            bounds.append([lo[0], hi[0], lo[1], hi[1]])
+        rows, starts = mod.window_rows(pts, origin, float(cell), np.array(bounds, dtype=np.int64))
     else:
         # every point's cell, once (32-bit: a grid of 2^31 cells is a million kilometres wide)
         ci = ((pts[:, 0] - origin[0]) / cell).astype(np.int32)
@@ -293,7 +320,9 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
         bi, bj = divmod(int(key), n_cols)
         lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
         hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
-        if ci is None:
+        if compiled:  # the window's points in one pass (their order kept, as below)
+            window = pts[rows[starts[k]:starts[k + 1]]]
+        elif ci is None:
             window = pts
         else:
             if len(keys) > FEW_BLOCKS:

@@ -134,7 +134,7 @@ def test_min_area_rectangle_of_collinear_points_is_the_references():
 
 @pytest.mark.parametrize("seed", range(3))
 def test_ground_heights_are_the_references_bit_for_bit(seed):
-    """Heights above a ground of several blocks (points inside blocks, across their edges and beyond the stored
+    """A ground of several blocks and the heights above it (points inside blocks, across their edges and beyond the stored
     ones) and above one window (points beyond its edge cells): the compiled heights equal the references exactly."""
     from dataclasses import replace
 
@@ -146,8 +146,16 @@ def test_ground_heights_are_the_references_bit_for_bit(seed):
     xy = rng.uniform(0, 700, (n, 2))  # blocks of 64 cells of 0.5 m: many blocks and edges
     z = 0.02 * xy[:, 0] + np.sin(xy[:, 1] / 30) + rng.normal(0, 0.02, n)
     pts = np.c_[xy, z]
-    ground = estimate_ground(pts, replace(DEFAULT, ground_block=64, ground_halo=16))
+    params = replace(DEFAULT, ground_block=64, ground_halo=16)
+    ground = estimate_ground(pts, params)
     assert len(ground.keys) > 4
+    mod = kernels.jit()
+    kernels._STATE["jit"] = None
+    try:  # the surface itself (blocks, windows, lowest points, the points near the first surface): bit for bit
+        want = estimate_ground(pts, params)
+    finally:
+        kernels._STATE["jit"] = mod
+    assert np.array_equal(ground.keys, want.keys) and np.array_equal(ground.tiles, want.tiles)
     query = np.r_[pts, np.c_[rng.uniform(-50, 750, (5000, 2)), rng.normal(0, 1, 5000)]]
     got = ground.height(query)
     assert np.array_equal(got, ground.height_numpy(query))
