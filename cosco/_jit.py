@@ -179,50 +179,76 @@ def _cross(o, a, b):
 
 @numba.njit(**_OPTS)
 def plan_hull(xy):
-    """The convex hull of (n, 2) points, counter-clockwise (Andrew's monotone chain; collinear points dropped),
-    after the points strictly inside the quadrilateral of their extreme x and y are left out (Akl-Toussaint)."""
+    """The convex hull of (n, 2) points, counter-clockwise from the leftmost (quickhull: a point on an edge is not
+    a corner), without sorting the points: each step keeps only those outside the triangle it adds."""
     n = xy.shape[0]
-    keep = np.ones(n, dtype=np.bool_)
-    if n > 32:
-        e = np.zeros(4, dtype=np.int64)  # min x, min y, max x, max y: counter-clockwise around the points
-        for p in range(1, n):
-            if xy[p, 0] < xy[e[0], 0]:
-                e[0] = p
-            if xy[p, 1] < xy[e[1], 1]:
-                e[1] = p
-            if xy[p, 0] > xy[e[2], 0]:
-                e[2] = p
-            if xy[p, 1] > xy[e[3], 1]:
-                e[3] = p
-        for p in range(n):
-            inside = True
-            for k in range(4):
-                if not _cross(xy[e[k]], xy[e[(k + 1) % 4]], xy[p]) > 0.0:
-                    inside = False
-                    break
-            if inside:
-                keep[p] = False
-    rows = np.flatnonzero(keep)
-    pts = xy[rows]
-    order = np.argsort(pts[:, 1], kind="mergesort")
-    order = order[np.argsort(pts[order, 0], kind="mergesort")]  # by x, then y
-    m = len(order)
-    hull = np.empty((2 * m + 1, 2))
-    k = 0
-    for q in range(m):  # the lower chain
-        p = pts[order[q]]
-        while k >= 2 and _cross(hull[k - 2], hull[k - 1], p) <= 0.0:
-            k -= 1
-        hull[k] = p
-        k += 1
-    low = k + 1
-    for q in range(m - 2, -1, -1):  # the upper chain
-        p = pts[order[q]]
-        while k >= low and _cross(hull[k - 2], hull[k - 1], p) <= 0.0:
-            k -= 1
-        hull[k] = p
-        k += 1
-    return hull[:max(k - 1, 0)].copy()
+    if n < 3:
+        return np.zeros((0, 2))
+    a, b = 0, 0
+    for p in range(1, n):
+        if xy[p, 0] < xy[a, 0] or (xy[p, 0] == xy[a, 0] and xy[p, 1] < xy[a, 1]):
+            a = p
+        if xy[p, 0] > xy[b, 0] or (xy[p, 0] == xy[b, 0] and xy[p, 1] > xy[b, 1]):
+            b = p
+    if a == b:
+        return np.zeros((0, 2))
+    nxt = np.full(n, -1, dtype=np.int64)  # the hull as a linked list, counter-clockwise
+    nxt[a], nxt[b] = b, a
+    buf = np.empty(n, dtype=np.int64)  # each task's points (strictly right of its edge), in one region
+    spare = np.empty(n, dtype=np.int64)
+    lo = 0
+    hi = n
+    for p in range(n):  # below a -> b from the front, below b -> a from the back
+        c = _cross(xy[a], xy[b], xy[p])
+        if c < 0.0:
+            buf[lo] = p
+            lo += 1
+        elif c > 0.0:
+            hi -= 1
+            buf[hi] = p
+    tasks = np.empty((2 * n + 2, 4), dtype=np.int64)  # (from, to, start, end)
+    tasks[0, 0], tasks[0, 1], tasks[0, 2], tasks[0, 3] = a, b, 0, lo
+    tasks[1, 0], tasks[1, 1], tasks[1, 2], tasks[1, 3] = b, a, hi, n
+    top = 2
+    while top > 0:
+        top -= 1
+        p, q, start, end = tasks[top, 0], tasks[top, 1], tasks[top, 2], tasks[top, 3]
+        if end <= start:
+            continue
+        far, best = -1, 0.0
+        for k in range(start, end):
+            d = -_cross(xy[p], xy[q], xy[buf[k]])
+            if d > best:
+                best, far = d, buf[k]
+        if far < 0:
+            continue
+        nxt[p], nxt[far] = far, q
+        k1 = start
+        k2 = 0
+        for k in range(start, end):
+            r = buf[k]
+            if _cross(xy[p], xy[far], xy[r]) < 0.0:
+                buf[k1] = r
+                k1 += 1
+            elif _cross(xy[far], xy[q], xy[r]) < 0.0:
+                spare[k2] = r
+                k2 += 1
+        for k in range(k2):
+            buf[k1 + k] = spare[k]
+        tasks[top, 0], tasks[top, 1], tasks[top, 2], tasks[top, 3] = p, far, start, k1
+        tasks[top + 1, 0], tasks[top + 1, 1], tasks[top + 1, 2], tasks[top + 1, 3] = far, q, k1, k1 + k2
+        top += 2
+    h = 1
+    k = nxt[a]
+    while k != a:
+        h += 1
+        k = nxt[k]
+    hull = np.empty((h, 2))
+    k = a
+    for m in range(h):
+        hull[m, 0], hull[m, 1] = xy[k, 0], xy[k, 1]
+        k = nxt[k]
+    return hull
 
 
 @numba.njit(**_OPTS)

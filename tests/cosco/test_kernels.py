@@ -102,7 +102,7 @@ def test_section_sums_agree_with_the_numpy_moves(seed, monkeypatch):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_min_area_rectangle_agrees_with_scipys_hull(seed):
-    """The compiled footprint rectangle (monotone-chain hull, Akl-Toussaint filter) is the reference's (scipy's
+    """The compiled footprint rectangle (quickhull, no sort) is the reference's (scipy's
     Qhull) on clouds of every size and shape: car-like boxes, thin poles, rings, a few points, duplicates."""
     from cosco.footprint import min_area_rectangle, min_area_rectangle_numpy
 
