@@ -451,12 +451,51 @@ def window_rows(pts, origin, cell, bounds):
     return rows, starts
 
 
+@numba.njit(**_OPTS)
+def share_near(points, grid_pts, starts, lo, shape, cell, bound):
+    """The share of (n, 3) ``points`` with a point of the :func:`grid_build` index nearer than ``bound`` (<=
+    ``cell``): a KD-tree's bounded query's finite answers, counted (each search stops at the first found)."""
+    n = points.shape[0]
+    if n == 0:
+        return np.nan
+    b2 = bound * bound
+    hits = 0
+    for p in range(n):
+        x, y, z = points[p, 0], points[p, 1], points[p, 2]
+        ci = np.int64(np.floor((x - lo[0]) / cell))
+        cj = np.int64(np.floor((y - lo[1]) / cell))
+        ck = np.int64(np.floor((z - lo[2]) / cell))
+        found = False
+        for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
+            for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
+                row = (i * shape[1] + j) * shape[2]
+                k0 = max(ck - 1, 0)
+                k1 = min(ck + 2, shape[2])
+                if k0 >= k1:
+                    continue
+                for q in range(starts[row + k0], starts[row + k1]):
+                    dx = grid_pts[q, 0] - x
+                    dy = grid_pts[q, 1] - y
+                    dz = grid_pts[q, 2] - z
+                    if dx * dx + dy * dy + dz * dz < b2:
+                        found = True
+                        break
+                if found:
+                    break
+            if found:
+                break
+        if found:
+            hits += 1
+    return hits / n
+
+
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
     pts = np.random.default_rng(0).random((20, 3))
     grid, order, starts, lo, shape = grid_build(pts, 0.3)
     mirror_nearest(pts, 0.3, 0.1, grid, order, starts, lo, shape, 0.3, 0.3)
+    share_near(pts, grid, starts, lo, shape, 0.3, 0.3)
     p2, o2, s2 = np.zeros((3, 2)), np.zeros(2), np.zeros(2, dtype=np.int64)
     section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,
                  False, 1)

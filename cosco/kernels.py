@@ -148,3 +148,36 @@ def mirror_nearest_numpy(tree, points, phi, rho, bound) -> tuple[np.ndarray, np.
     from .symmetry import reflect
 
     return tree.query(reflect(points, phi, rho), k=1, distance_upper_bound=bound)
+
+
+# ---------------------------------------------------------------- the levels of symmetry's shares of mapped points
+
+
+def near_share_numpy(tree, points, bound: float) -> float:
+    """The share of (n, 3) ``points`` with a point of ``tree`` (a cKDTree) nearer than ``bound``: the numpy
+    reference of :meth:`NearIndex.share`."""
+    d, _ = tree.query(points, distance_upper_bound=bound)
+    return float(np.isfinite(d).mean())
+
+
+class NearIndex:
+    """The compiled :func:`near_share_numpy` for one set of targets (a voxel grid of ``bound`` m, built once, asked
+    for many moved copies of an object). :meth:`of` gives None where numba is missing or the grid would be large."""
+
+    def __init__(self, mod, targets: np.ndarray, bound: float):
+        self.mod, self.bound = mod, float(bound)
+        self.grid, _, self.starts, self.lo, self.shape = mod.grid_build(targets, self.bound)
+
+    @classmethod
+    def of(cls, targets: np.ndarray, bound: float, max_cells: int = 4_000_000) -> "NearIndex | None":
+        mod = jit()
+        tgt = np.ascontiguousarray(targets, dtype=np.float64)
+        if mod is None or len(tgt) == 0 or not bound > 0:
+            return None
+        if float(np.prod(np.ptp(tgt, axis=0) / bound + 1)) > max_cells:
+            return None
+        return cls(mod, tgt, bound)
+
+    def share(self, points: np.ndarray) -> float:
+        return float(self.mod.share_near(np.ascontiguousarray(points, dtype=np.float64), self.grid, self.starts,
+                                         self.lo, self.shape, self.bound, self.bound))

@@ -50,9 +50,15 @@ class Level:
                 "second": round(self.second, 3)}
 
 
-def _share(moved: np.ndarray, tree: cKDTree, tol: float) -> float:
-    d, _ = tree.query(moved, distance_upper_bound=tol)
-    return float(np.isfinite(d).mean())
+def _sharer(pts: np.ndarray, tree: cKDTree, tol: float):
+    """share(moved): the share of the moved (n, 3) points within ``tol`` of one of ``pts`` (``tree``'s), compiled
+    where numba is in use (:class:`cosco.kernels.NearIndex`), else the KD-tree's."""
+    from .kernels import NearIndex, near_share_numpy
+
+    index = NearIndex.of(pts, tol)
+    if index is not None:
+        return index.share
+    return lambda moved: near_share_numpy(tree, moved, tol)
 
 
 def _turned(xy: np.ndarray, centre: np.ndarray, angle: float) -> np.ndarray:
@@ -90,11 +96,12 @@ def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Leve
     tree3 = cKDTree(pts)
     spacing = float(np.median(tree3.query(pts, k=2)[0][:, 1])) if len(pts) > 1 else voxel
     tol = max(params.level_tol, params.level_tol_spacing * spacing)
+    share = _sharer(pts, tree3, tol)
     xy, z = pts[:, :2], pts[:, 2]
     low = z <= np.quantile(z, params.level_base_share)
     axis = xy[low].mean(0)
     # the rotational test in 3D (the turned points keep their heights)
-    rot = min(_share(np.c_[_turned(xy, axis, a), z], tree3, tol) for a in (np.pi / 2, np.pi / 4))
+    rot = min(share(np.c_[_turned(xy, axis, a), z]) for a in (np.pi / 2, np.pi / 4))
     centre = (xy.min(0) + xy.max(0)) / 2
     if symmetry is not None and symmetry.found:
         phi = float(symmetry.phi)
@@ -102,7 +109,7 @@ def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Leve
         centre = centre + (symmetry.rho - centre @ normal) * normal  # onto the detected plane
     else:
         phis = np.arange(0.0, np.pi, params.level_step)
-        scores = [_share(np.c_[_mirrored(xy, centre, p), z], tree3, tol) for p in phis]
+        scores = [share(np.c_[_mirrored(xy, centre, p), z]) for p in phis]
         phi = float(phis[int(np.argmax(scores))])
     # a detail on one side (a spare wheel, a mirror) moves the box's centre off the plane: the plane's offset
     # searched along its normal, for the best plane and the one across it
@@ -110,7 +117,7 @@ def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Leve
 
     def best_offset(angle: float, steps: np.ndarray) -> float:
         n = np.array([np.cos(angle), np.sin(angle)])
-        return max(_share(np.c_[_mirrored(xy, centre + d * n, angle), z], tree3, tol) for d in steps)
+        return max(share(np.c_[_mirrored(xy, centre + d * n, angle), z]) for d in steps)
 
     if symmetry is not None and symmetry.found:  # the detected plane as it is; the one across it coarsely
         mirror, second = best_offset(phi, np.zeros(1)), best_offset(phi + np.pi / 2, shifts[::params.level_offsets])

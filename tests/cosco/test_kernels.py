@@ -193,3 +193,23 @@ def test_far_outliers_are_the_references():
     got = far_outliers(pts, DEFAULT)
     assert np.array_equal(got, want) and got[len(scan):len(scan) + 4].all()
     assert not far_outliers(scan, DEFAULT).any() and not alone.any()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_near_shares_agree_with_the_kd_tree(seed):
+    """The share of an object's turned and mirrored points that land near one of its points: the compiled grid's
+    count is the KD-tree's (the levels of symmetry's test)."""
+    from cosco.levels import _mirrored, _turned
+
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(0, 1, (int(rng.integers(50, 3000)), 3)) * [2.0, 0.8, 0.5]
+    tree = cKDTree(pts)
+    tol = float(rng.uniform(0.02, 0.3))
+    index = kernels.NearIndex.of(pts, tol)
+    assert index is not None
+    centre = pts[:, :2].mean(0)
+    for a in rng.uniform(0, np.pi, 6):
+        for moved in (np.c_[_turned(pts[:, :2], centre, a), pts[:, 2]], np.c_[_mirrored(pts[:, :2], centre, a),
+                                                                              pts[:, 2]]):
+            assert index.share(moved) == kernels.near_share_numpy(tree, moved, tol)
+    assert kernels.NearIndex.of(np.array([[0.0, 0.0, 0.0], [9000.0, 9000.0, 0.0]]), 0.01) is None
