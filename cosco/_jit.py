@@ -489,6 +489,46 @@ def share_near(points, grid_pts, starts, lo, shape, cell, bound):
     return hits / n
 
 
+@numba.njit(**_OPTS)
+def tile_keys(enu, lo, size, level, depth, n_keys):
+    """The scan tiles' order (:func:`twinreg.export.scan_tiles._tile_order`): each point's key (its level, then
+    its tile's indices at that level) and the stable order by key, by counting (keys below ``n_keys``)."""
+    n = enu.shape[0]
+    n_cells = np.int64(1) << depth
+    key = np.empty(n, dtype=np.int64)
+    counts = np.zeros(n_keys + 1, dtype=np.int64)
+    for p in range(n):
+        i = np.int64(np.floor((enu[p, 0] - lo[0]) / size))
+        j = np.int64(np.floor((enu[p, 1] - lo[1]) / size))
+        i = min(max(i, 0), n_cells - 1)
+        j = min(max(j, 0), n_cells - 1)
+        d = np.int64(level[p])
+        shift = depth - d
+        k = (d << (2 * depth)) | ((i >> shift) << depth) | (j >> shift)
+        key[p] = k
+        counts[k + 1] += 1
+    for k in range(n_keys):
+        counts[k + 1] += counts[k]
+    order = np.empty(n, dtype=np.int64)
+    for p in range(n):
+        order[counts[key[p]]] = p
+        counts[key[p]] += 1
+    return order, key
+
+
+@numba.njit(**_OPTS)
+def scan_colours(hag, ground):
+    """:func:`twinreg.export.tiles3d.scan_colours`: ground grey, the rest blue to yellow by height (0-4 m)."""
+    n = hag.shape[0]
+    rgb = np.empty((n, 3), dtype=np.uint8)
+    ends = ((40.0, 250.0), (90.0, 210.0), (200.0, 40.0))
+    for p in range(n):
+        t = min(max(hag[p] / 4.0, 0.0), 1.0)
+        for c in range(3):
+            rgb[p, c] = np.uint8(150.0 if ground[p] else (1 - t) * ends[c][0] + t * ends[c][1])
+    return rgb
+
+
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
@@ -496,6 +536,8 @@ def warm() -> None:
     grid, order, starts, lo, shape = grid_build(pts, 0.3)
     mirror_nearest(pts, 0.3, 0.1, grid, order, starts, lo, shape, 0.3, 0.3)
     share_near(pts, grid, starts, lo, shape, 0.3, 0.3)
+    tile_keys(pts, np.zeros(3), 0.5, np.zeros(len(pts), dtype=np.int64), 1, 8)
+    scan_colours(pts[:, 0].copy(), pts[:, 1] > 0.5)
     p2, o2, s2 = np.zeros((3, 2)), np.zeros(2), np.zeros(2, dtype=np.int64)
     section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,
                  False, 1)

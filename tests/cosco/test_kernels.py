@@ -213,3 +213,26 @@ def test_near_shares_agree_with_the_kd_tree(seed):
                                                                               pts[:, 2]]):
             assert index.share(moved) == kernels.near_share_numpy(tree, moved, tol)
     assert kernels.NearIndex.of(np.array([[0.0, 0.0, 0.0], [9000.0, 9000.0, 0.0]]), 0.01) is None
+
+
+def test_scan_tiles_order_and_colours_are_the_references():
+    """The scan's tiles (each point's level and tile, ordered) and its colours: the compiled passes give the
+    references' arrays exactly."""
+    from twinreg.export.scan_tiles import _tile_order, levels
+    from twinreg.export.tiles3d import scan_colours
+
+    rng = np.random.default_rng(2)
+    enu = rng.uniform(0, 200, (400_000, 3))
+    level, depth = levels(len(enu))
+    lo, side = enu.min(0), float(np.ptp(enu[:, :2], axis=0).max()) * (1 + 1e-9)
+    hag, ground = rng.normal(1, 2, len(enu)), rng.random(len(enu)) < 0.4
+    got = (_tile_order(enu, lo, side, level, depth), scan_colours(hag, ground))
+    mod = kernels.jit()
+    kernels._STATE["jit"] = None
+    try:
+        want = (_tile_order(enu, lo, side, level, depth), scan_colours(hag, ground))
+    finally:
+        kernels._STATE["jit"] = mod
+    assert depth >= 2 and got[0][1] == want[0][1]
+    assert all(np.array_equal(a, b) for a, b in zip(got[0][0], want[0][0]))
+    assert np.array_equal(got[1], want[1])

@@ -52,15 +52,27 @@ def _tile_order(enu: np.ndarray, lo: np.ndarray, side: float, level: np.ndarray,
     """Each tile's rows (ascending) and its (level, i, j), tiles by level then i then j: one stable sort of a key
     made of the level and the tile's indices, which at level d are the deepest level's indices shifted right by
     ``depth - d`` bits (``floor(x / (size * 2^k)) == floor(x / size) >> k``: the sizes differ by powers of two)."""
+    from cosco.kernels import jit
+
     n_cells = 2 ** depth
     size = side / n_cells
+    mod = jit() if (depth + 1) << (2 * depth) <= 1 << 22 else None
+    if mod is not None:  # compiled (cosco.kernels): the same keys, ordered by counting
+        order, key = mod.tile_keys(np.ascontiguousarray(enu, dtype=np.float64), np.asarray(lo, dtype=np.float64),
+                                   float(size), np.ascontiguousarray(level, dtype=np.int64), int(depth),
+                                   int((depth + 1) << (2 * depth)))
+        return _tiles_of(order, key[order], depth)
     i = np.clip(np.floor((enu[:, 0] - lo[0]) / size).astype(np.int64), 0, n_cells - 1)
     j = np.clip(np.floor((enu[:, 1] - lo[1]) / size).astype(np.int64), 0, n_cells - 1)
     shift = depth - np.asarray(level, dtype=np.int64)
     key = (np.asarray(level, dtype=np.int64) << (2 * depth)) | ((i >> shift) << depth) | (j >> shift)
     # a key of up to 16 bits sorts by radix (linear time)
     order = np.argsort(key.astype(np.uint16) if (depth + 1) << (2 * depth) <= 1 << 16 else key, kind="stable")
-    key = key[order]
+    return _tiles_of(order, key[order], depth)
+
+
+def _tiles_of(order: np.ndarray, key: np.ndarray, depth: int):
+    """:func:`_tile_order`'s answer from the points' order and their keys in that order."""
     cuts = np.flatnonzero(key[1:] != key[:-1]) + 1
     firsts = key[np.r_[0, cuts]] if len(key) else key
     mask = (1 << depth) - 1

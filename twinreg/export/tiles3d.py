@@ -114,6 +114,12 @@ def instances_glb(instances: list[Instance], positions: np.ndarray, angles: np.n
 
 def scan_colours(hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
     """(n, 3) uint8: ground grey, the rest from blue (low) to yellow (4 m and more) by height above ground."""
+    from cosco.kernels import jit
+
+    mod = jit()
+    if mod is not None:  # compiled (cosco.kernels): the same bytes, no (n,) floats
+        return mod.scan_colours(np.ascontiguousarray(hag, dtype=np.float64), np.ascontiguousarray(is_ground,
+                                                                                               dtype=bool))
     t = np.clip(np.asarray(hag, dtype=np.float64) / 4.0, 0.0, 1.0)
     low = 1 - t
     rgb = np.empty((len(t), 3), dtype=np.uint8)
