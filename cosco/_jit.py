@@ -529,6 +529,29 @@ def scan_colours(hag, ground):
     return rgb
 
 
+@numba.njit(**_OPTS)
+def box_rows(x, y, boxes):
+    """The rows of the points (``x``, ``y``) inside each closed box ``boxes[k]`` = (x0, y0, x1, y1), in order:
+    box k's are ``rows[starts[k]:starts[k + 1]]`` (two passes over the points for every box)."""
+    n, m = x.shape[0], boxes.shape[0]
+    starts = np.zeros(m + 1, dtype=np.int64)
+    for rnd in range(2):
+        if rnd == 1:
+            for k in range(m):
+                starts[k + 1] += starts[k]
+            rows = np.empty(starts[m], dtype=np.int64)
+            fill = starts[:m].copy()
+        for p in range(n):
+            for k in range(m):
+                if x[p] >= boxes[k, 0] and x[p] <= boxes[k, 2] and y[p] >= boxes[k, 1] and y[p] <= boxes[k, 3]:
+                    if rnd == 0:
+                        starts[k + 1] += 1
+                    else:
+                        rows[fill[k]] = p
+                        fill[k] += 1
+    return rows, starts
+
+
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
@@ -538,6 +561,7 @@ def warm() -> None:
     share_near(pts, grid, starts, lo, shape, 0.3, 0.3)
     tile_keys(pts, np.zeros(3), 0.5, np.zeros(len(pts), dtype=np.int64), 1, 8)
     scan_colours(pts[:, 0].copy(), pts[:, 1] > 0.5)
+    box_rows(pts[:, 0].copy(), pts[:, 1].copy(), np.array([[0.0, 0.0, 0.5, 0.5]]))
     p2, o2, s2 = np.zeros((3, 2)), np.zeros(2), np.zeros(2, dtype=np.int64)
     section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,
                  False, 1)

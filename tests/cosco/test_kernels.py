@@ -236,3 +236,17 @@ def test_scan_tiles_order_and_colours_are_the_references():
     assert depth >= 2 and got[0][1] == want[0][1]
     assert all(np.array_equal(a, b) for a, b in zip(got[0][0], want[0][0]))
     assert np.array_equal(got[1], want[1])
+
+
+def test_box_rows_are_the_bounds_tests():
+    """A tile's points cut into the read squares of the cells they feed (closed boxes, points on their edges
+    included): the compiled rows are the vectorised bounds tests' rows."""
+    from twinreg.city.grid import in_box
+
+    rng = np.random.default_rng(4)
+    x, y = np.round(rng.uniform(0, 100, 50_000), 1), np.round(rng.uniform(0, 100, 50_000), 1)
+    boxes = np.array([[0.0, 0.0, 42.0, 42.0], [30.0, 30.0, 72.0, 72.0], [60.0, -10.0, 110.0, 40.0]])
+    rows, starts = kernels.jit().box_rows(x, y, boxes)
+    for k, b in enumerate(boxes):
+        want = np.flatnonzero(in_box(np.c_[x, y], b[:2], b[2:]))
+        assert np.array_equal(rows[starts[k]:starts[k + 1]], want) and len(want)

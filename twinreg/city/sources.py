@@ -191,19 +191,34 @@ def _xyz(points, source: Source) -> np.ndarray:
                             np.asarray(points.z, dtype=np.float64) * source.z_scale])
 
 
-def _chunks(source: Source, raw: bool = False):
-    """The (n, 3) float64 metre points of a plain LAS/LAZ file, ``CHUNK_POINTS`` at a time; with ``raw``, each
-    with the file's integer coordinates ((n, 3) int32 X, Y, Z) and the header's scales and offsets."""
+def _chunks(source: Source):
+    """The (n, 3) float64 metre points of a plain LAS/LAZ file, ``CHUNK_POINTS`` at a time."""
+    import laspy
+
+    try:
+        with laspy.open(source.path) as reader:
+            for chunk in reader.chunk_iterator(CHUNK_POINTS):
+                yield _xyz(chunk, source)
+    except Exception as exc:
+        raise SceneReadError(f"{source.path}: reading failed ({type(exc).__name__}: {exc}); is the file complete?") \
+            from exc
+
+
+def _raw_chunks(source: Source):
+    """A plain LAS/LAZ file's points ``CHUNK_POINTS`` at a time, for splitting: their x and y in metres ((n,)
+    float64 each, as :func:`_xyz` gives them), their integer coordinates ((n, 3) int32 X, Y, Z), the header's scales
+    and offsets."""
     import laspy
 
     try:
         with laspy.open(source.path) as reader:
             h = reader.header
             for chunk in reader.chunk_iterator(CHUNK_POINTS):
-                if raw:
-                    yield _xyz(chunk, source), np.column_stack([chunk.X, chunk.Y, chunk.Z]), h.scales, h.offsets
-                else:
-                    yield _xyz(chunk, source)
+                ints = np.empty((len(chunk), 3), dtype=np.int32)
+                for k, name in enumerate("XYZ"):
+                    ints[:, k] = chunk[name]
+                yield (np.asarray(chunk.x, dtype=np.float64) * source.scale,
+                       np.asarray(chunk.y, dtype=np.float64) * source.scale, ints, h.scales, h.offsets)
     except Exception as exc:
         raise SceneReadError(f"{source.path}: reading failed ({type(exc).__name__}: {exc}); is the file complete?") \
             from exc
@@ -300,13 +315,21 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     cells = grid.cells_over(np.asarray(source.lo[:2]) - grid.reach, np.asarray(source.hi[:2]) + grid.reach)
     scaling = None
     try:
-        for pts, ints, scales, offsets in _chunks(source, raw=True):
+        from cosco.kernels import jit
+
+        mod = jit()
+        boxes = np.array([[*c.read_lo, *c.read_hi] for c in cells], dtype=np.float64).reshape(-1, 4)
+        for x, y, ints, scales, offsets in _raw_chunks(source):
             if scaling is None:  # one header: the same for every chunk
                 scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
                            "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
-            xy = np.ascontiguousarray(pts[:, :2])
-            for c in cells:  # a few cells per tile: one vectorised bounds test each, no sort
-                inside = np.flatnonzero(in_box(xy, c.read_lo, c.read_hi))
+            if mod is not None:  # compiled (cosco.kernels): every cell's rows in two passes
+                rows, starts = mod.box_rows(x, y, boxes)
+                found = [rows[starts[k]:starts[k + 1]] for k in range(len(cells))]
+            else:  # a few cells per tile: one vectorised bounds test each, no sort
+                xy = np.column_stack([x, y])
+                found = (np.flatnonzero(in_box(xy, c.read_lo, c.read_hi)) for c in cells)
+            for c, inside in zip(cells, found):
                 if not len(inside):
                     continue
                 if c.name not in handles:
