@@ -181,3 +181,43 @@ class NearIndex:
     def share(self, points: np.ndarray) -> float:
         return float(self.mod.share_near(np.ascontiguousarray(points, dtype=np.float64), self.grid, self.starts,
                                          self.lo, self.shape, self.bound, self.bound))
+
+
+# ---------------------------------------------------------------- the verification's bounded nearest neighbours
+
+
+class BoundedTree:
+    """A cKDTree of (n, 3) points whose bounded queries (``distance_upper_bound`` given, ``k=1``) are answered by
+    a compiled voxel grid of that bound (built at the first such query, kept for queries up to that bound): the
+    same answers. Other queries, and every query where numba is not in use or the grid would be large, go to the
+    KD-tree itself (built when first needed)."""
+
+    def __init__(self, points: np.ndarray, max_cells: int = 4_000_000):
+        self.data = np.ascontiguousarray(points, dtype=np.float64)
+        self.max_cells = max_cells
+        self._tree = None
+        self._grid = None
+        self._bound = None
+
+    @property
+    def tree(self):
+        if self._tree is None:
+            from scipy.spatial import cKDTree
+
+            self._tree = cKDTree(self.data)
+        return self._tree
+
+    def query(self, points, k: int = 1, distance_upper_bound: float = np.inf):
+        bound = float(distance_upper_bound)
+        mod = jit()
+        if mod is None or k != 1 or not np.isfinite(bound) or not bound > 0 or len(self.data) == 0:
+            return self.tree.query(points, k=k, distance_upper_bound=distance_upper_bound)
+        if self._grid is None and self._bound is None:
+            self._bound = bound
+            if float(np.prod(np.ptp(self.data, axis=0) / bound + 1)) <= self.max_cells:
+                self._grid = mod.grid_build(self.data, bound)
+        if self._grid is None or bound > self._bound:
+            return self.tree.query(points, k=k, distance_upper_bound=distance_upper_bound)
+        grid, order, starts, lo, shape = self._grid
+        return mod.nearest_within(np.ascontiguousarray(points, dtype=np.float64), grid, order, starts, lo, shape,
+                                  self._bound, bound)

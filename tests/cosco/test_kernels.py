@@ -250,3 +250,19 @@ def test_box_rows_are_the_bounds_tests():
     for k, b in enumerate(boxes):
         want = np.flatnonzero(in_box(np.c_[x, y], b[:2], b[2:]))
         assert np.array_equal(rows[starts[k]:starts[k + 1]], want) and len(want)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_bounded_tree_answers_as_the_kd_tree(seed):
+    """The verification's bounded nearest neighbours (a placed model's top surface against an object's points):
+    the compiled grid's distances and rows are the KD-tree's; a wider bound than the grid's goes to the tree."""
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(0, 1, (int(rng.integers(20, 1500)), 3)) * [2.0, 0.9, 0.6]
+    query = rng.normal(0, 1, (800, 3)) * [2.2, 1.0, 0.7]
+    tree = cKDTree(pts)
+    bounded = kernels.BoundedTree(pts)
+    for bound in (0.3, 0.2, 0.5):  # the grid is built for the first bound
+        got_d, got_i = bounded.query(query, k=1, distance_upper_bound=bound)
+        want_d, want_i = tree.query(query, k=1, distance_upper_bound=bound)
+        assert np.array_equal(np.isfinite(got_d), np.isfinite(want_d)) and np.array_equal(got_i, want_i)
+        assert np.allclose(got_d[np.isfinite(got_d)], want_d[np.isfinite(want_d)], rtol=0, atol=1e-12)

@@ -151,7 +151,9 @@ def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.n
     reach = tau + spacing
     model_fit, unseen = reach, 1.0
     if len(top_placed):
-        d, _ = cloud_tree.query(top_placed, k=1, distance_upper_bound=2 * reach)
+        # only distances up to the reach count (farther ones count as the reach, and as unseen): a search bounded
+        # there, the reach itself included
+        d, _ = cloud_tree.query(top_placed, k=1, distance_upper_bound=np.nextafter(reach, np.inf))
         model_fit = float(np.mean(np.minimum(d, reach)))
         unseen = float(np.mean(d > reach))
     shortfall = np.maximum(np.asarray(measured) - np.asarray(model_size) - 2 * noise, 0.0)

@@ -258,13 +258,14 @@ class _Scorer:
     cell) and their KD-tree, the object's measured size, the scan's noise and spacing."""
 
     def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
-        from scipy.spatial import cKDTree
+        from cosco.kernels import BoundedTree
 
         from .acceptance import sample_cloud
 
         self.shape, self.cache, self.noise, self.spacing, self.params = shape, cache, noise, spacing, params
         self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
-        self.tree = cKDTree(self.sample)
+        # the evidence's bounded look-ups compiled where numba is in use (cosco.kernels), else the KD-tree's
+        self.tree = BoundedTree(self.sample)
         self.measured = shape.size.as_array()
 
     def scored(self, reg, mid, m, points_in_model):
