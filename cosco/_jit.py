@@ -592,6 +592,127 @@ def nearest_within(points, grid_pts, order, starts, lo, shape, cell, bound):
     return dist, rows
 
 
+@numba.njit(**_OPTS)
+def _corner_vid(c0, c1, z, ids, zv, nz, vout, nv, lo, cell):
+    """The vertex at corner (c0, c1) and height z: its id, created (in order of first use) when new."""
+    for k in range(nz[c0, c1]):
+        if zv[c0, c1, k] == z:
+            if ids[c0, c1, k] < 0:
+                ids[c0, c1, k] = nv[0]
+                vout[nv[0], 0] = lo[0] + c0 * cell
+                vout[nv[0], 1] = lo[1] + c1 * cell
+                vout[nv[0], 2] = z
+                nv[0] += 1
+            return ids[c0, c1, k]
+    return -1
+
+
+@numba.njit(**_OPTS)
+def _corner_span(zv, nz, c0, c1, z0, z1):
+    """The heights at corner (c0, c1) within [z0, z1], sorted."""
+    out = np.empty(nz[c0, c1])
+    m = 0
+    for k in range(nz[c0, c1]):
+        v = zv[c0, c1, k]
+        if z0 <= v and v <= z1:
+            out[m] = v
+            m += 1
+    return np.sort(out[:m])
+
+
+@numba.njit(**_OPTS)
+def _wall(e, z0, z1, ids, zv, nz, vout, nv, fout, nf, lo, cell):
+    left = _corner_span(zv, nz, e[0], e[1], z0, z1)
+    right = _corner_span(zv, nz, e[2], e[3], z0, z1)
+    li = 0
+    ri = 0
+    while li < len(left) - 1 or ri < len(right) - 1:
+        if ri < len(right) - 1 and (li == len(left) - 1 or right[ri + 1] <= left[li + 1]):
+            tri = (_corner_vid(e[0], e[1], left[li], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[2], e[3], right[ri], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[2], e[3], right[ri + 1], ids, zv, nz, vout, nv, lo, cell))
+            ri += 1
+        else:
+            tri = (_corner_vid(e[0], e[1], left[li], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[2], e[3], right[ri], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[0], e[1], left[li + 1], ids, zv, nz, vout, nv, lo, cell))
+            li += 1
+        fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = tri
+        nf[0] += 1
+
+
+@numba.njit(**_OPTS)
+def grid_solid(h, b, occ, lo, cell):
+    """:func:`twinreg.shapes.fuse._grid_solid` (tops ``h``, bottoms ``b``, the occupied cells ``occ``): the same
+    vertices and faces in the same order."""
+    nx, ny = occ.shape
+    zv = np.empty((nx + 1, ny + 1, 8))
+    nz = np.zeros((nx + 1, ny + 1), dtype=np.int64)
+    ids = np.full((nx + 1, ny + 1, 8), -1, dtype=np.int64)
+    n_occ = 0
+    for i in range(nx):
+        for j in range(ny):
+            if not occ[i, j]:
+                continue
+            n_occ += 1
+            for c0, c1 in ((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)):
+                for z in (b[i, j], h[i, j]):
+                    seen = False
+                    for k in range(nz[c0, c1]):
+                        if zv[c0, c1, k] == z:
+                            seen = True
+                    if not seen:
+                        zv[c0, c1, nz[c0, c1]] = z
+                        nz[c0, c1] += 1
+    vout = np.empty(((nx + 1) * (ny + 1) * 8, 3))
+    fout = np.empty((n_occ * 124, 3), dtype=np.int64)
+    nv = np.zeros(1, dtype=np.int64)
+    nf = np.zeros(1, dtype=np.int64)
+    e = np.empty(4, dtype=np.int64)
+    for i in range(nx):
+        for j in range(ny):
+            if not occ[i, j]:
+                continue
+            z, z0 = h[i, j], b[i, j]
+            va = _corner_vid(i, j, z, ids, zv, nz, vout, nv, lo, cell)
+            vb = _corner_vid(i + 1, j, z, ids, zv, nz, vout, nv, lo, cell)
+            vc = _corner_vid(i + 1, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = va, vb, vc
+            vd = _corner_vid(i, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = va, vc, vd
+            nf[0] += 2
+            wa = _corner_vid(i, j, z0, ids, zv, nz, vout, nv, lo, cell)
+            wc = _corner_vid(i + 1, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
+            wb = _corner_vid(i + 1, j, z0, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = wa, wc, wb
+            wd = _corner_vid(i, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = wa, wd, wc
+            nf[0] += 2
+            for side in range(4):
+                if side == 0:
+                    di, dj, e[0], e[1], e[2], e[3] = 1, 0, i + 1, j, i + 1, j + 1
+                elif side == 1:
+                    di, dj, e[0], e[1], e[2], e[3] = -1, 0, i, j + 1, i, j
+                elif side == 2:
+                    di, dj, e[0], e[1], e[2], e[3] = 0, 1, i + 1, j + 1, i, j + 1
+                else:
+                    di, dj, e[0], e[1], e[2], e[3] = 0, -1, i, j, i + 1, j
+                ni, nj = i + di, j + dj
+                if 0 <= ni < nx and 0 <= nj < ny and occ[ni, nj]:
+                    nz0, nzt = b[ni, nj], h[ni, nj]
+                else:
+                    nz0 = z + 1.0
+                    nzt = z + 1.0
+                if nz0 >= z or nzt <= z0:
+                    _wall(e, z0, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+                    continue
+                if nzt < z:
+                    _wall(e, nzt, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+                if nz0 > z0:
+                    _wall(e, z0, nz0, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+    return vout[:nv[0]].copy(), fout[:nf[0]].copy()
+
+
 def warm() -> None:
     """Compile (or load) every kernel on small inputs of the types the callers pass."""
     v = np.zeros((4, 4), dtype=np.float32)
@@ -603,6 +724,9 @@ def warm() -> None:
     tile_keys(pts, np.zeros(3), 0.5, np.zeros(len(pts), dtype=np.int64), 1, 8)
     scan_colours(pts[:, 0].copy(), pts[:, 1] > 0.5)
     box_rows(pts[:, 0].copy(), pts[:, 1].copy(), np.array([[0.0, 0.0, 0.5, 0.5]]))
+    occ = np.zeros((3, 3), dtype=np.bool_)
+    occ[1, 1] = True
+    grid_solid(np.ones((3, 3)), np.zeros((3, 3)), occ, np.zeros(2), 0.1)
     p2, o2, s2 = np.zeros((3, 2)), np.zeros(2), np.zeros(2, dtype=np.int64)
     section_sums(p2, p2, p2, p2, v, v, v, v, o2, o2, o2, o2, s2, s2, s2, s2, 0.1, 1, np.zeros(2), np.zeros(2), 1.0,
                  False, 1)

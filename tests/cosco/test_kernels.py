@@ -266,3 +266,23 @@ def test_bounded_tree_answers_as_the_kd_tree(seed):
         want_d, want_i = tree.query(query, k=1, distance_upper_bound=bound)
         assert np.array_equal(np.isfinite(got_d), np.isfinite(want_d)) and np.array_equal(got_i, want_i)
         assert np.allclose(got_d[np.isfinite(got_d)], want_d[np.isfinite(want_d)], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("hang", [None, 2.0])
+def test_grid_solid_is_the_references(hang):
+    """A fused shape's closed mesh of columns (a car's body, a lamp's arm hanging over it): the compiled mesh has
+    the reference's vertices and faces, in its order."""
+    from twinreg.shapes.fuse import height_solid
+
+    rng = np.random.default_rng(3)
+    n = 8000
+    p = np.c_[rng.uniform(0, 4.5, n), rng.uniform(0, 1.8, n), np.abs(rng.normal(1.2, 0.3, n))]
+    p = np.r_[p, np.c_[rng.uniform(1, 2, 800), rng.uniform(0, 0.5, 800), rng.uniform(5, 6, 800)]]
+    got = height_solid(p, cell=0.1, hang=hang)
+    mod = kernels.jit()
+    kernels._STATE["jit"] = None
+    try:
+        want = height_solid(p, cell=0.1, hang=hang)
+    finally:
+        kernels._STATE["jit"] = mod
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1]) and len(got[1]) > 1000

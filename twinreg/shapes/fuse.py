@@ -122,9 +122,16 @@ def _grid_solid(grid: np.ndarray, occ: np.ndarray, lo: np.ndarray, cell: float, 
     to its top, and side walls where a column stands out of its neighbour's span (or the footprint's edge), each
     wall split at every height its two corners carry so that the walls, tops and floors share their edges (no
     T-junction)."""
+    from cosco.kernels import jit
+
     nx, ny = occ.shape
     h = np.where(occ, grid, 0.0)
     b = np.zeros_like(h) if bottom is None else np.where(occ, bottom, 0.0)
+    mod = jit()
+    if mod is not None:  # compiled (cosco.kernels): the same vertices and faces, in the same order
+        return mod.grid_solid(np.ascontiguousarray(h, dtype=np.float64), np.ascontiguousarray(b, dtype=np.float64),
+                              np.ascontiguousarray(occ, dtype=bool), np.asarray(lo, dtype=np.float64)[:2].copy(),
+                              float(cell))
     # each corner's heights: the bottoms and tops of the columns around it
     zs: dict = {}
     for i, j in zip(*np.nonzero(occ)):
