@@ -128,6 +128,39 @@ def grid_build(points, cell):
 
 
 @numba.njit(**_OPTS)
+def _nearest_into(dist, rows, p, x, y, z, grid_pts, order, starts, lo, shape, cell, b2, m):
+    """Row ``p`` of a bounded nearest-neighbour answer: the nearest :func:`grid_build` point of (x, y, z) among
+    the 27 voxels around it (the first in the grid's order), its distance and row when nearer than ``sqrt(b2)``,
+    else inf and ``m`` (a KD-tree's bounded query)."""
+    ci = np.int64(np.floor((x - lo[0]) / cell))
+    cj = np.int64(np.floor((y - lo[1]) / cell))
+    ck = np.int64(np.floor((z - lo[2]) / cell))
+    best = np.inf
+    arg = -1
+    for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
+        for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
+            row = (i * shape[1] + j) * shape[2]
+            k0 = max(ck - 1, 0)
+            k1 = min(ck + 2, shape[2])
+            if k0 >= k1:
+                continue
+            for q in range(starts[row + k0], starts[row + k1]):
+                dx = grid_pts[q, 0] - x
+                dy = grid_pts[q, 1] - y
+                dz = grid_pts[q, 2] - z
+                dd = dx * dx + dy * dy + dz * dz
+                if dd < best:
+                    best = dd
+                    arg = q
+    if best < b2:
+        dist[p] = np.sqrt(best)
+        rows[p] = order[arg]
+    else:
+        dist[p] = np.inf
+        rows[p] = m
+
+
+@numba.njit(**_OPTS)
 def mirror_nearest(points, phi, rho, grid_pts, order, starts, lo, shape, cell, bound):
     """(n,) distances and (n,) rows (into the points :func:`grid_build` indexed) of each point's mirror image's
     nearest point nearer than ``bound`` (<= ``cell``): inf and the point count where none is, as a KD-tree's
@@ -143,32 +176,7 @@ def mirror_nearest(points, phi, rho, grid_pts, order, starts, lo, shape, cell, b
         x = points[p, 0] - 2.0 * d * nx
         y = points[p, 1] - 2.0 * d * ny
         z = points[p, 2]
-        ci = np.int64(np.floor((x - lo[0]) / cell))
-        cj = np.int64(np.floor((y - lo[1]) / cell))
-        ck = np.int64(np.floor((z - lo[2]) / cell))
-        best = np.inf
-        arg = -1
-        for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
-            for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
-                row = (i * shape[1] + j) * shape[2]
-                k0 = max(ck - 1, 0)
-                k1 = min(ck + 2, shape[2])
-                if k0 >= k1:
-                    continue
-                for q in range(starts[row + k0], starts[row + k1]):
-                    dx = grid_pts[q, 0] - x
-                    dy = grid_pts[q, 1] - y
-                    dz = grid_pts[q, 2] - z
-                    dd = dx * dx + dy * dy + dz * dz
-                    if dd < best:
-                        best = dd
-                        arg = q
-        if best < b2:
-            dist[p] = np.sqrt(best)
-            rows[p] = order[arg]
-        else:
-            dist[p] = np.inf
-            rows[p] = m
+        _nearest_into(dist, rows, p, x, y, z, grid_pts, order, starts, lo, shape, cell, b2, m)
     return dist, rows
 
 
@@ -428,66 +436,39 @@ def block_counts(pts, origin, cell, block, n_cols, n_blocks):
 
 @numba.njit(**_OPTS)
 def window_rows(pts, origin, cell, bounds):
-    """The rows of the points whose cell (i, j) lies in each window ``bounds[k]`` = (i0, i1, j0, j1) (half-open),
-    in order: window k's are ``rows[starts[k]:starts[k + 1]]`` (two passes over the points for every window)."""
+    """The rows of the points whose cell (i, j) (truncated as 32-bit integers) lies in each window ``bounds[k]`` =
+    (i0, i1, j0, j1) (half-open), in order: window k's are ``rows[starts[k]:starts[k + 1]]`` (:func:`box_rows` on
+    the cells' indices)."""
     n, m = pts.shape[0], bounds.shape[0]
-    starts = np.zeros(m + 1, dtype=np.int64)
-    for rnd in range(2):
-        if rnd == 1:
-            for k in range(m):
-                starts[k + 1] += starts[k]
-            rows = np.empty(starts[m], dtype=np.int64)
-            fill = starts[:m].copy()
-        for p in range(n):
-            ci = np.int64(np.int32((pts[p, 0] - origin[0]) / cell))
-            cj = np.int64(np.int32((pts[p, 1] - origin[1]) / cell))
-            for k in range(m):
-                if ci >= bounds[k, 0] and ci < bounds[k, 1] and cj >= bounds[k, 2] and cj < bounds[k, 3]:
-                    if rnd == 0:
-                        starts[k + 1] += 1
-                    else:
-                        rows[fill[k]] = p
-                        fill[k] += 1
-    return rows, starts
-
+    ci = np.empty(n)
+    cj = np.empty(n)
+    for p in range(n):
+        ci[p] = np.float64(np.int32((pts[p, 0] - origin[0]) / cell))
+        cj[p] = np.float64(np.int32((pts[p, 1] - origin[1]) / cell))
+    boxes = np.empty((m, 4))
+    for k in range(m):
+        boxes[k, 0], boxes[k, 1] = bounds[k, 0], bounds[k, 2]
+        boxes[k, 2], boxes[k, 3] = bounds[k, 1] - 1, bounds[k, 3] - 1
+    return box_rows(ci, cj, boxes)
 
 @numba.njit(**_OPTS)
 def share_near(points, grid_pts, starts, lo, shape, cell, bound):
     """The share of (n, 3) ``points`` with a point of the :func:`grid_build` index nearer than ``bound`` (<=
-    ``cell``): a KD-tree's bounded query's finite answers, counted (each search stops at the first found)."""
+    ``cell``): a KD-tree's bounded query's finite answers, counted."""
     n = points.shape[0]
     if n == 0:
         return np.nan
     b2 = bound * bound
+    dist = np.empty(1)
+    rows = np.empty(1, dtype=np.int64)
+    order = np.arange(grid_pts.shape[0])
     hits = 0
     for p in range(n):
-        x, y, z = points[p, 0], points[p, 1], points[p, 2]
-        ci = np.int64(np.floor((x - lo[0]) / cell))
-        cj = np.int64(np.floor((y - lo[1]) / cell))
-        ck = np.int64(np.floor((z - lo[2]) / cell))
-        found = False
-        for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
-            for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
-                row = (i * shape[1] + j) * shape[2]
-                k0 = max(ck - 1, 0)
-                k1 = min(ck + 2, shape[2])
-                if k0 >= k1:
-                    continue
-                for q in range(starts[row + k0], starts[row + k1]):
-                    dx = grid_pts[q, 0] - x
-                    dy = grid_pts[q, 1] - y
-                    dz = grid_pts[q, 2] - z
-                    if dx * dx + dy * dy + dz * dz < b2:
-                        found = True
-                        break
-                if found:
-                    break
-            if found:
-                break
-        if found:
+        _nearest_into(dist, rows, 0, points[p, 0], points[p, 1], points[p, 2], grid_pts, order, starts, lo, shape,
+                      cell, b2, 0)
+        if np.isfinite(dist[0]):
             hits += 1
     return hits / n
-
 
 @numba.njit(**_OPTS)
 def tile_keys(enu, lo, size, level, depth, n_keys):
@@ -563,32 +544,7 @@ def nearest_within(points, grid_pts, order, starts, lo, shape, cell, bound):
     b2 = bound * bound
     for p in range(n):
         x, y, z = points[p, 0], points[p, 1], points[p, 2]
-        ci = np.int64(np.floor((x - lo[0]) / cell))
-        cj = np.int64(np.floor((y - lo[1]) / cell))
-        ck = np.int64(np.floor((z - lo[2]) / cell))
-        best = np.inf
-        arg = -1
-        for i in range(max(ci - 1, 0), min(ci + 2, shape[0])):
-            for j in range(max(cj - 1, 0), min(cj + 2, shape[1])):
-                row = (i * shape[1] + j) * shape[2]
-                k0 = max(ck - 1, 0)
-                k1 = min(ck + 2, shape[2])
-                if k0 >= k1:
-                    continue
-                for q in range(starts[row + k0], starts[row + k1]):
-                    dx = grid_pts[q, 0] - x
-                    dy = grid_pts[q, 1] - y
-                    dz = grid_pts[q, 2] - z
-                    dd = dx * dx + dy * dy + dz * dz
-                    if dd < best:
-                        best = dd
-                        arg = q
-        if best < b2:
-            dist[p] = np.sqrt(best)
-            rows[p] = order[arg]
-        else:
-            dist[p] = np.inf
-            rows[p] = m
+        _nearest_into(dist, rows, p, x, y, z, grid_pts, order, starts, lo, shape, cell, b2, m)
     return dist, rows
 
 
