@@ -105,10 +105,26 @@ class SectionPair:
         pad = max(params.tz_max, params.du_max) + 0.5
         self.fields = {k: distance_field(v, params.field_cell, pad, params.dist_cap) for k, v in fine.items()}
         self.trees = {k: cKDTree(v) for k, v in fine.items()}
+        self._bounded: dict = {}
         self.n = len(self.probes["lon"]) + len(self.probes["tra"])
         # the contour's own noise: its probes against its own fine set (0 for a noise-free, densely seen object)
-        self.floor_sq = sum(float((np.minimum(self.trees[k].query(self.probes[k])[0], params.dist_cap) ** 2).sum())
-                            for k in ("lon", "tra"))
+        self.floor_sq = sum(float((self.capped(k, self.probes[k], params.dist_cap) ** 2).sum()) for k in ("lon", "tra"))
+
+    def capped(self, key: str, points: np.ndarray, cap: float) -> np.ndarray:
+        """(n,) distances of (n, 2) ``points`` to the fine set ``key`` ("lon" or "tra"), each at most ``cap`` (m):
+        a search bounded at ``cap`` (nothing farther counts), on a compiled grid where numba is in use
+        (:class:`cosco.kernels.BoundedTree`), else the KD-tree's; the same values as ``min(nearest, cap)``."""
+        from .kernels import BoundedTree, jit
+
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        if jit() is None:
+            d, _ = self.trees[key].query(pts, distance_upper_bound=cap)
+        else:
+            if key not in self._bounded:
+                fine = self.trees[key].data
+                self._bounded[key] = BoundedTree(np.c_[fine, np.zeros(len(fine))])
+            d, _ = self._bounded[key].query(np.c_[pts, np.zeros(len(pts))], distance_upper_bound=cap)
+        return np.minimum(d, cap)
 
 
 @dataclass(frozen=True)
@@ -175,8 +191,7 @@ def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndar
                 continue
             if exact:
                 pts = base[None, :, :] + shifts[:, None, :]
-                d, _ = dst.trees[key].query(pts.reshape(-1, 2))
-                total += _capped_square_sums(d.reshape(pts.shape[:2]), cap)
+                total += _capped_square_sums(dst.capped(key, pts, cap).reshape(pts.shape[:2]), cap)
             else:
                 total += _field_sums(dst.fields[key], base, shifts, cap)
     return total

@@ -286,3 +286,34 @@ def test_grid_solid_is_the_references(hang):
     finally:
         kernels._STATE["jit"] = mod
     assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1]) and len(got[1]) > 1000
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_capped_section_distances_are_the_kd_trees(seed, monkeypatch):
+    """The registration's exact score (its polish below the field's cell): the sections' distances capped at the
+    cap on the compiled grid are the KD-tree's, capped alike, and a polished registration is the references'."""
+    from cosco.dissimilarity import SectionPair, polished, register_sections
+    from cosco.params import DEFAULT
+    from cosco.sections import Sections
+
+    rng = np.random.default_rng(seed)
+
+    def sections(length):
+        u = np.linspace(-length / 2, length / 2, 60)
+        lon = np.c_[u, 1.2 + 0.2 * np.sin(u) + rng.normal(0, 0.01, len(u))]
+        v = np.linspace(-0.9, 0.9, 25)
+        return Sections(lon, np.c_[v, 1.3 - 0.2 * v ** 2 + rng.normal(0, 0.01, len(v))], 0.1)
+
+    sa, sb = sections(4.4), sections(4.5)
+    a, b = SectionPair(sa, DEFAULT), SectionPair(sb, DEFAULT)
+    query = rng.uniform([-2.6, 0.8], [2.6, 1.7], (700, 2))
+    for key in ("lon", "tra"):
+        got = a.capped(key, query, DEFAULT.dist_cap)
+        want = np.minimum(a.trees[key].query(query)[0], DEFAULT.dist_cap)
+        assert np.allclose(got, want, rtol=0, atol=1e-12) and (got <= DEFAULT.dist_cap).all()
+    reg = polished(a, b, register_sections(a, b, DEFAULT), DEFAULT)
+    monkeypatch.setenv("TWINREG_NO_NUMBA", "1")
+    monkeypatch.setattr(kernels, "_STATE", {})
+    assert kernels.jit() is None
+    ra, rb = SectionPair(sa, DEFAULT), SectionPair(sb, DEFAULT)
+    assert polished(ra, rb, register_sections(ra, rb, DEFAULT), DEFAULT) == reg
