@@ -3,7 +3,8 @@ definition, and the answer where numba is missing or ``TWINREG_NO_NUMBA`` is set
 
 The kernels (:mod:`cosco._jit`) are numba functions compiled with ``cache=True``; the cache lives in the user's cache
 folder (``$XDG_CACHE_HOME/twinreg/numba``, else ``~/.cache/twinreg/numba``; ``NUMBA_CACHE_DIR`` wins when set), never
-beside the installed code. :func:`enable` compiles them all once (a fresh install's first run, a few seconds; then a
+beside the installed code, and only when no other user can write to it (:mod:`cosco._cache`: a cache file is a
+pickle, and loading it runs code); otherwise in a private temporary folder. :func:`enable` compiles them all once (a fresh install's first run, a few seconds; then a
 read of the cache, about half a second, numba's import): the city engine calls it before its Dask workers start, so
 that no two workers write one cache at once, and a scene's run when it holds many objects. Importing this module
 imports neither numba nor the kernels: a command that does not match starts as fast as before, and a run that does
@@ -23,32 +24,51 @@ import numpy as np
 _STATE: dict = {}
 
 
+def flag(name: str) -> bool:
+    """Whether the environment variable ``name`` says yes (set, and not ``0``, ``false``, ``no``, ``off`` or empty).
+
+    >>> os.environ["TWINREG_X"] = "0"; flag("TWINREG_X"), flag("TWINREG_Y")
+    (False, False)
+    """
+    return os.environ.get(name, "").strip().lower() not in ("", "0", "false", "no", "off")
+
+
 def cache_dir() -> Path:
-    """Where numba keeps the compiled kernels: ``NUMBA_CACHE_DIR``, else the user's cache folder."""
+    """The folder asked for the compiled kernels: ``NUMBA_CACHE_DIR``, else the user's cache folder (used only when
+    it is the user's own: :func:`trusted_cache_dir`)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return Path(os.environ["NUMBA_CACHE_DIR"])
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "twinreg" / "numba"
 
 
+def trusted_cache_dir() -> Path:
+    """The folder the kernels are cached in: :func:`cache_dir` when no one but this user can write to it or to a
+    folder above it, else a private temporary folder (:mod:`cosco._cache`); decided once a process."""
+    if "cache" not in _STATE:
+        from ._cache import cache_folder
+
+        _STATE["cache"] = cache_folder(cache_dir())
+    return _STATE["cache"]
+
+
 def jit():
     """The compiled kernels' module, or None: the numpy references answer. None until :func:`enable` was called in
-    this process or ``TWINREG_JIT`` is set (a parent that enabled them sets it for the workers it starts), and
-    always where numba is missing or ``TWINREG_NO_NUMBA`` is set."""
+    this process or ``TWINREG_JIT`` says yes (a parent that enabled them sets it for the workers it starts), and
+    always where numba is missing or ``TWINREG_NO_NUMBA`` says yes (``TWINREG_NO_NUMBA=0`` does not)."""
     if "jit" not in _STATE:
-        if not (_STATE.get("enabled") or os.environ.get("TWINREG_JIT")) or os.environ.get("TWINREG_NO_NUMBA"):
+        if not (_STATE.get("enabled") or flag("TWINREG_JIT")) or flag("TWINREG_NO_NUMBA"):
             return None
-        try:  # a home that cannot be written to (a locked-down CI): a cache for this process only
-            cache_dir().mkdir(parents=True, exist_ok=True)
-        except OSError:
-            import tempfile
-
-            os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="twinreg-numba-")
-        os.environ.setdefault("NUMBA_CACHE_DIR", str(cache_dir()))
+        folder = str(trusted_cache_dir())
+        os.environ["NUMBA_CACHE_DIR"] = folder  # numba reads it at import; its config is set below as well
         try:
-            from . import _jit as mod
+            import numba
         except ImportError:  # numba is not installed: the numpy references
-            mod = None
+            _STATE["jit"] = None
+            return None
+        numba.config.CACHE_DIR = folder  # read when each kernel is decorated: never the package's __pycache__
+        from . import _jit as mod
+
         _STATE["jit"] = mod
     return _STATE["jit"]
 
@@ -63,13 +83,26 @@ def enable() -> float:
 
 
 def warm() -> float:
-    """Compile (or load from the cache) every kernel, when they are in use (:func:`jit`); seconds taken."""
+    """Compile (or load from the cache) every kernel, when they are in use (:func:`jit`); seconds taken. A cache
+    file that cannot be read (a corrupt or foreign index: numba's unpickling fails) is dropped with the rest of the
+    cache folder, and the kernels compiled anew."""
     import time
 
     t = time.perf_counter()
     mod = jit()
     if mod is not None:
-        mod.warm()
+        try:
+            mod.warm()
+        except Exception as exc:  # noqa: BLE001 - numba raises what unpickling raised (UnpicklingError, EOFError...)
+            import sys
+
+            from ._cache import clear
+
+            folder = trusted_cache_dir()
+            sys.stderr.write(f"twinreg: the kernel cache {folder} could not be read ({type(exc).__name__}); "
+                             "compiling anew\n")
+            clear(folder)
+            mod.warm()
     return time.perf_counter() - t
 
 

@@ -108,7 +108,7 @@ class Engine:
         self.kernels_s = time.perf_counter() - t
         if kernels.jit() is None:
             return {}
-        return {"TWINREG_JIT": "1", "NUMBA_CACHE_DIR": str(kernels.cache_dir())}
+        return {"TWINREG_JIT": "1", "NUMBA_CACHE_DIR": str(kernels.trusted_cache_dir())}
 
     def __exit__(self, *exc):
         if self.client is not None:

@@ -1,0 +1,146 @@
+"""The compiled kernels' cache holds pickles, and loading a pickle runs code: a cache another user could write into
+is never read (a payload planted there does not run, through the real command line), a corrupt one is dropped and
+compiled anew, a read-only one never sends numba to write beside the installed code."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+import cosco
+from tests.conftest import write_las
+
+TWINREG = str(Path(sys.executable).with_name("twinreg"))
+ENABLE = "import cosco.kernels as k; k.enable(); print(k.trusted_cache_dir())"
+
+
+class _Payload:
+    """Unpickled, it creates its marker file: what a planted cache index would do."""
+
+    def __init__(self, marker: Path):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def _env(cache_home: Path) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "TWINREG_JIT", "TWINREG_NO_NUMBA")}
+    return env | {"XDG_CACHE_HOME": str(cache_home)}
+
+
+def _compiled(base: Path) -> Path:
+    """A cache compiled for real under ``base`` (mode 700); its folder."""
+    base.mkdir(mode=0o700)
+    out = subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True, check=True)
+    folder = Path(out.stdout.strip())
+    assert folder == base / "twinreg" / "numba" and any(folder.rglob("*.nbi"))
+    return folder
+
+
+def _plant(folder: Path, marker: Path) -> int:
+    """Every index file of the cache replaced by a payload; how many."""
+    files = list(folder.rglob("*.nbi"))
+    for f in files:
+        f.write_bytes(pickle.dumps(_Payload(marker)))
+    return len(files)
+
+
+@pytest.fixture(scope="module")
+def tiny_tiles(tmp_path_factory) -> Path:
+    """One LAZ tile of a car-sized block on flat ground (RD New): build-twin takes a folder as a city (kernels on)."""
+    rng = np.random.default_rng(0)
+    pts = np.vstack([rng.uniform([0, 0, 0], [60, 60, 0.05], (20000, 3)),
+                     rng.uniform([20, 20, 0], [24.2, 21.8, 1.5], (3000, 3))]) + [155000, 463000, 0]
+    tiles = tmp_path_factory.mktemp("tiny_city") / "tiles"
+    tiles.mkdir()
+    write_las(tiles / "a.laz", pts, crs="EPSG:28992")
+    return tiles
+
+
+def _build(tiles: Path, library: Path, out: Path, env: dict) -> subprocess.CompletedProcess:
+    return subprocess.run([TWINREG, "--library", str(library), "build-twin", str(tiles), "--out", str(out),
+                           "--workers", "1"], env=env, capture_output=True, text=True, timeout=600)
+
+
+def test_a_planted_cache_runs_no_code_in_a_city_build(tmp_path, tiny_tiles, parametric_catalogue):
+    base = tmp_path / "cache"
+    folder = _compiled(base)
+    marker = tmp_path / "payload-ran"
+    assert _plant(folder, marker) > 10
+    os.chmod(base, 0o777)  # any local user could have written the payload
+    res = _build(tiny_tiles, parametric_catalogue.folder, tmp_path / "out", _env(base))
+    assert res.returncode == 0, res.stderr
+    assert not marker.exists()
+    assert "not using the kernel cache" in res.stderr and "writable by other users (mode 777)" in res.stderr
+    assert (tmp_path / "out" / "twin.json").is_file()
+    # the control: the same planted files in a folder that is the user's own are read (so the test can fail)
+    os.chmod(base, 0o700)
+    subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True)
+    assert marker.exists()
+
+
+def test_a_corrupt_cache_is_dropped_and_compiled_anew(tmp_path, tiny_tiles, parametric_catalogue):
+    base = tmp_path / "cache"
+    folder = _compiled(base)
+    for f in list(folder.rglob("*.nbi"))[:3]:
+        f.write_bytes(b"\x00garbage")
+    res = _build(tiny_tiles, parametric_catalogue.folder, tmp_path / "out", _env(base))
+    assert res.returncode == 0, res.stderr
+    assert "could not be read" in res.stderr and "compiling anew" in res.stderr
+    again = subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True)
+    assert again.returncode == 0 and "could not be read" not in again.stderr
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="making a folder of another user needs root")
+def test_a_folder_of_another_user_or_behind_a_link_is_not_used(tmp_path):
+    base = tmp_path / "cache"
+    folder = _compiled(base)
+    marker = tmp_path / "payload-ran"
+    _plant(folder, marker)
+    for path in [folder, *folder.rglob("*")]:
+        os.chown(path, 65534, 65534)  # nobody's folder, mode 700: not writable by us, but theirs
+    out = subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True, check=True)
+    assert Path(out.stdout.strip()) != folder and "belongs to another user (uid 65534)" in out.stderr
+    assert not marker.exists()
+    # ~/.cache/twinreg/numba a symlink to a folder another user can write to
+    shared = tmp_path / "shared"
+    shutil.copytree(folder, shared)
+    os.chmod(shared, 0o777)
+    home = tmp_path / "home"
+    (home / "twinreg").mkdir(parents=True, mode=0o700)
+    os.chmod(home, 0o700)
+    (home / "twinreg" / "numba").symlink_to(shared)
+    out = subprocess.run([sys.executable, "-c", ENABLE], env=_env(home), capture_output=True, text=True, check=True)
+    assert Path(out.stdout.strip()) != home / "twinreg" / "numba" and "not using the kernel cache" in out.stderr
+    assert not marker.exists()
+
+
+def test_a_read_only_cache_never_writes_beside_the_code(tmp_path):
+    base = tmp_path / "cache"
+    base.mkdir(mode=0o700)
+    (base / "twinreg").mkdir(mode=0o500)
+    package = Path(cosco.__file__).parent
+    before = set(package.rglob("*.nbi"))
+    out = subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True, check=True)
+    assert not Path(out.stdout.strip()).is_relative_to(package)
+    assert set(package.rglob("*.nbi")) == before
+
+
+def test_the_switches_read_their_values():
+    """TWINREG_NO_NUMBA=0 leaves numba on, TWINREG_JIT=0 does not turn it on."""
+    code = "import cosco.kernels as k; print(k.jit() is not None)"
+    env = {k: v for k, v in os.environ.items() if k not in ("TWINREG_JIT", "TWINREG_NO_NUMBA")}
+    for extra, want in (({"TWINREG_JIT": "0"}, "False"), ({"TWINREG_JIT": "1", "TWINREG_NO_NUMBA": "0"}, "True"),
+                        ({"TWINREG_JIT": "yes", "TWINREG_NO_NUMBA": "1"}, "False")):
+        out = subprocess.run([sys.executable, "-c", code], env=env | extra, capture_output=True, text=True, check=True)
+        assert out.stdout.strip() == want, extra
