@@ -33,9 +33,13 @@ def shape_json(shape: cosco.ObjectShape, sections: bool = True) -> dict:
     return doc
 
 
-def inspect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT) -> tuple[cosco.ObjectShape, np.ndarray]:
-    """Read one object's points and describe it. Returns the shape and the points."""
+def inspect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, notes: list | None = None
+                 ) -> tuple[cosco.ObjectShape, np.ndarray]:
+    """Read one object's points and describe it. Returns the shape and the points; what the reader dropped is
+    appended to ``notes``."""
     ps = read_points(path, unit=unit)
+    if ps.dropped_note and notes is not None:
+        notes.append(ps.dropped_note)
     try:
         return cosco.describe_object(ps.points, params), ps.points
     except ValueError as exc:  # a degenerate object: too few points, one spot, a line

@@ -74,6 +74,32 @@ SAMPLING_VIEWS = [(0.0, np.pi / 2)] + [(az, np.radians(50)) for az in np.arange(
 ]
 
 
+#: the most rays a model's visible-surface sampling casts (all views together): about 100 MB of rays, a second;
+#: a model wider than about 17 m is sampled more coarsely than asked (:func:`sampling_spacing`)
+MAX_SAMPLING_RAYS = 2_000_000
+#: the coarsest sampling a model may need (m): beyond it (a model over about 170 m across) it is refused
+MAX_SAMPLING_SPACING = 0.5
+
+
+def sampling_spacing(vertices: np.ndarray, spacing: float, views=SAMPLING_VIEWS,
+                     max_rays: int = MAX_SAMPLING_RAYS) -> float:
+    """The ray spacing (m) :func:`visible_surface` can afford for a mesh of these ``vertices`` (n, 3): ``spacing``,
+    or coarser so that all views together cast at most ``max_rays`` rays (each view's grid covers the mesh's
+    bounding sphere). Known before a ray is cast, from the vertices' extent alone.
+
+    >>> sampling_spacing(np.array([[0, 0, 0], [4.5, 1.8, 1.5]]), 0.05)
+    0.05
+    >>> round(sampling_spacing(np.array([[0, 0, 0], [120, 90, 15]]), 0.05), 3)
+    0.442
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    if not len(vertices):
+        return float(spacing)
+    diameter = float(np.linalg.norm(vertices.max(0) - vertices.min(0))) + 2 * spacing
+    side = max(int(np.sqrt(max_rays / max(len(views), 1))) - 1, 1)  # rays along one side of a view's grid
+    return float(max(spacing, diameter / side))
+
+
 def visible_surface(vertices: np.ndarray, faces: np.ndarray, spacing: float, views=SAMPLING_VIEWS,
                     drop_faces: np.ndarray | None = None) -> np.ndarray:
     """Points on the outer surface seen from above and the sides (no interior, no underside).

@@ -36,7 +36,7 @@ from ..errors import BundleError, CatalogueError, ExportError
 from ..io.outdir import atomic_path
 from .db import DB_NAME, make_engine, upgrade, writer_lock
 from .models import unpack
-from .names import is_sha256, name_problem, printable
+from .names import is_sha256, name_problem, printable, text_problem
 from .prepare import file_sha256
 from .repository import atomic_copy, undone_on_failure
 
@@ -316,6 +316,12 @@ def check_row(row) -> tuple[str, str]:
         raise ValueError("its tags or parameters are not JSON") from exc
     if not isinstance(tags, list) or not all(isinstance(t, str) and name_problem(t) is None for t in tags):
         raise ValueError("its tags are not a list of plain words")
+    for c in ("make", "model", "body_class", "source_name", "notes"):
+        value = getattr(row, c)
+        why = text_problem(value) if c in ("make", "model", "body_class") else (
+            "it holds a control character" if printable(value or "") != (value or "") else None)
+        if why:
+            raise ValueError(f"its {c.replace('_', ' ')} is not plain text ({why})")
     from .categories import check_category
 
     try:

@@ -10,7 +10,6 @@ point spacings larger in length and width (the spacing estimated from each objec
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy as np
 from cosco.params import DEFAULT
 
 from ..errors import SceneReadError
+from ..io._files import MAX_TWIN_BYTES, read_json_doc
 
 LENGTH_BIN = 0.5
 WIDTH_BIN = 0.3
@@ -28,9 +28,13 @@ def read_objects(paths) -> list[dict]:
     out = []
     for p in paths:
         p = Path(p)
+        if not p.is_file():
+            raise SceneReadError(f"{p}: no such file; give OUT/twin.json of a folder build-twin wrote")
+        doc = read_json_doc(p, MAX_TWIN_BYTES, SceneReadError, "give OUT/twin.json of a folder build-twin wrote")
         try:
-            doc = json.loads(p.read_text(encoding="utf-8"))
             objs = doc["objects"]
+            if not isinstance(objs, list):
+                raise TypeError("its objects are not a list")
             m = doc.get("matching", {})
             window = (float(m.get("tol_m", DEFAULT.size_tol)), float(m.get("tol_spacing_k", DEFAULT.size_spacing_k)))
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:

@@ -46,6 +46,37 @@ def name_problem(name) -> str | None:
     return None
 
 
+#: the longest make, model, body class or tag
+MAX_TEXT = 200
+
+
+def text_problem(value) -> str | None:
+    """Why ``value`` cannot be a model's make, model, body class or tag (shown in terminals, CSV, KML and pages),
+    or None. Empty is allowed (the field is then unset).
+
+    >>> [text_problem(v) for v in (None, "Mercedes-Benz", "a\x1b]52;c;ZXZpbA==\x07", "x" * 201)]
+    [None, None, 'it holds a control character', 'it is longer than 200 characters']
+    """
+    if value is None or value == "":
+        return None
+    if not isinstance(value, str):
+        return "it is not text"
+    if len(value) > MAX_TEXT:
+        return f"it is longer than {MAX_TEXT} characters"
+    if any(map(_is_control, value)):
+        return "it holds a control character"
+    return None
+
+
+def check_text(value, option: str, where: str = ""):
+    """``value`` if it may be a make, model, body class or tag (``option``: the option that gave it, for the
+    message), else :class:`CatalogueError` saying why."""
+    why = text_problem(value)
+    if why:
+        raise CatalogueError(f"{where}{option} {printable(str(value))[:80]!r}: not usable ({why}); give plain text")
+    return value
+
+
 def check_name(name: str, where: str = "") -> str:
     """``name`` if it may name a model, else :class:`CatalogueError` saying why and what to do."""
     why = name_problem(name)
@@ -64,6 +95,44 @@ def safe_auto_name(stem: str) -> str:
     if not text or text.startswith(("id:", "name:")):
         text = "model" + (f"-{text}" if text else "")
     return f"model-{text}" if text.isdigit() else text
+
+
+#: words that name a part or an export, not a design: a file named only by them (``body.dae``, ``base_link.dae``)
+#: or holding ``chassis``/``body`` (``suv_chassis.obj``, ``gd250_Chassis.obj``) takes its folder's name
+GENERIC_WORDS = frozenset({"body", "chassis", "model", "mesh", "meshes", "base", "link", "visual", "vis", "scene",
+                           "untitled", "object", "default", "export", "exported", "main", "final", "new", "lod0",
+                           "lod1", "high", "low", "collision", "car", "vehicle", "geometry", "part"})
+
+
+def is_generic_stem(stem: str) -> bool:
+    """Whether a file's stem names a part or an export rather than a design.
+
+    >>> [is_generic_stem(s) for s in ("body", "base_link", "suv_chassis", "gd250_Chassis", "audi_tt", "Hybrid")]
+    [True, True, True, True, False, False]
+    """
+    words = [w for w in re.split(r"[_\-\s.]+", stem.lower()) if w]
+    return not words or all(w in GENERIC_WORDS or w.isdigit() for w in words) or bool(
+        {"chassis", "body"} & set(words))
+
+
+def preferred_stem(path, root=None, sole: bool = False) -> str:
+    """The name a model file suggests: its folder's name when the file's own is generic (:func:`is_generic_stem`),
+    or when ``sole`` (the only model file of a folder below the import's ``root``: ``toyota_prius/Hybrid.obj``);
+    else its stem.
+
+    >>> preferred_stem("cars/ford_fusion_2013/body.dae"), preferred_stem("x/audi_tt.obj")
+    ('ford_fusion_2013', 'audi_tt')
+    >>> preferred_stem("cars/toyota_prius/Hybrid.obj", root="cars", sole=True)
+    'toyota_prius'
+    """
+    from pathlib import Path
+
+    p = Path(path)
+    parent = p.parent.name
+    below_root = root is not None and p.parent != Path(root) and bool(parent)
+    if parent and (is_generic_stem(p.stem) or (sole and below_root)):
+        return parent
+    return p.stem
 
 
 def is_sha256(text) -> bool:

@@ -14,12 +14,17 @@ from cosco.params import DEFAULT, CoscoParams
 
 from ..errors import MeshLoadError, UnitError
 from ..io.meshes import load_mesh
-from ..raycast import visible_surface
+from ..raycast import MAX_SAMPLING_RAYS, MAX_SAMPLING_SPACING, sampling_spacing, visible_surface
 from .normalise import NormalisedMesh, normalise
 
 #: spacing (m) of the visible-surface sampling: 400 points per m^2 on a surface facing the rays, the density of a
 #: dense city survey (the paper's Dublin data had about 300 per m^2)
 SAMPLE_SPACING = 0.05
+#: a scanned reference (one object's points) of more points than this is refused before it is read
+MAX_REFERENCE_POINTS = 2_000_000
+#: ... and one of more than this thinned to :data:`SAMPLE_SPACING` (a mesh model's sampling): a catalogue row
+#: stays small and every later match fast
+THIN_REFERENCE_POINTS = 100_000
 
 
 @dataclass
@@ -59,6 +64,14 @@ def prepare_model(path, unit: str = "auto", up: str = "auto", front: str = "auto
     mesh = normalise(loaded, unit=unit, up=up, front=front, category=category, factor=factor)
     used = np.unique(mesh.faces)
     mesh_size = np.ptp(mesh.vertices[used], axis=0)
+    wanted = spacing
+    spacing = sampling_spacing(mesh.vertices[used], wanted)
+    if spacing > MAX_SAMPLING_SPACING:
+        extent = " x ".join(f"{v:.0f}" for v in mesh_size)
+        raise UnitError(f"{path}: {extent} m is too large for a catalogue model (sampling it would need more than "
+                        f"{MAX_SAMPLING_RAYS:,} rays at {MAX_SAMPLING_SPACING} m); check --unit and --scale")
+    if spacing > wanted:
+        mesh.notes.append(f"sampled every {spacing:.2f} m, not {wanted:.2f} m: a model {max(mesh_size):.0f} m long")
     points = visible_surface(mesh.vertices, mesh.faces, spacing, drop_faces=mesh.glass)
     if len(points) < 50:
         raise MeshLoadError(f"{path}: only {len(points)} surface points were visible; is the mesh a closed surface?")
@@ -98,7 +111,8 @@ def is_scan_file(path: Path) -> bool:
     return not faces or (len(faces[0]) >= 3 and faces[0][2] == "0")
 
 
-def prepare_scan(path, category: str, unit: str = "auto", params: CoscoParams = DEFAULT) -> PreparedModel:
+def prepare_scan(path, category: str, unit: str = "auto", params: CoscoParams = DEFAULT,
+                 factor: float = 1.0) -> PreparedModel:
     """A scanned object (one object's points: XYZ, PLY points, LAS/LAZ) as a catalogue reference: its points
     placed as a model is (footprint centred, lowest point z = 0, its frame's heading along +X), its sections, size
     and level of symmetry measured as any object's, and, for the exports, the convex hull of its points as its
@@ -111,8 +125,24 @@ def prepare_scan(path, category: str, unit: str = "auto", params: CoscoParams = 
     from .categories import size_range
     from .normalise import NormalisedMesh
 
+    from ..io.points import point_count_bound
+
     path = Path(path)
+    bound = point_count_bound(path)
+    if bound > MAX_REFERENCE_POINTS:
+        raise MeshLoadError(f"{path}: {bound:,} points, more than a scanned reference of one object needs (at most "
+                            f"{MAX_REFERENCE_POINTS:,}); crop it to the object or thin it (e.g. to "
+                            f"{SAMPLE_SPACING * 100:.0f} cm) first")
     ps = read_points(path, unit=unit)
+    notes = [f"a scan of {len(ps.points)} points"]
+    if factor != 1.0:
+        ps.points = ps.points * factor
+        notes.append(f"scale x{factor:g} (--scale)")
+    if ps.n_dropped:
+        notes.append(f"{ps.n_dropped} rows without finite x, y, z dropped")
+    if len(ps.points) > THIN_REFERENCE_POINTS:
+        ps.points = cosco.voxel_downsample(ps.points, SAMPLE_SPACING)[0]
+        notes.append(f"thinned to {len(ps.points)} points ({SAMPLE_SPACING * 100:.0f} cm, the models' sampling)")
     try:
         pts = check_object(ps.points, min_points=params.seg_min_points)
     except ValueError as exc:
@@ -139,7 +169,7 @@ def prepare_scan(path, category: str, unit: str = "auto", params: CoscoParams = 
     spacing = float(np.median(cKDTree(local).query(local, k=2)[0][:, 1]))
     mesh = NormalisedMesh(vertices, faces, np.zeros(len(faces), dtype=bool), ps.unit, 1.0,
                           "--unit" if unit != "auto" else "the file's", "+z", "+x", np.eye(4),
-                          [f"a scan of {len(pts)} points; its mesh the convex hull of its points"])
+                          notes + ["its mesh the convex hull of its points"])
     return PreparedModel(path, file_sha256(path), mesh, local, shape, np.ptp(vertices, axis=0), spacing, 0.0,
                          category, "scan", symmetry_level(local, params))
 

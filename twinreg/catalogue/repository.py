@@ -30,7 +30,7 @@ from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, re
 from ..io.outdir import atomic_path
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
-from .names import SORT_KEYS, check_name, is_sha256, parse_ref, printable, safe_auto_name
+from .names import SORT_KEYS, check_name, check_text, preferred_stem, is_sha256, parse_ref, printable, safe_auto_name
 from .prepare import is_scan_file, prepare_scan, PreparedModel, file_sha256, prepare_model
 
 EDITABLE = ("name", "make", "model", "body_class", "tags", "category")
@@ -278,13 +278,16 @@ class Catalogue:
         return v.astype(np.float64), f.astype(np.int64)
 
     # ---- writing -------------------------------------------------------------------------------------------
-    def _free_name(self, s: Session, wanted: str | None, path: Path) -> str:
+    def _free_name(self, s: Session, wanted: str | None, path: Path, hint: str | None = None) -> str:
+        """``wanted`` (refused when taken), else a free name from ``hint`` or the file's name (its folder's when
+        the file's is generic: :func:`~twinreg.catalogue.names.preferred_stem`)."""
         if wanted:
             check_name(wanted, f"{path}: ")
             if s.scalar(select(RefModel.id).where(RefModel.name == wanted)) is not None:
                 raise DuplicateModelError(f"{path}: the name '{wanted}' is taken; pass another --name")
             return wanted
-        candidates = [safe_auto_name(path.stem), safe_auto_name(f"{path.parent.name}_{path.stem}")]
+        first = hint or preferred_stem(path)
+        candidates = list(dict.fromkeys([safe_auto_name(first), safe_auto_name(f"{path.parent.name}_{path.stem}")]))
         for base in candidates:
             if s.scalar(select(RefModel.id).where(RefModel.name == base)) is None:
                 return base
@@ -294,8 +297,11 @@ class Catalogue:
         return f"{candidates[-1]}-{k}"
 
     def add_prepared(self, prep: PreparedModel, name=None, make=None, model=None, body_class=None,
-                     tags=()) -> RefModel:
+                     tags=(), name_hint: str | None = None) -> RefModel:
         """Store a prepared model: one transaction, files written to temporary names and renamed."""
+        for option, value in (("--make", make), ("--model", model), ("--body-class", body_class),
+                              *(("--tag", t) for t in tags)):
+            check_text(value, option, f"{prep.path}: ")
         sha = prep.sha256
         ext = prep.path.suffix.lower()
         stored = Path("files") / sha[:2] / f"{sha}{ext}"
@@ -307,7 +313,7 @@ class Catalogue:
                 if existing is not None:
                     raise DuplicateModelError(f"{prep.path}: same content as model {existing.id} "
                                               f"'{existing.name}' already in the catalogue")
-                final_name = self._free_name(s, name, prep.path)
+                final_name = self._free_name(s, name, prep.path, name_hint)
                 with undone_on_failure(s) as created:
                     try:
                         if atomic_copy(prep.path, self.folder / stored):
@@ -348,7 +354,7 @@ class Catalogue:
                 return row
 
     def add(self, path, name=None, make=None, model=None, body_class=None, tags=(), unit="auto", up="auto",
-            front="auto", category=None, scale: float = 1.0) -> RefModel:
+            front="auto", category=None, scale: float = 1.0, name_hint: str | None = None) -> RefModel:
         """Load, normalise, measure and store one mesh file of a ``category`` (``car`` when None; ``scale``: a
         factor after the unit). See :func:`prepare_model`."""
         from .categories import check_category
@@ -365,10 +371,11 @@ class Catalogue:
                 raise DuplicateModelError(f"{path}: same content as model {existing.id} "
                                           f"'{existing.name}' already in the catalogue")
         if path.is_file() and is_scan_file(path):
-            prep = prepare_scan(path, category, unit=unit)
+            prep = prepare_scan(path, category, unit=unit, factor=float(scale))
         else:
             prep = prepare_model(path, unit=unit, up=up, front=front, category=category, factor=float(scale))
-        return self.add_prepared(prep, name=name, make=make, model=model, body_class=body_class, tags=tags)
+        return self.add_prepared(prep, name=name, make=make, model=model, body_class=body_class, tags=tags,
+                                 name_hint=name_hint)
 
     def update(self, ref, **fields) -> RefModel:
         """Change editable fields (name, make, model, body_class, tags)."""
@@ -382,6 +389,11 @@ class Catalogue:
                     raise CatalogueError(f"'{key}' cannot be edited; editable: {', '.join(EDITABLE)}")
                 if key == "name":
                     check_name(value)
+                elif key == "tags":
+                    for t in value:
+                        check_text(t, "--tag")
+                elif key in ("make", "model", "body_class"):
+                    check_text(value, "--" + key.replace("_", "-"))
                 if key == "category":
                     from .categories import check_category
 

@@ -14,12 +14,10 @@ import numpy as np
 
 from ..errors import CompareError
 from ..geo.georef import Georef
-from ..io._files import read_json_doc
+from ..io._files import MAX_TWIN_BYTES, read_json_doc
 from ..io import observed
 from cosco.levels import LEVELS
 
-#: the largest twin.json read (bytes; a city of 100,000 objects writes about 150 MB)
-MAX_TWIN_BYTES = 256 * 1024 ** 2
 #: the largest object size (m) a twin may state: a building block is still under this
 MAX_SIZE_M = 500.0
 _CODE = re.compile(r"^[A-Za-z]{2,12}:[0-9]{1,7}$")

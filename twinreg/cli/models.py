@@ -105,13 +105,28 @@ def add_model(
 @handled
 def import_models(
     folder: Annotated[Path, typer.Argument(help="Folder searched recursively for mesh files.")],
+    manifest: Annotated[Optional[Path], typer.Option(
+        "--manifest", metavar="CSV", help="A CSV of file,name,category,scale,make,model,unit,up,front (file relative "
+                                          "to the folder; an empty cell: the default).", show_default=False)] = None,
+    category: CategoryOpt = None,
+    scale: Annotated[float, typer.Option("--scale", help="A factor after the unit, for the files the manifest does "
+                                                          "not scale.")] = 1.0,
     unit: UnitOpt = "auto",
     up: UpOpt = "auto",
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
-    """Add every mesh in a folder; a bad file is reported and skipped, the rest go in."""
-    files = mesh_files(folder)
+    """Add every mesh in a folder; a bad file is reported and skipped, the rest go in. With --manifest, each listed
+    file's name, category, scale, make and model as the manifest says."""
+    from ..catalogue.categories import check_category
+    from ..catalogue.folder import read_manifest
+    from ..errors import CatalogueError
+
+    if not (0.0001 <= scale <= 10000):
+        raise CatalogueError(f"--scale {scale:g}: give a factor between 0.0001 and 10000")
+    category = check_category(category) if category is not None else None
+    listed = read_manifest(manifest, folder) if manifest is not None else {}
+    files = mesh_files(folder, also=listed)
     cat = open_catalogue(library)
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                   TimeElapsedColumn(), console=err_console) as bar:
@@ -125,11 +140,13 @@ def import_models(
             else:
                 bar.console.print(printable(text), markup=False, highlight=False)
 
-        result = import_folder(cat, files, unit=unit, up=up, progress=say)
+        result = import_folder(cat, files, unit=unit, up=up, progress=say, manifest=listed, category=category,
+                               scale=scale, root=folder)
     if json_:
         print_json(result.as_dict())
     else:
-        info(f"{len(result.added)} added, {len(result.skipped)} skipped")
+        info(f"{len(result.added)} added, {len(result.skipped)} skipped"
+             + (f", {len(result.left_out)} left out (not in the manifest)" if result.left_out else ""))
     added, skipped = result.added, result.skipped
     if not added and skipped:
         raise typer.Exit(1)
@@ -194,9 +211,11 @@ def _print_csv(rows) -> None:
     w.writerow(cols)
     for r in rows:
         d = r.to_dict()
-        w.writerow([d["id"], d["name"], d["make"] or "", d["model"] or "", d["body_class"] or "", ";".join(d["tags"]),
+        text = [printable(v or "") for v in (d["name"], d["make"], d["model"], d["body_class"], ";".join(d["tags"]),
+                                             d["source_name"])]  # a catalogue written before fields were checked
+        w.writerow([d["id"], *text[:5],
                     d["size"]["length"], d["size"]["width"], d["size"]["height"], d["symmetry"]["found"],
-                    d["symmetry"]["pcr"], d["n_points"], d["sha256"], d["source_name"], d["unit"], d["up"],
+                    d["symmetry"]["pcr"], d["n_points"], d["sha256"], text[5], d["unit"], d["up"],
                     d["front"], d["category"], d["source"], d["symmetry"]["level"] or ""])
 
 
@@ -226,8 +245,8 @@ def show_model(
         for key in ("id", "name", "make", "model", "body_class", "tags", "size", "mesh_size", "symmetry",
                     "n_points", "sample_spacing_m", "unit", "unit_source", "up", "front", "n_faces", "glass_fraction",
                     "sha256", "source_name", "notes", "created_at", "plot"):
-            if key in doc:
-                out_console.print(f"[bold]{key}[/bold]: {doc[key]}", highlight=False)
+            if key in doc:  # the values are text from a catalogue, perhaps someone else's: no markup, no escapes
+                out_console.print(Text.assemble((key, "bold"), ": ", printable(doc[key])), highlight=False)
 
 
 @app.command("update-model", cls=Command)

@@ -37,7 +37,10 @@ def inspect(
     json_: JsonOpt = False,
 ):
     """Symmetry, heading, size and cross-sections of ONE object's points."""
-    shape, points = inspect_file(obj, unit=unit)
+    notes: list[str] = []
+    shape, points = inspect_file(obj, unit=unit, notes=notes)
+    for note in notes:
+        info(f"warning: {note}")
     doc = shape_json(shape)
     if plot is not None:
         from ..report.plots import plot_sections
@@ -90,14 +93,20 @@ def classify_cmd(
     json_: JsonOpt = False,
 ):
     """The kind, type and (when the scan decides it) model of objects given one per file."""
+    from ..errors import require_probability
     from ..recognition.classify import classify_files
     from ..recognition.summary import classify_lines
 
+    if min_confidence is not None:  # before a file is read
+        require_probability("--min-confidence", min_confidence)
     cat = open_catalogue(library, create=False)
     with RunProgress(f"{len(objects)} paths") as bars:
-        items = classify_files(objects, cat, unit=unit, min_confidence=min_confidence, progress=bars.update)
+        items = classify_files(objects, cat, unit=unit, min_confidence=min_confidence, progress=bars.update,
+                               warn=lambda line: info(f"warning: {line}"))
     if json_:
         print_json(items)
-        return
-    for line in classify_lines(items):
-        info(line)
+    else:
+        for line in classify_lines(items):
+            info(line)
+    if items and all(it.get("error") for it in items):
+        raise typer.Exit(1)

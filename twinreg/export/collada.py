@@ -3,6 +3,7 @@ quadric edge collapse when larger)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from xml.sax.saxutils import escape as _escape
 
@@ -18,14 +19,18 @@ def _floats(a: np.ndarray, fmt: str) -> str:
     return " ".join([fmt] * len(flat)) % tuple(flat.tolist())
 
 
-def escape(text) -> str:
-    """XML text or attribute value: &, <, > and both quotes as entities (a name from a stranger's catalogue stays
-    text).
+#: what XML 1.0 may not hold at all, even escaped (C0 controls but tab, newline and return; surrogates; U+FFFE/F)
+_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 
-    >>> escape('a"<b>')
-    'a&quot;&lt;b&gt;'
+
+def escape(text) -> str:
+    """XML text or attribute value: &, <, > and both quotes as entities, and the characters XML forbids dropped
+    (a name from a stranger's catalogue stays text, and the document stays well-formed).
+
+    >>> escape('a"<b>'), escape("x\x1b[31my\x07")
+    ('a&quot;&lt;b&gt;', 'x[31my')
     """
-    return _escape(str(text), {'"': "&quot;", "'": "&apos;"})
+    return _escape(_NOT_XML.sub("", str(text)), {'"': "&quot;", "'": "&apos;"})
 
 
 def write_collada(path, vertices: np.ndarray, faces: np.ndarray, color=(0.6, 0.6, 0.65), name: str = "model"):

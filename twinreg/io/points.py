@@ -62,8 +62,69 @@ class PointSet:
     def local(self) -> np.ndarray:
         return self.points - self.offset
 
+    @property
+    def dropped_note(self) -> str | None:
+        """One line saying how many rows were dropped for want of finite x, y, z (None when none were)."""
+        if not self.n_dropped:
+            return None
+        total = len(self.points) + self.n_dropped
+        return (f"{self.path}: {self.n_dropped:,} of {total:,} rows have no finite x, y, z (NaN or infinite) and "
+                f"were dropped; {len(self.points):,} points kept")
+
+
+#: the longest line of a text point file (bytes): x y z and a few more columns; a longer one is not a point record
+MAX_TEXT_LINE = 4096
+
+
+def text_lines(path: Path, max_line: int = MAX_TEXT_LINE) -> int:
+    """The number of lines of a text point file, read in 16 MB pieces (nothing kept); :class:`SceneReadError` when a
+    line is longer than ``max_line`` bytes (a 40 MB one-line file is refused after reading 16 MB, not parsed)."""
+    lines, run = 0, 0
+    with open(path, "rb") as fh:
+        while True:
+            chunk = fh.read(16 << 20)
+            if not chunk:
+                break
+            ends = np.flatnonzero(np.frombuffer(chunk, dtype=np.uint8) == 10)
+            longest = max(run + (int(ends[0]) if len(ends) else len(chunk)),
+                          int(np.diff(ends).max()) if len(ends) > 1 else 0)
+            if longest > max_line:
+                raise SceneReadError(f"{path}: a line of more than {max_line:,} bytes; a text point file holds x y z "
+                                     "(and a few more columns) per line: check the file's format")
+            run = len(chunk) - 1 - int(ends[-1]) if len(ends) else run + len(chunk)
+            lines += len(ends)
+    return lines + (run > 0)
+
+
+def point_count_bound(path) -> int:
+    """The most points a point file can give, from its header or its lines alone (none are parsed): LAS/LAZ and PLY
+    headers, a KITTI .bin's size, a PCD's POINTS, a text file's lines (:func:`text_lines`)."""
+    path, suffix = check_point_file(path)
+    if suffix in (".las", ".laz"):
+        import laspy
+
+        try:
+            with laspy.open(str(path)) as reader:
+                return int(reader.header.point_count)
+        except Exception as exc:
+            raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
+    if suffix == ".bin":
+        return path.stat().st_size // 16
+    if suffix in (".ply", ".pcd"):
+        with open(path, "rb") as fh:
+            head = fh.read(65536)
+        for line in head.split(b"\n"):
+            words = line.split()
+            if suffix == ".ply" and len(words) == 3 and words[:2] == [b"element", b"vertex"] and words[2].isdigit():
+                return int(words[2])
+            if suffix == ".pcd" and len(words) == 2 and words[0] == b"POINTS" and words[1].isdigit():
+                return int(words[1])
+        return path.stat().st_size // 12
+    return text_lines(path)
+
 
 def _read_text(path: Path) -> np.ndarray:
+    text_lines(path)  # no parser sees a line longer than a point record
     with open(path, "r", errors="replace") as fh:
         sample = fh.read(4096)
     delimiter = "," if sample.count(",") > sample.count(" ") and "," in sample else None

@@ -58,11 +58,14 @@ def object_files(paths) -> list[Path]:
     return files
 
 
-def read_object(path: Path, unit: str = "auto", params: CoscoParams = DEFAULT) -> GivenObject:
-    """One object's file read and described; a degenerate object is refused naming its file."""
+def read_object(path: Path, unit: str = "auto", params: CoscoParams = DEFAULT, warn=None) -> GivenObject:
+    """One object's file read and described; a degenerate object is refused naming its file; ``warn(line)`` hears
+    what the reader dropped."""
     from ..io.points import read_points
 
     ps = read_points(path, unit=unit)
+    if ps.dropped_note and warn is not None:
+        warn(ps.dropped_note)
     try:
         shape = cosco.describe_object(ps.points, params)
     except ValueError as exc:
@@ -129,13 +132,27 @@ def near_candidates(shape, kind, cache, params: CoscoParams) -> list[dict]:
 
 
 def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float | None = None,
-                   params: CoscoParams = DEFAULT, progress=None) -> list[dict]:
+                   params: CoscoParams = DEFAULT, progress=None, warn=None) -> list[dict]:
     """``classify``: every object file of ``paths`` (a folder stands for its point files) read, then
-    :func:`classify_objects`."""
+    :func:`classify_objects`. A file that cannot be read or described does not stop the batch: its item, in its
+    place, holds ``error`` (the one line said to ``warn``) and nulls."""
+    floor = MIN_CONFIDENCE if min_confidence is None else require_probability("--min-confidence", min_confidence)
+    say = warn or (lambda line: None)
     files = object_files(paths)
-    objects = []
+    objects, failed = [], {}
     for k, f in enumerate(files):
-        objects.append(read_object(f, unit, params))
+        try:
+            objects.append(read_object(f, unit, params, warn=say))
+        except SceneReadError as exc:
+            failed[k] = str(exc)
+            say(f"skipped: {exc}")
         if progress:
             progress("reading", k + 1, len(files))
-    return classify_objects(objects, catalogue, min_confidence, params, progress)
+    items = iter(classify_objects(objects, catalogue, floor, params, progress) if objects else [])
+    return [_failed_item(f, failed[k]) if k in failed else next(items) for k, f in enumerate(files)]
+
+
+def _failed_item(path: Path, error: str) -> dict:
+    """The item of a file classify could not read or describe: every key, null, and the ``error``."""
+    return {"file": str(path), "n_points": 0, "kind": None, "kind_confidence": None, "type": None,
+            "symmetry": None, "size": None, "match": None, "candidates": [], "error": error}

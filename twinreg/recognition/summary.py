@@ -16,11 +16,16 @@ def classify_lines(items: list[dict], listed: int = 50) -> list[str]:
     lines = []
     if len(items) <= listed:
         for it in items:
+            if it.get("error"):
+                lines.append(f"{Path(it['file']).name}: skipped ({it['error']})")
+                continue
             s, m = it["size"], it["match"]
             model = f"model {m['name']} ({m['confidence']:.2f})" if m else "no model claimed"
             lines.append(f"{Path(it['file']).name}: {it['kind']} ({it['kind_confidence']:.2f}), type {it['type']}, "
                          f"{it['symmetry']['level']}, {s['length']:.2f} x {s['width']:.2f} x {s['height']:.2f} m, "
                          f"{model}")
-    counts = Counter(it["kind"] for it in items)
-    lines.append("kinds: " + ", ".join(f"{n} {k}" for k, n in counts.most_common()))
+    counts = Counter(it["kind"] for it in items if not it.get("error"))
+    lines.append("kinds: " + (", ".join(f"{n} {k}" for k, n in counts.most_common()) or "none"))
+    if any(it.get("error") for it in items):
+        lines.append(f"skipped: {sum(1 for it in items if it.get('error'))} file(s) that could not be read")
     return lines

@@ -10,8 +10,7 @@ from pathlib import Path
 
 from ..errors import CatalogueError
 
-#: the largest twin.json read (a city's runs to tens of MB)
-MAX_TWIN_JSON = 512 << 20
+from ..io._files import MAX_TWIN_BYTES as MAX_TWIN_JSON
 
 
 def fused_entry(folder: Path, type_: int) -> tuple[dict, Path]:
