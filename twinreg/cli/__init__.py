@@ -23,9 +23,21 @@ def _global(
         "--library", help="Catalogue folder for every sub-command (default: $TWINREG_LIBRARY or ./library).",
         show_default=False)] = None,
     json_: Annotated[bool, typer.Option("--json", help="Every sub-command prints one JSON document.")] = False,
+    verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Say more (every object of a twin).")] = False,
+    quiet: Annotated[bool, typer.Option("-q", "--quiet", help="Say only warnings and errors.")] = False,
+    log: Annotated[Optional[str], typer.Option("--log", metavar="FILE", help="Also append every line to FILE.",
+                                               show_default=False)] = None,
 ):
     """--library and --json also work before the sub-command, as in git-like tools: they become the defaults of
     the sub-command's own options (click's default map), which the sub-command may still override."""
+    from ._common import OUTPUT, _open_log, _set_level
+
+    if OUTPUT["log"] is not None:  # a command run before in this process (tests) leaves nothing behind
+        OUTPUT["log"].close()
+    OUTPUT.update(level=0, log=None)
+    _set_level(1)(ctx, None, verbose)
+    _set_level(-1)(ctx, None, quiet)
+    _open_log(ctx, None, log)
     given = {k: v for k, v in (("library", library), ("json_", True if json_ else None)) if v is not None}
     if given:
         ctx.default_map = {name: dict(given) for name in ctx.command.list_commands(ctx)}

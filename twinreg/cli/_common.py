@@ -26,9 +26,62 @@ JsonOpt = Annotated[bool, typer.Option("--json", envvar="TWINREG_JSON",
                                        help="Print one JSON document to stdout.")]
 
 
+#: what the console says (``-v``: every object too, ``-q``: warnings and errors only) and the ``--log`` file, which
+#: gets every line whatever the console's level
+OUTPUT = {"level": 0, "log": None}
+
+
+def _log(line: str) -> None:
+    if OUTPUT["log"] is not None:
+        import time
+
+        OUTPUT["log"].write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} {line}\n")
+        OUTPUT["log"].flush()
+
+
+def _set_level(level: int):
+    def callback(ctx, param, value):
+        if value:
+            OUTPUT["level"] = level
+        return value
+    return callback
+
+
+def _open_log(ctx, param, value):
+    if value:
+        from ..errors import ParameterError
+
+        try:
+            OUTPUT["log"] = open(value, "a", encoding="utf-8")  # noqa: SIM115 - open for the command's life
+        except OSError as exc:
+            fail(str(ParameterError(f"--log {value}: cannot be written ({exc.strerror or exc}); give a file in a "
+                                    "folder you can write to")), 2)
+        _log("twinreg " + " ".join(sys.argv[1:]))
+    return value
+
+
+def output_options() -> list:
+    """``-v``, ``-q`` and ``--log FILE``, which every command takes (before or after its name), as typer makes its
+    options (typer builds commands with its own click)."""
+    from typer.main import _get_param
+    from typer.models import ParamMeta
+
+    def option(name, annotation, default, *decls, **kw):
+        return _get_param(ParamMeta(name=name, annotation=annotation, default=typer.Option(
+            default, *decls, expose_value=False, show_default=False, **kw)))
+
+    return [option("verbose", bool, False, "-v", "--verbose", callback=_set_level(1),
+                   help="Say more: every object of a twin."),
+            option("quiet", bool, False, "-q", "--quiet", callback=_set_level(-1),
+                   help="Say only warnings and errors (no progress)."),
+            option("log", Optional[str], None, "--log", metavar="FILE", callback=_open_log,
+                   help="Also append every line (the -v ones too, with the time) to FILE.")]
+
+
 def fail(message: str, code: int = 1):
     """One line on stderr (control characters of names in it shown as escapes), then exit ``code``."""
     err_console.print(f"error: {printable(message)}", markup=False, highlight=False, soft_wrap=True)
+    _log(f"error: {printable(message)}")
     raise typer.Exit(code)
 
 
@@ -78,8 +131,18 @@ def print_json(doc) -> None:
 
 
 def info(message: str) -> None:
-    """A message on stderr; a name's control characters (a newline, a terminal escape) are shown as escapes."""
-    err_console.print(printable(message), markup=False, highlight=False, soft_wrap=True)
+    """A message on stderr (not with ``-q``, but for warnings); a name's control characters (a newline, a terminal
+    escape) are shown as escapes."""
+    _log(printable(message))
+    if OUTPUT["level"] >= 0 or message.startswith("warning"):
+        err_console.print(printable(message), markup=False, highlight=False, soft_wrap=True)
+
+
+def detail(message: str) -> None:
+    """A line said with ``-v`` (and always to the ``--log`` file)."""
+    _log(printable(message))
+    if OUTPUT["level"] > 0:
+        err_console.print(printable(message), markup=False, highlight=False, soft_wrap=True)
 
 
 def _clock(seconds: float) -> str:
@@ -156,12 +219,14 @@ class RunProgress:
 
     def _say(self, text: str, now: float) -> None:
         prefix = f"{self.title}: " if self.title else ""
-        info(f"[{_clock(now - self.t0)}] {prefix}{text}")
+        info(f"[{_clock(now - self.t0)}] {prefix}{text}")  # (silent with -q)
         self.printed, self.last = self.key, now
 
     def update(self, stage: str, done: int | None = 0, total: int | None = 0) -> None:
         import time
 
+        if OUTPUT["level"] < 0:  # -q
+            return
         now = time.monotonic()
         if done is None:  # a stage message
             if self.plain:
@@ -220,6 +285,10 @@ class Command(TyperCommand):
     ``{paths}...``), the arguments are listed with their help and no Python type, options as typer lists them
     (flags with no type: the apps use ``rich_markup_mode=None``, which also keeps ``[default: ...]`` in a help
     text instead of reading it as markup)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.params += output_options()
 
     def collect_usage_pieces(self, ctx) -> list[str]:
         rv = [self.options_metavar] if self.options_metavar else []

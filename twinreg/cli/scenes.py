@@ -18,6 +18,7 @@ from ._common import (
     LibraryOpt,
     RunProgress,
     command_app,
+    detail,
     err_console,
     handled,
     info,
@@ -165,13 +166,15 @@ def build_twin_cmd(
                            classified_scan=classified_scan, min_confidence=min_confidence)
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
-    from ..export.summary import twin_summary, warnings_of
+    from ..export.summary import object_lines, twin_summary, warnings_of
 
     for line in warnings_of(twin):
         info(line)
     if json_:
         print_json(twin)
         return
+    for line in object_lines(twin):
+        detail(line)
     for line in twin_summary(twin, out):
         info(line)
 

@@ -48,8 +48,37 @@ def files_written(out) -> list[str]:
     return lines
 
 
-#: a twin with more objects than this lists none of them one by one at the end of its run
-LISTED_OBJECTS = 50
+def by_kind(objects: list[dict], shown: int = 12) -> list[str]:
+    """The objects counted by kind (most common first, ``unknown`` last) and the objects with a model counted by
+    model (the ``shown`` most common, then how many more models).
+
+    >>> by_kind([{"kind": "car", "match": {"name": "golf"}}, {"kind": "car", "match": None},
+    ...          {"kind": "unknown", "match": None}, {"kind": "lamp_post", "match": {"name": "lamp"}}])
+    ['kinds: 2 car, 1 lamp_post, 1 unknown', 'models: 1 golf, 1 lamp']
+    """
+    kinds = Counter(str(o.get("kind") or "unknown") for o in objects)
+    order = sorted(kinds.items(), key=lambda kv: (kv[0] == "unknown", -kv[1], kv[0]))
+    lines = ["kinds: " + (", ".join(f"{n} {k}" for k, n in order) or "none")]
+    models = Counter(o["match"]["name"] for o in objects if o.get("match"))
+    if models:
+        top = sorted(models.items(), key=lambda kv: (-kv[1], kv[0]))
+        more = f", and {len(top) - shown} more models" if len(top) > shown else ""
+        lines.append("models: " + ", ".join(f"{n} {name}" for name, n in top[:shown]) + more)
+    return lines
+
+
+def object_lines(twin: dict) -> list[str]:
+    """One line an object (what ``-v`` adds): its kind, and its model or why it has none."""
+    from .twin_json import trust_text
+
+    lines = []
+    for o in twin["objects"]:
+        m = o["match"]
+        what = (f"{m['name']} ({m['rmse_m'] * 100:.1f} cm{trust_text(m)})" if m
+                else f"no match: {o.get('reason', '')}")
+        kind = f"{o['kind']}, " if o.get("kind") else ""
+        lines.append(f"  {o['id']}: {kind}{what}, bearing {o['bearing_deg']:.1f} deg")
+    return lines
 
 
 def warnings_of(twin: dict) -> list[str]:
@@ -63,21 +92,14 @@ def warnings_of(twin: dict) -> list[str]:
 
 
 def twin_summary(twin: dict, out) -> list[str]:
-    """The lines a build-twin run ends with: the counts and time, each object (up to :data:`LISTED_OBJECTS`), the
-    objects by outcome and the files written into ``out``."""
-    from .twin_json import trust_text
-
+    """The lines a build-twin run ends with: the counts and time, the objects by kind and by model, by outcome,
+    and the files written into ``out`` (each object's line: :func:`object_lines`, said with ``-v``)."""
     objects = twin["objects"]
     matched = sum(1 for o in objects if o["match"])
     lines = [f"{twin['scene']}: {len(objects)} objects, {matched} matched, {twin['clustering']['n_clusters']} "
              f"clusters, {twin['matching']['n_trials']} registration trials, {twin['timing_s']['total']:.2f} s"
              + (f", {twin['grid']['n_cells']} cells" if "grid" in twin else "")]
-    if len(objects) <= LISTED_OBJECTS:
-        for o in objects:
-            m = o["match"]
-            what = (f"{m['name']} ({m['rmse_m'] * 100:.1f} cm{trust_text(m)})" if m
-                    else f"no match: {o.get('reason', '')}")
-            lines.append(f"  {o['id']}: {what}, bearing {o['bearing_deg']:.1f} deg")
+    lines += by_kind(objects)
     lines.append("objects: " + "; ".join(outcomes(objects)))
     lines.append(f"written to {out}: " + ", ".join(files_written(out)))
     return lines

@@ -51,9 +51,10 @@ def content_policy(page: str = "index.html") -> str:
 
 
 def vendor_folder() -> Path:
-    """``node_modules`` holding three.js: ``$TWINREG_NODE_MODULES``, else the nearest one above this package."""
+    """``node_modules`` holding three.js: ``$TWINREG_NODE_MODULES``, else the checkout's own (``npm ci`` beside
+    the package: ``twinreg/../node_modules``), never one found further up (anyone may make ``/tmp/node_modules``)."""
     env = os.environ.get("TWINREG_NODE_MODULES")
-    candidates = [Path(env)] if env else [p / "node_modules" for p in Path(__file__).resolve().parents]
+    candidates = [Path(env)] if env else [Path(__file__).resolve().parents[2] / "node_modules"]
     for c in candidates:
         if (c / "three" / "build" / "three.module.js").is_file():
             return c

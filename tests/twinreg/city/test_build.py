@@ -3,6 +3,8 @@ same on an external Dask cluster, and COPC tiles read by bounds give the same tw
 
 from __future__ import annotations
 
+from collections import Counter
+
 import json
 import os
 import signal
@@ -98,8 +100,12 @@ def test_city_output_is_complete_and_clean(small_city, city_twin):
     import xml.etree.ElementTree as ET
 
     ns = {"k": "http://www.opengis.net/kml/2.2"}
-    folders = ET.fromstring(kml).findall(".//k:Folder", ns)
-    assert len(folders) == sum(1 for c in city_twin["cells"] if c["n_objects"])
+    root = ET.fromstring(kml)
+    kinds = root.findall("k:Document/k:Folder", ns)  # a Folder a kind, each holding its cells' Regions
+    assert sorted(f.find("k:name", ns).text for f in kinds) == sorted(
+        f"{k} ({n})" for k, n in Counter(o["kind"] for o in city_twin["objects"]).items())
+    folders = [f for f in root.findall(".//k:Folder", ns) if f.find("k:Region", ns) is not None]
+    assert {f.find("k:name", ns).text for f in folders} == {c["name"] for c in city_twin["cells"] if c["n_objects"]}
     n_marks = 0
     for f in folders:
         box = {t: float(f.find(f"k:Region/k:LatLonAltBox/k:{t}", ns).text) for t in ("north", "south", "east",

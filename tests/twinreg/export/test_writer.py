@@ -41,7 +41,10 @@ def test_a_scene_gets_every_format_of_both_tables(placed, tmp_path):
     assert entries["tiles"]["n_tiles"] == 1 and entries["tiles"]["n_scan_points"] == 0
     assert not (tmp_path / "twin.prj").exists()  # a local frame (a --lat/--lon) has no CRS to state
     kml = zipfile.ZipFile(tmp_path / "twin.kmz").read("doc.kml").decode()
-    assert kml.count("<Placemark>") == 4 and "<Folder>" not in kml
+    assert kml.count("<Placemark>") == 4 and "<Region>" not in kml
+    kinds = {p.doc["kind"] or "unknown" for p in objs}  # a Folder and a Style a kind, ExtendedData with the kind
+    assert kml.count("<Folder>") == len(kinds) and kml.count("<Style id=") == len(kinds)
+    assert kml.count('<Data name="kind">') == 4 and kml.count('<Data name="type">') == 4
     assert list(json.loads((tmp_path / "sections.json").read_text())) == [p.id for p in objs]
     assert not (tmp_path / "twin.city.jsonl").exists()
 
@@ -52,7 +55,9 @@ def test_a_city_gets_a_kmz_folder_and_a_ply_file_a_group(placed, tmp_path):
     write_twin(TwinFiles(tmp_path, "toy city", objs, georef, models, [("c0", [0, 1]), ("c1", [2, 3])], ply="groups",
                          regions={"c0": bounds, "c1": bounds}, templates=True, seq=True, fork=True))
     kml = zipfile.ZipFile(tmp_path / "twin.kmz").read("doc.kml").decode()
-    assert kml.count("<Folder>") == 2 and kml.count("<Region>") == 2 and kml.count("<Placemark>") == 4
+    kinds = {p.doc["kind"] or "unknown" for p in objs}
+    assert kml.count("<Region>") >= 2 and kml.count("<Placemark>") == 4
+    assert kml.count("<Folder>") == len(kinds) + kml.count("<Region>")
     assert sorted(p.name for p in (tmp_path / "ply").iterdir()) == ["c0.ply", "c1.ply"]
     assert not (tmp_path / "twin.ply").exists()
     assert len((tmp_path / "twin.city.jsonl").read_text().splitlines()) == 1 + 4  # the header, then each object

@@ -234,3 +234,41 @@ def test_planted_pages_and_scripts_in_a_twin_are_never_served(demo_twin, tmp_pat
             assert "script-src 'self'" in r.headers["Content-Security-Policy"]
     finally:
         server.shutdown()
+
+
+def test_a_tileset_that_points_at_itself_is_read_once(demo_twin, tmp_path):
+    """A stranger's tileset whose tile's content is the tileset itself (and a scan tileset that does the same): the
+    viewer reads each once, becomes ready, and stops asking."""
+    if not CHROMIUM.exists() or not (ROOT / "node_modules" / "playwright-core").is_dir():
+        pytest.fail("chromium or the npm packages are missing: run `make install`")
+    folder = tmp_path / "looped"
+    shutil.copytree(demo_twin, folder)
+    tileset = json.loads((folder / "tiles" / "tileset.json").read_text())
+    box = tileset["root"]["boundingVolume"]
+    loop = {"boundingVolume": box, "geometricError": 0, "content": {"uri": "tileset.json"}}
+    tileset["root"].setdefault("children", []).append(loop)
+    (folder / "tiles" / "tileset.json").write_text(json.dumps(tileset))
+    scans = sorted((folder / "tiles").rglob("scan/*.json"))
+    if scans:  # the scan's streamed tileset pointing at itself too
+        scan = json.loads(scans[0].read_text())
+        scan["root"].setdefault("children", []).append(loop | {"content": {"uri": scans[0].name}})
+        scans[0].write_text(json.dumps(scan))
+    from twinreg.viewer import serve
+
+    server, url = serve(folder, 0)
+    try:
+        proc = subprocess.run(["node", str(ROOT / "tests" / "js" / "count_tilesets.mjs"), url], capture_output=True,
+                              text=True, timeout=180, cwd=ROOT)
+    finally:
+        server.shutdown()
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["ready"] and got["blocked"] == [], got
+    assert got["tilesets"] and max(got["tilesets"].values()) <= 2, got  # once (a cached re-read at most)
+
+
+def test_the_viewer_takes_three_js_only_from_its_own_checkout(monkeypatch):
+    from twinreg.viewer.server import vendor_folder
+
+    monkeypatch.delenv("TWINREG_NODE_MODULES", raising=False)
+    assert vendor_folder() == ROOT / "node_modules"  # not the nearest node_modules further up

@@ -12,9 +12,14 @@ export function matrixOf(spec) {
   return m;
 }
 
+// a stranger's tileset may nest without end or point back at itself: each external tileset is read once (per
+// scan root), and no deeper than MAX_DEPTH tiles
+const MAX_DEPTH = 64;
+
 export class LodTile {
-  constructor(spec, base, parent, loadGlb, stats) {
+  constructor(spec, base, parent, loadGlb, stats, depth = 0, seen = new Set()) {
     this.spec = spec; this.base = base; this.loadGlb = loadGlb; this.stats = stats;
+    this.depth = depth; this.seen = seen;
     this.group = new THREE.Group();
     this.group.matrixAutoUpdate = false;
     this.group.matrix.copy(matrixOf(spec));
@@ -45,8 +50,14 @@ export class LodTile {
       const uri = new URL(c.uri, this.base);
       this.stats.scanRequests += 1;
       if (uri.pathname.endsWith(".json")) {   // an external tileset: its root is this tile's only child
-        const ext = await (await fetch(uri)).json();
-        this.children = [new LodTile(ext.root, uri, this.group, this.loadGlb, this.stats)];
+        if (this.seen.has(uri.href) || this.depth >= MAX_DEPTH) {
+          this.children = [];
+          console.warn(`${uri.pathname}: read already or nested too deep, not followed`);
+        } else {
+          this.seen.add(uri.href);
+          const ext = await (await fetch(uri)).json();
+          this.children = [new LodTile(ext.root, uri, this.group, this.loadGlb, this.stats, this.depth + 1, this.seen)];
+        }
       } else {
         const scene = await this.loadGlb(uri.href);
         this.group.add(scene);
@@ -54,7 +65,8 @@ export class LodTile {
       }
     }
     if (!this.children) {
-      this.children = (this.spec.children || []).map((s) => new LodTile(s, this.base, this.group, this.loadGlb, this.stats));
+      this.children = this.depth >= MAX_DEPTH ? [] : (this.spec.children || []).map(
+        (s) => new LodTile(s, this.base, this.group, this.loadGlb, this.stats, this.depth + 1, this.seen));
     }
     this.state = "ready";
   }

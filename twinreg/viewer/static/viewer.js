@@ -42,7 +42,13 @@ async function updateScan() {
   lodRunning = null;
 }
 
-async function loadTile(tile, base, parent) {
+// a stranger's tileset may nest without end or point back at itself: each external tileset is read once, and no
+// deeper than MAX_DEPTH tiles
+const MAX_DEPTH = 64;
+const seenTilesets = new Set();
+
+async function loadTile(tile, base, parent, depth = 0) {
+  if (depth > MAX_DEPTH) { console.warn(`tileset deeper than ${MAX_DEPTH} levels: not followed`); return; }
   const group = new THREE.Group();
   group.matrixAutoUpdate = false;
   group.matrix.copy(matrixOf(tile));
@@ -53,8 +59,10 @@ async function loadTile(tile, base, parent) {
       scanRoots.push(new LodTile({ boundingVolume: tile.boundingVolume, content: tile.content,
         geometricError: tile.geometricError }, base, group, loadPoints, stats));
     } else if (uri.pathname.endsWith(".json")) {
+      if (seenTilesets.has(uri.href)) { console.warn(`${uri.pathname} is read already: not followed again`); return; }
+      seenTilesets.add(uri.href);
       const ext = await (await fetch(uri)).json();
-      await loadTile(ext.root, uri, group);
+      await loadTile(ext.root, uri, group, depth + 1);
     } else {
       const gltf = await loader.loadAsync(uri.href);
       gltf.scene.rotation.x = Math.PI / 2;   // glTF Y-up -> the tile's Z-up
@@ -73,7 +81,7 @@ async function loadTile(tile, base, parent) {
       });
     }
   }
-  await Promise.all((tile.children || []).map((c) => loadTile(c, base, group)));
+  await Promise.all((tile.children || []).map((c) => loadTile(c, base, group, depth + 1)));
 }
 
 let twin = null, sections = {};
@@ -225,6 +233,7 @@ async function main() {
   try { sections = await (await fetch("/twin/sections.json")).json(); } catch (e) { sections = {}; }
   const tilesetUrl = new URL("/twin/tiles/tileset.json", window.location.href);
   const tileset = await (await fetch(tilesetUrl)).json();
+  seenTilesets.add(tilesetUrl.href);
   const root = Object.assign({}, tileset.root, { transform: undefined });  // the local frame: no ECEF
   await loadTile(root, tilesetUrl, world);
   world.updateMatrixWorld(true);
