@@ -111,8 +111,8 @@ def is_generic_stem(stem: str) -> bool:
     [True, True, True, True, False, False]
     """
     words = [w for w in re.split(r"[_\-\s.]+", stem.lower()) if w]
-    return not words or all(w in GENERIC_WORDS or w.isdigit() for w in words) or bool(
-        {"chassis", "body"} & set(words))
+    return bool(words) and (all(w in GENERIC_WORDS or w.isdigit() for w in words) and not all(
+        w.isdigit() for w in words) or bool({"chassis", "body"} & set(words)))
 
 
 def preferred_stem(path, root=None, sole: bool = False) -> str:

@@ -278,6 +278,16 @@ class Catalogue:
         return v.astype(np.float64), f.astype(np.int64)
 
     # ---- writing -------------------------------------------------------------------------------------------
+    def check_free_name(self, name: str, where: str = "") -> str:
+        """``name`` if it may name a new model here (usable and not taken), else the error saying why; asked
+        before a costly measurement (add_prepared checks again, under the writer lock)."""
+        check_name(name, where)
+        if self.exists:
+            with self.session() as s:
+                if s.scalar(select(RefModel.id).where(RefModel.name == name)) is not None:
+                    raise DuplicateModelError(f"{where}the name '{printable(name)}' is taken; pass another --name")
+        return name
+
     def _free_name(self, s: Session, wanted: str | None, path: Path, hint: str | None = None) -> str:
         """``wanted`` (refused when taken), else a free name from ``hint`` or the file's name (its folder's when
         the file's is generic: :func:`~twinreg.catalogue.names.preferred_stem`)."""

@@ -14,6 +14,7 @@ from ..catalogue.duplicates import near_duplicate_report
 from ..catalogue.folder import import_folder, mesh_files
 from ..catalogue.names import printable
 from ._common import (
+    OUTPUT,
     Command,
     JsonOpt,
     LibraryOpt,
@@ -129,7 +130,7 @@ def import_models(
     files = mesh_files(folder, also=listed)
     cat = open_catalogue(library)
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                  TimeElapsedColumn(), console=err_console) as bar:
+                  TimeElapsedColumn(), console=err_console, disable=OUTPUT["level"] < 0) as bar:
         task = bar.add_task("importing", total=len(files))
 
         def say(event, path, text):
@@ -137,7 +138,7 @@ def import_models(
                 bar.update(task, description=f"importing {path.name}")
             elif event == "done":
                 bar.advance(task)
-            else:
+            elif OUTPUT["level"] >= 0 or event in ("warning", "skipped"):
                 bar.console.print(printable(text), markup=False, highlight=False)
 
         result = import_folder(cat, files, unit=unit, up=up, progress=say, manifest=listed, category=category,

@@ -164,6 +164,7 @@ def build_twin_cmd(
                            scheduler=scheduler, restart=restart, ply=ply,
                            date=date.date().isoformat() if date else None, cityjson_templates=cityjson_templates,
                            classified_scan=classified_scan, min_confidence=min_confidence)
+    had_twin = (out / "twin.json").is_file()
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)
     from ..export.summary import object_lines, twin_summary, warnings_of
@@ -175,8 +176,11 @@ def build_twin_cmd(
         return
     for line in object_lines(twin):
         detail(line)
-    for line in twin_summary(twin, out):
+    scan_bytes = sum(p.stat().st_size for p in paths if p.is_file()) or None
+    for line in twin_summary(twin, out, scan_bytes):
         info(line)
+    if had_twin:
+        info(f"note: {out} held a twin before this run; it was replaced (give another --out to keep both)")
 
 
 @app.command("demo", cls=Command)

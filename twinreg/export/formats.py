@@ -201,9 +201,11 @@ def _sections(v: RecordView) -> None:
 
 
 def _gpkg(v: RecordView) -> None:
-    from .gpkg import write_gpkg
+    from .gpkg import unit_name, write_gpkg
 
-    write_gpkg(v.stage / "twin.gpkg", v.docs, v.lonlat if v.rings is None else v.rings, gpkg_crs(v.georef))
+    crs = gpkg_crs(v.georef)
+    write_gpkg(v.stage / "twin.gpkg", v.docs, v.lonlat if v.rings is None else v.rings, crs,
+               unit_name(v.georef.crs_unit_m if crs is not None else 1.0))
 
 
 #: the formats written from the objects' records, in order (a scene's on a thread, a city's in a forked child): a

@@ -15,6 +15,27 @@ import numpy as np
 from .geojson import PROPERTIES, properties
 
 LAYER = "objects"
+#: the GeoPackage's names of the sizes: metres said in the name (x, y, z are in the CRS's unit, said by ``xyz_unit``)
+METRE_FIELDS = ("length", "width", "height", "measured_length", "measured_width", "measured_height")
+
+
+def unit_name(metres: float | None) -> str:
+    """The name of a CRS's unit from its length in metres (None: WGS84 degrees).
+
+    >>> unit_name(1.0), unit_name(0.3048), unit_name(1200 / 3937), unit_name(None)
+    ('m', 'ft', 'US ft', 'degree')
+    """
+    if metres is None:
+        return "degree"
+    for name, m in (("m", 1.0), ("ft", 0.3048), ("US ft", 1200 / 3937)):
+        if abs(metres - m) < 1e-9:
+            return name
+    return f"{metres:g} m"
+
+
+def field_names() -> list[str]:
+    """The GeoPackage's columns: twin.geojson's properties, sizes named with ``_m``, then ``xyz_unit``."""
+    return [f"{n}_m" if n in METRE_FIELDS else n for n, _ in PROPERTIES] + ["xyz_unit"]
 
 
 def polygon_wkb(ring: np.ndarray) -> bytes:
@@ -38,19 +59,22 @@ def _column(values: list, kind) -> tuple[np.ndarray, np.ndarray | None]:
     return filled, missing if missing.any() else None
 
 
-def write_gpkg(path, docs: list[dict], rings: np.ndarray, crs: str | None) -> Path:
+def write_gpkg(path, docs: list[dict], rings: np.ndarray, crs: str | None, xyz_unit: str = "m") -> Path:
     """``docs``: the objects' twin.json records; ``rings``: their footprints, four (x, y) corners each ((4n, 2), in
-    ``crs``'s units); ``crs``: an authority code or WKT (None: WGS84 longitude, latitude)."""
+    ``crs``'s units); ``crs``: an authority code or WKT (None: WGS84 longitude, latitude); ``xyz_unit``: the unit
+    of the objects' x, y, z (the CRS's: :func:`unit_name`), a column and the layer's description say it."""
     from pyogrio.raw import write
 
     rings = np.asarray(rings, dtype=np.float64).reshape(-1, 4, 2)
     geometry = np.array([polygon_wkb(r) for r in rings], dtype=object)
     rows = [properties(d) for d in docs]
     data, masks = [], []
-    for name, kind in PROPERTIES:
-        col, mask = _column([r[name] for r in rows], kind)
+    for name, kind in [*PROPERTIES, ("xyz_unit", str)]:
+        col, mask = _column([r.get(name, xyz_unit) for r in rows], kind)
         data.append(col)
         masks.append(mask)
-    write(str(path), geometry, data, [name for name, _ in PROPERTIES], field_mask=masks, layer=LAYER,
-          driver="GPKG", geometry_type="Polygon", crs=crs or "EPSG:4326")
+    description = (f"twinreg objects: footprints and x, y, z in the CRS's unit ({xyz_unit}), sizes in metres (_m), "
+                   "lat/lon in degrees, angles bearing_deg in degrees and heading_rad in radians")
+    write(str(path), geometry, data, field_names(), field_mask=masks, layer=LAYER,
+          driver="GPKG", geometry_type="Polygon", crs=crs or "EPSG:4326", layer_options={"DESCRIPTION": description})
     return Path(path)

@@ -91,9 +91,45 @@ def warnings_of(twin: dict) -> list[str]:
     return lines
 
 
-def twin_summary(twin: dict, out) -> list[str]:
+#: the heavy files of a twin and the option that leaves them out or makes them smaller
+HEAVY_HINTS = {"twin.ply": "--no-ply leaves it out", "twin.city.json": "--cityjson-templates makes it smaller"}
+
+
+def _mb(n: int) -> str:
+    return f"{n / 1e6:.1f} MB"
+
+
+def room_taken(out, scan_bytes: int | None = None, shown: int = 4) -> str:
+    """What the twin's folder takes: its total, against the scan's size, and its largest files or folders (with
+    the option that leaves a heavy one out).
+
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp()); _ = (d / "twin.ply").write_bytes(b"x" * 3_000_000)
+    >>> room_taken(d, 1_000_000)
+    '3.0 MB, 3.0 times the scan (1.0 MB); the largest: twin.ply 3.0 MB (--no-ply leaves it out)'
+    """
+    out = Path(out)
+    sizes = {}
+    for entry in os.scandir(out):
+        if entry.name.startswith("."):
+            continue
+        if entry.is_dir(follow_symlinks=False):
+            sizes[entry.name + "/"] = sum(os.path.getsize(os.path.join(r, f)) for r, _, fs in os.walk(entry.path)
+                                          for f in fs)
+        else:
+            sizes[entry.name] = entry.stat(follow_symlinks=False).st_size
+    total = sum(sizes.values())
+    ratio = f", {total / scan_bytes:.1f} times the scan ({_mb(scan_bytes)})" if scan_bytes else ""
+    top = sorted(sizes.items(), key=lambda kv: -kv[1])[:shown]
+    return (f"{_mb(total)}{ratio}; the largest: "
+            + ", ".join(f"{name} {_mb(n)}" + (f" ({HEAVY_HINTS[name]})" if name in HEAVY_HINTS else "")
+                        for name, n in top))
+
+
+def twin_summary(twin: dict, out, scan_bytes: int | None = None) -> list[str]:
     """The lines a build-twin run ends with: the counts and time, the objects by kind and by model, by outcome,
-    and the files written into ``out`` (each object's line: :func:`object_lines`, said with ``-v``)."""
+    the files written into ``out`` and the room they take (each object's line: :func:`object_lines`, said with
+    ``-v``)."""
     objects = twin["objects"]
     matched = sum(1 for o in objects if o["match"])
     lines = [f"{twin['scene']}: {len(objects)} objects, {matched} matched, {twin['clustering']['n_clusters']} "
@@ -102,4 +138,5 @@ def twin_summary(twin: dict, out) -> list[str]:
     lines += by_kind(objects)
     lines.append("objects: " + "; ".join(outcomes(objects)))
     lines.append(f"written to {out}: " + ", ".join(files_written(out)))
+    lines.append(f"size of {out}: {room_taken(out, scan_bytes)}")
     return lines

@@ -88,6 +88,7 @@ def _load_collada(path: Path) -> LoadedMesh:
             names.add(mat_name)
             v = np.asarray(prim.vertex, dtype=np.float64)
             f = np.asarray(prim.vertex_index, dtype=np.int64).reshape(-1, 3)
+            _check_faces(path, f, len(v))
             verts.append(v)
             faces.append(f + offset)
             glass.append(np.full(len(f), _is_glass(mat_name, alpha)))
@@ -98,6 +99,15 @@ def _load_collada(path: Path) -> LoadedMesh:
     up = {"Z_UP": "+z", "Y_UP": "+y", "X_UP": "+x"}.get(str(dae.assetInfo.upaxis), None)
     return LoadedMesh(path, np.vstack(verts), np.vstack(faces), np.concatenate(glass), unit, up,
                       "COLLADA <unit>" if unit else "", sorted(names))
+
+
+def _check_faces(path: Path, faces: np.ndarray, n_vertices: int) -> None:
+    """:class:`MeshLoadError` for a face naming a vertex the mesh does not have (an index past the end, or a
+    negative one, which numpy would quietly take from the end)."""
+    if faces.size and (faces.min() < 0 or faces.max() >= n_vertices):
+        bad = int(faces.max()) if faces.max() >= n_vertices else int(faces.min())
+        raise MeshLoadError(f"{path}: a face names vertex {bad} of {n_vertices:,} (0 to {n_vertices - 1}); the file "
+                            "is damaged: export the mesh again")
 
 
 def _load_trimesh(path: Path) -> LoadedMesh:
@@ -127,6 +137,7 @@ def _load_trimesh(path: Path) -> LoadedMesh:
         v = np.asarray(geom.vertices, dtype=np.float64)
         v = v @ transform[:3, :3].T + transform[:3, 3]
         verts.append(v)
+        _check_faces(path, np.asarray(geom.faces, dtype=np.int64), len(v))
         faces.append(np.asarray(geom.faces, dtype=np.int64) + offset)
         glass.append(np.full(len(geom.faces), _is_glass(mat_name, alpha) or _is_glass(geom_name)))
         offset += len(v)

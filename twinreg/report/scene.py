@@ -46,9 +46,9 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
     heights = np.where(is_ground, 0.0, hag if hag is not None else 1.0)
     cell = max(0.1, float(ext.max()) / 1500)
     img, lo = _height_image(scene_local, heights, cell)
-    ax.imshow(np.clip(img.T, 0, 3), origin="lower", cmap="Greys", vmin=-0.5, vmax=3.0,
-              extent=[lo[0], lo[0] + img.shape[0] * cell, lo[1], lo[1] + img.shape[1] * cell],
-              interpolation="nearest")
+    shown = ax.imshow(np.clip(img.T, 0, 3), origin="lower", cmap="Greys", vmin=-0.5, vmax=3.0,
+                      extent=[lo[0], lo[0] + img.shape[0] * cell, lo[1], lo[1] + img.shape[1] * cell],
+                      interpolation="nearest")
     for fp in footprints:
         c = np.asarray(fp["corners"])
         ax.fill(c[:, 0], c[:, 1], color=fp["color"], alpha=0.45, lw=0)
@@ -57,16 +57,47 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
         ax.text(fp["centre"][0], fp["centre"][1], fp["label"], fontsize=5, ha="center", va="center")
     ax.set_aspect("equal")
     ax.set_title(title)
-    fig.subplots_adjust(left=0.05, right=0.98, bottom=0.05, top=0.94)
-    return save_figure(fig, path, tight=False, dpi=100)
+    ax.set_xlabel("x (m, east in the scan's frame)")
+    ax.set_ylabel("y (m, north)")
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = [Patch(color="tab:blue", alpha=0.45, label="placed object: a colour a type"),
+               Line2D([], [], color="black", marker=r"$\rightarrow$", lw=0, markersize=9, label="its front"),
+               Line2D([], [], lw=0, marker="$7$", color="black", label="7: object 7, a model"),
+               Line2D([], [], lw=0, marker="$\\sim$", color="black", label="7~: its type's fused shape"),
+               Line2D([], [], lw=0, marker="$?$", color="black", label="7?: a box (no model, no shape)")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=5, fontsize=7, frameon=False)
+    bar = fig.colorbar(shown, ax=ax, fraction=0.02, pad=0.01, location="right", ticks=[0, 1, 2, 3])
+    bar.set_label("scan: height above ground (m)", fontsize=7)
+    bar.ax.tick_params(labelsize=6)
+    return save_figure(fig, path, tight=True, dpi=100)
 
 
-def plot_object_sections(items: list[dict], path):
+#: the most objects sections.png draws (a row each; every object's sections are in sections.json and the viewer)
+MAX_SECTION_ROWS = 40
+
+
+def _short(title: str, n: int = 44) -> str:
+    """A row's title cut to ``n`` characters (its reason's gist; report.html has the full text).
+
+    >>> _short("obj1: no match (the best model (uaz) leaves 59% of its points unexplained)", 24)
+    'obj1: no match (the b...'
+    """
+    return title if len(title) <= n else title[:n - 3].rstrip() + "..."
+
+
+def plot_object_sections(items: list[dict], path, max_rows: int = MAX_SECTION_ROWS):
     """Each object's sections (blue squares) with its registered best model's (orange dots), stacked in two
-    panels: longitudinal (left) and transverse (right), one row of 2.5 m per object."""
+    panels: longitudinal (left) and transverse (right), one row of 2.5 m per object, its title beside the row;
+    at most ``max_rows`` objects (those with a model first), the title saying how many of all."""
     plt = pyplot()
+    total = len(items)
+    if total > max_rows:  # a picture that stays a picture: 1000 x 36,000 px helps no one
+        order = sorted(range(total), key=lambda k: not items[k].get("model"))
+        items = [items[k] for k in sorted(order[:max_rows])]
     n = max(1, len(items))
-    fig, (ax_l, ax_t) = plt.subplots(1, 2, figsize=(10, 1.0 + 0.9 * n), gridspec_kw={"width_ratios": [2.4, 1.0]})
+    fig, (ax_l, ax_t) = plt.subplots(1, 2, figsize=(11, 1.2 + 0.9 * n), gridspec_kw={"width_ratios": [2.4, 1.0]})
     step = 2.5
     for ax, key in ((ax_l, "lon"), (ax_t, "tra")):
         for who, style in (("object", dict(s=4, marker="s", color="tab:blue")),
@@ -76,17 +107,20 @@ def plot_object_sections(items: list[dict], path):
             if parts:
                 p = np.vstack(parts)
                 ax.scatter(p[:, 0], p[:, 1], linewidths=0, **style)
-    for k, it in enumerate(items):
-        ax_l.text(-3.6, -k * step + 2.0, it["title"], fontsize=6, va="top")
+    # each row's title as the left panel's tick label, outside the panes
+    ax_l.set_yticks([-k * step + 1.0 for k in range(len(items))], [_short(it["title"]) for it in items], fontsize=6)
+    ax_l.tick_params(axis="y", length=0)
+    ax_t.set_yticks([])
     for ax, xl in ((ax_l, "u along heading (m)"), (ax_t, "v across (m)")):
         ax.set_aspect("equal")
-        ax.set_yticks([])
         ax.set_xlabel(xl)
     ax_l.set_xlim(-3.7, 3.2)
-    ax_l.set_title("longitudinal sections (blue: object, orange: registered model)", fontsize=8)
+    ax_t.set_xticks([-1, 0, 1])
+    shown = f" ({len(items)} of {total} objects, those with a model first; all in sections.json)" \
+        if total > len(items) else ""
+    ax_l.set_title(f"longitudinal sections (blue: object, orange: registered model){shown}", fontsize=8)
     ax_t.set_title("transverse sections", fontsize=8)
-    fig.subplots_adjust(left=0.02, right=0.99, bottom=0.3 / (1.0 + 0.9 * n) + 0.02, top=0.97, wspace=0.05)
-    return save_figure(fig, path, tight=False, dpi=100)
+    return save_figure(fig, path, tight=True, dpi=100)
 
 
 def plot_taxonomy(folder: Path, names: list[str], matrix: np.ndarray, linkage: np.ndarray,
@@ -205,7 +239,8 @@ def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: li
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {text(twin['scene'])}</title>"
             f"<style>{STYLE}</style></head><body>"
             f"<h1>Digital twin of {text(twin['scene'])}</h1><p>{len(twin['objects'])} objects, {matched} with a "
-            f"model; built in {twin['timing_s']['total']:.2f} s.</p>"
+            f"model; the twin built in {twin['timing_s']['total']:.2f} s (before this report and the other files "
+            "were written: the command's own time is longer).</p>"
             f"<img class='lead' src='topview.png' alt='the twin over its scan'>"
             f"<div class='row'>{_summary_tables(twin)}</div>"
             "<table><tr><th>object</th><th>points</th><th>size (m)</th><th>kind</th><th>type</th><th>model</th><th>RMSE</th>"

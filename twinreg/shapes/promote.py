@@ -44,6 +44,7 @@ def promote(catalogue, folder: Path, type_: int, name: str, category: str | None
 
     if not isinstance(type_, int) or type_ < 1:
         raise CatalogueError(f"--type {type_}: give a type number (twin.json's objects carry theirs)")
+    catalogue.check_free_name(name)  # before the twin is read or its shape measured
     entry, path = fused_entry(Path(folder), type_)
     kind = category if category is not None else entry.get("kind")
     if not isinstance(kind, str) or kind == "unknown":

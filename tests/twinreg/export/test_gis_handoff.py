@@ -128,7 +128,12 @@ def test_geopackage_reads_back_in_the_scans_crs(real_twin):
     meta, _, geometry, fields = pyogrio.raw.read(out / "twin.gpkg")
     props = dict(zip(meta["fields"], fields))
     geo = json.loads((out / "twin.geojson").read_text())
-    assert list(meta["fields"]) == list(geo["features"][0]["properties"])
+    from twinreg.export.gpkg import METRE_FIELDS, unit_name
+
+    # the GeoJSON's properties, sizes named in metres, and the unit of x, y, z (Autzen's feet) said in a column
+    assert list(meta["fields"]) == [f"{n}_m" if n in METRE_FIELDS else n
+                                    for n in geo["features"][0]["properties"]] + ["xyz_unit"]
+    assert set(props["xyz_unit"]) == {unit_name(doc["georef"]["crs_unit_m"])}
     assert list(props["id"]) == [o["id"] for o in doc["objects"]]
     assert list(props["matched"]) == [o["match"] is not None for o in doc["objects"]]
     lo, hi = _scan_bounds(out)

@@ -27,17 +27,22 @@ def _rings():
 def test_read_back_in_its_crs_with_every_attribute(tmp_path):
     import pyogrio
 
-    path = write_gpkg(tmp_path / "t.gpkg", _docs(), _rings(), "EPSG:7415")
+    path = write_gpkg(tmp_path / "t.gpkg", _docs(), _rings(), "EPSG:7415", "m")
     info = pyogrio.read_info(path)
     assert info["crs"] == "EPSG:7415" and info["features"] == 2 and info["geometry_type"] == "Polygon"
     with sqlite3.connect(path) as con:
         assert con.execute("select srs_id from gpkg_geometry_columns").fetchall() == [(7415,)]
     meta, _, geometry, fields = pyogrio.raw.read(path)
-    assert list(meta["fields"]) == [name for name, _ in PROPERTIES]
+    sizes = {"length", "width", "height", "measured_length", "measured_width", "measured_height"}
+    assert list(meta["fields"]) == [f"{n}_m" if n in sizes else n for n, _ in PROPERTIES] + ["xyz_unit"]
     row = {name: list(col) for name, col in zip(meta["fields"], fields)}
     assert row["id"] == ["obj1", "obj2"] and list(row["matched"]) == [True, False]
     assert row["model"][0] == "demo_sedan" and row["model"][1] is None  # a null, not an empty text
-    assert row["reason_code"] == [None, "no_model_of_this_size"]
+    assert row["reason_code"] == [None, "no_model_of_this_size"] and row["xyz_unit"] == ["m", "m"]
+    assert row["length_m"][0] == 4.4
+    with sqlite3.connect(path) as con:  # the layer says its units
+        (description,) = con.execute("select description from gpkg_contents").fetchone()
+    assert "x, y, z in the CRS's unit (m)" in description and "sizes in metres" in description
     assert np.isnan(row["confidence"][1]) and row["confidence"][0] == 0.93
     ring = np.frombuffer(geometry[0][13:], dtype="<f8").reshape(-1, 2)
     assert len(ring) == 5 and np.array_equal(ring[0], ring[-1]) and np.allclose(ring[:4], _rings()[:4])

@@ -39,13 +39,14 @@ def test_a_run_ends_with_its_counts_objects_outcomes_and_files(tmp_path):
     lines = twin_summary(_twin(3, "--vertical-crs"), tmp_path)
     assert lines[0] == "park.laz: 3 objects, 1 matched, 2 clusters, 9 registration trials, 3.25 s"
     assert lines[1] == "kinds: 3 unknown" and lines[2] == "models: 1 golf"  # counts by kind and model, always
-    assert lines[-2].startswith("objects: 1 with a model (1 at confidence 0.5 or more); 2 without")
-    assert lines[-1] == f"written to {tmp_path}: twin.json"
+    assert lines[-3].startswith("objects: 1 with a model (1 at confidence 0.5 or more); 2 without")
+    assert lines[-2] == f"written to {tmp_path}: twin.json"
+    assert lines[-1] == f"size of {tmp_path}: 0.0 MB; the largest: twin.json 0.0 MB"
     each = object_lines(_twin(3, "--vertical-crs"))  # said with -v, whatever the twin's size
     assert each[0] == "  obj0: no match: no catalogue model of this size, bearing 0.0 deg"
     assert each[1] == "  obj1: golf (3.1 cm; confidence 0.97), bearing 12.0 deg"
     many = twin_summary(_twin(500, "--vertical-crs") | {"grid": {"n_cells": 4}}, tmp_path)
-    assert len(many) == 5 and many[0].endswith(", 4 cells") and len(object_lines(_twin(500, None))) == 500
+    assert len(many) == 6 and many[0].endswith(", 4 cells") and len(object_lines(_twin(500, None))) == 500
     assert warnings_of(_twin(1, "--vertical-crs")) == ["warning: made on the day"]
     unknown = warnings_of(_twin(1, None))
     assert len(unknown) == 2 and "--vertical-crs" in unknown[1]

@@ -240,8 +240,8 @@ async function main() {
   // the whole twin in view, seen from the south and above
   stage.frame(new THREE.Box3().setFromObject(world), new THREE.Vector3(0.1, 0.85, 0.52));
   const matched = twin.objects.filter((o) => o.match).length;
-  // the shapes drawn for objects without a model: their type's fused shape or the kind's template (orange), or a box
-  // (red)
+  // the shapes drawn for objects without a model: their type's fused shape or the kind's template (each type in a
+  // colour of its own, as each model is), or a box (red)
   const fused = twin.objects.filter((o) => !o.match && o.shape && ["fused", "generic"].includes(o.shape.source)).length;
   document.getElementById("title").textContent = `twinreg: ${twin.scene}`;
   document.getElementById("search").oninput = (e) => search(e.target.value);
@@ -249,7 +249,7 @@ async function main() {
   await updateScan();
   controls.addEventListener("change", () => { updateScan(); });
   document.getElementById("summary").textContent =
-    `${twin.objects.length} objects, ${matched} with a model, ${fused} with a fused shape (orange), ` +
+    `${twin.objects.length} objects, ${matched} with a model, ${fused} with their type's fused shape (a colour a type), ` +
     `${twin.objects.length - matched - fused} as boxes (red); ${stats.instances} instances in ${stats.tiles} tiles; ` +
     `the scan streamed by level of detail (${stats.scanPoints.toLocaleString()} points in view)`;
   stage.render();
