@@ -17,6 +17,7 @@ from ._common import (
     LibraryOpt,
     RunProgress,
     command_app,
+    fail,
     handled,
     info,
     open_catalogue,
@@ -100,13 +101,17 @@ def classify_cmd(
     if min_confidence is not None:  # before a file is read
         require_probability("--min-confidence", min_confidence)
     cat = open_catalogue(library, create=False)
+    said: list[str] = []
     with RunProgress(f"{len(objects)} paths") as bars:
         items = classify_files(objects, cat, unit=unit, min_confidence=min_confidence, progress=bars.update,
-                               warn=lambda line: info(f"warning: {line}"))
+                               warn=said.append)
+    failed = [it["error"] for it in items if it.get("error")]
+    if items and len(failed) == len(items):  # nothing classified: one line, the first file's error
+        fail(failed[0] + (f" (and {len(failed) - 1} more files could not be read)" if len(failed) > 1 else ""))
+    for line in said:
+        info(f"warning: {line}")
     if json_:
         print_json(items)
     else:
         for line in classify_lines(items):
             info(line)
-    if items and all(it.get("error") for it in items):
-        raise typer.Exit(1)

@@ -299,3 +299,16 @@ def test_export_needs_no_writer_lock(parametric_catalogue, tmp_path):
     finally:
         holder.kill()
         holder.wait()
+
+
+@pytest.mark.parametrize("column,value", [
+    ("make", "Audi\x1b]52;c;ZXZpbA==\x07"),  # a clipboard write on the terminal that lists it
+    ("model", "TT\x1b[2J"),
+    ("body_class", "sedan\x07"),
+    ("notes", "fine\x1b[31m red"),
+])
+def test_escapes_in_a_rows_text_are_refused(good_bundle, lib, tmp_path, column, value):
+    """Issue 46: a make, model, body class or note holding a terminal escape or a control character is refused,
+    as a name is."""
+    bad = rebuild(good_bundle, tmp_path / "bad.zip", [f"UPDATE ref_models SET {column} = '{value}'"])
+    assert "not plain text" in _refused(bad, lib)
