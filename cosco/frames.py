@@ -77,3 +77,17 @@ def axis_difference(a: float, b: float) -> float:
     """
     d = np.mod(a - b, np.pi)
     return float(min(d, np.pi - d))
+
+
+def reflect(points: np.ndarray, phi: float, rho: float) -> np.ndarray:
+    """Mirror (n, 3) points in the vertical plane (phi, rho).
+
+    >>> np.round(reflect(np.array([[3.0, 1.0, 2.0]]), 0.0, 1.0), 9).tolist()
+    [[-1.0, 1.0, 2.0]]
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    n = np.array([np.cos(phi), np.sin(phi)])
+    d = pts[:, :2] @ n - rho
+    out = pts.copy()
+    out[:, :2] -= 2.0 * d[:, None] * n[None, :]
+    return out

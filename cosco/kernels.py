@@ -178,7 +178,7 @@ class MirrorIndex:
 
 def mirror_nearest_numpy(tree, points, phi, rho, bound) -> tuple[np.ndarray, np.ndarray]:
     """The numpy reference of :meth:`MirrorIndex.nearest`: a KD-tree's bounded query of the mirrored points."""
-    from .symmetry import reflect
+    from .frames import reflect
 
     return tree.query(reflect(points, phi, rho), k=1, distance_upper_bound=bound)
 

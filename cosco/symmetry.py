@@ -16,7 +16,7 @@ import numpy as np
 
 from .arrays import as_points, voxel_downsample
 from .footprint import min_area_rectangle
-from .frames import axis_difference, wrap_axis
+from .frames import axis_difference, reflect, wrap_axis
 from .params import DEFAULT, CoscoParams
 
 if TYPE_CHECKING:
@@ -59,20 +59,6 @@ class Symmetry:
     def reflect(self, points: np.ndarray) -> np.ndarray:
         """Mirror (n, 3) points in the plane."""
         return reflect(points, self.phi, self.rho)
-
-
-def reflect(points: np.ndarray, phi: float, rho: float) -> np.ndarray:
-    """Mirror (n, 3) points in the vertical plane (phi, rho).
-
-    >>> np.round(reflect(np.array([[3.0, 1.0, 2.0]]), 0.0, 1.0), 9).tolist()
-    [[-1.0, 1.0, 2.0]]
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    n = np.array([np.cos(phi), np.sin(phi)])
-    d = pts[:, :2] @ n - rho
-    out = pts.copy()
-    out[:, :2] -= 2.0 * d[:, None] * n[None, :]
-    return out
 
 
 def _median_spacing(tree: cKDTree, pts: np.ndarray) -> float:

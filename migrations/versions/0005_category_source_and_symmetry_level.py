@@ -7,7 +7,6 @@ Create Date: 2026-12-03 12:30:00
 """
 from typing import Sequence, Union
 
-import numpy as np
 import sqlalchemy as sa
 from alembic import op
 
@@ -17,14 +16,7 @@ branch_labels: Union[str, Sequence[str], None] = None
 depends_on: Union[str, Sequence[str], None] = None
 
 
-def _unpack(blob: bytes) -> np.ndarray:
-    shape = tuple(np.frombuffer(blob[:8], dtype="<i4"))
-    return np.frombuffer(blob[8:], dtype="<f4").reshape(shape).astype(np.float64)
-
-
 def upgrade() -> None:
-    from cosco.levels import symmetry_level
-
     # SQLite's DDL is not undone when a migration fails half-way (pysqlite commits it): a catalogue left with
     # some of these columns by an interrupted upgrade is completed, not refused
     conn = op.get_bind()
@@ -40,10 +32,9 @@ def upgrade() -> None:
             batch_op.add_column(sa.Column('sym_level', sa.String(length=20), nullable=True))
         if 'ix_ref_models_category' not in indexes:
             batch_op.create_index(batch_op.f('ix_ref_models_category'), ['category'], unique=False)
-    # every model so far is a car from a mesh; its level of symmetry from the surface points it holds
-    for mid, blob in conn.execute(sa.text("SELECT id, points FROM ref_models")).fetchall():
-        level = symmetry_level(_unpack(blob)).level
-        conn.execute(sa.text("UPDATE ref_models SET sym_level = :l WHERE id = :i"), {"l": level, "i": mid})
+    # every model so far is a car from a mesh; its level of symmetry is measured from the surface points it holds
+    # by the catalogue when it opens (twinreg.catalogue.db.fill_levels): a migration changes the schema only and
+    # never runs the method's live code (it must not change when the code does)
 
 
 def downgrade() -> None:

@@ -21,10 +21,33 @@ from . import cellfile
 WORK = ".cells"
 
 
+#: the parameters a cell reads (ground, segmentation, symmetry, headings, sections, levels, the objects' samples),
+#: by family and by name: a cell's key hashes these alone, so that matching's, kinds', the decision's, fusion's and
+#: change's parameters (``--min-confidence``, ``--tol``...) reuse every finished cell. A test runs cells with a
+#: recording copy of the parameters and checks that nothing outside these is read.
+CELL_FAMILIES = ("ground_", "seg_", "outlier_", "object_", "car_", "sym_", "heading_", "section_", "level_")
+CELL_FIELDS = ("pcr_threshold", "size_quantile", "profile_bin", "width_quantile", "top_cell", "cell_top_quantile",
+               "top_quantile", "field_cell", "accept_max_points")
+
+
+def cell_params(params) -> dict:
+    """The parameters a cell reads (:data:`CELL_FAMILIES`, :data:`CELL_FIELDS`), by name.
+
+    >>> from cosco.params import DEFAULT
+    >>> p = cell_params(DEFAULT); "ground_cell" in p, "model_min_confidence" in p, "size_tol" in p
+    (True, False, False)
+    """
+    import dataclasses
+
+    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
+            if f.name.startswith(CELL_FAMILIES) or f.name in CELL_FIELDS}
+
+
 def cell_key(cell_name: str, sources: list, grid, params, version: str, offset=(0.0, 0.0, 0.0)) -> str:
-    """The hash of what a cell's result depends on."""
-    text = json.dumps([cell_name, sorted(s.key() for s in sources), grid.size, grid.buffer, grid.margin, repr(params), version,
-                       [float(v) for v in offset]])
+    """The hash of what a cell's result depends on: its tiles, the grid, the parameters it reads
+    (:func:`cell_params`), the program's version and the run's frame."""
+    text = json.dumps([cell_name, sorted(s.key() for s in sources), grid.size, grid.buffer, grid.margin,
+                       repr(sorted(cell_params(params).items())), version, [float(v) for v in offset]])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
