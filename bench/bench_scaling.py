@@ -77,7 +77,7 @@ def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
     from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise
     from twinreg.matching.match import Evidence, match_objects
-    from twinreg.stages import classify
+    from twinreg.stages import taxonomy
     from twinreg.sim.accuracy import car_objects, density_passes
     from twinreg.sim.scan import car_park
 
@@ -92,7 +92,7 @@ def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
             park = car_park(meshes, n_cars=16, seed=seed, passes=density_passes(150.0))
             det = detect_points(PointSet(path=None, points=park.points, offset=np.zeros(3), unit="m"))
             s = describe_detected(det)
-            lab = classify(s, DEFAULT, {}).labels + (max(labels) if labels else 0)
+            lab = taxonomy(s, DEFAULT, {}).labels + (max(labels) if labels else 0)
             model_of = {k: names[c.model].name for k, c in zip(car_objects(park, det), park.cars) if k >= 0}
             truth += [model_of.get(k) for k in range(len(s))]  # each object's car's model (None: no car)
             shapes += s

@@ -47,7 +47,7 @@ def run_street(cat, density: float, seed: int) -> list[dict]:
     from twinreg.matching.match import Evidence, ModelCache, match_objects
     from twinreg.sim.accuracy import density_passes
     from twinreg.sim.street import item_objects, street
-    from twinreg.stages import classify, recognise, with_targets
+    from twinreg.stages import recognise, taxonomy, with_targets
 
     rows = sorted(cat.list(), key=lambda r: r.name)
     meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
@@ -61,7 +61,7 @@ def run_street(cat, density: float, seed: int) -> list[dict]:
     shapes = describe_detected(det, params)
     clouds = [object_points(det, o) for o in det.objects]
     levels = object_levels(clouds, shapes, params)
-    tax = classify(shapes, params, {})
+    tax = taxonomy(shapes, params, {})
     results, _ = match_objects(shapes, cat, labels=tax.labels, params=params, cache=ModelCache(cat, params),
                                evidence=Evidence(clouds, scene_noise(det.hag, det.is_ground)))
     results, kinds = recognise(results, shapes, levels, cat, params)

@@ -27,12 +27,12 @@ from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
 from .stages import (
     checked_params,
-    classify,
     fuse,
     locate,
     place,
     recognise,
     require_models,
+    taxonomy,
     types_of,
     with_targets,
 )
@@ -172,7 +172,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     from cosco.segment import point_spacing
 
     spacing = [point_spacing(c) for c in clouds]
-    clusters = classify(shapes, params, timing, progress, spacing=spacing)
+    clusters = taxonomy(shapes, params, timing, progress, spacing=spacing)
     with staged_folder(Path(out), protect=[scene_path, catalogue.folder], kind="twin") as stage:
         try:
             names = [f"obj{k + 1}" for k in range(len(targets))]

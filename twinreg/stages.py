@@ -1,6 +1,6 @@
 """The stages a scene and a city both run, one copy: the run's parameters checked (:func:`checked_params`), the
 catalogue checked (:func:`require_models`), the scan placed on Earth (:func:`locate`), the objects' taxonomy
-(:func:`classify`), the objects' kinds and the models under the confidence floor withdrawn (:func:`recognise`),
+(:func:`taxonomy`), the objects' kinds and the models under the confidence floor withdrawn (:func:`recognise`),
 their types (:func:`types_of`), the shapes of the types without a model (:func:`fuse`), every object placed
 (:func:`place`). The per-scene pipeline
 (:mod:`twinreg.pipeline`) runs them on one scene; the city engine (:mod:`twinreg.city`) maps them over cells and
@@ -66,7 +66,7 @@ def locate(georef, lo, hi, where: str):
     return georef.identified(centre["lon"], centre["lat"])
 
 
-def classify(shapes, params: CoscoParams, timing: dict, progress=None, distances_of=None, spacing=None):
+def taxonomy(shapes, params: CoscoParams, timing: dict, progress=None, distances_of=None, spacing=None):
     """The objects' :class:`~cosco.taxonomy.Taxonomy` (:func:`cosco.taxonomy.taxonomy_of`: the paper's matrix and
     dendrogram up to ``params.taxonomy_full_max`` objects, the sparse graph beyond), its parts timed in
     ``timing``. ``spacing``: the objects' point spacings (m): the threshold is at least

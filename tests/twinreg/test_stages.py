@@ -10,7 +10,7 @@ import pytest
 from tests.twinreg.helpers import toy_shapes
 from cosco.params import DEFAULT
 from twinreg.errors import CatalogueError, ParameterError
-from twinreg.stages import checked_params, classify, place, require_models
+from twinreg.stages import checked_params, place, require_models, taxonomy
 
 
 def test_checked_params_takes_the_users_window_and_refuses_nonsense():
@@ -33,12 +33,12 @@ def test_require_models_says_what_is_missing(tmp_path, parametric_catalogue):
     require_models(parametric_catalogue)
 
 
-def test_classify_full_matrix_up_to_the_limit_and_the_graph_beyond():
+def test_taxonomy_full_matrix_up_to_the_limit_and_the_graph_beyond():
     shapes = toy_shapes(6)
     timing: dict = {}
-    full = classify(shapes, DEFAULT, timing)
+    full = taxonomy(shapes, DEFAULT, timing)
     assert full.method == "full" and full.matrix.shape == (6, 6) and {"matrix", "clustering"} <= set(timing)
-    sparse = classify(shapes, DEFAULT.with_(taxonomy_full_max=3), {})
+    sparse = taxonomy(shapes, DEFAULT.with_(taxonomy_full_max=3), {})
     assert sparse.method != "full" and len(sparse.labels) == 6
     # the two lengths of car: the same groups either way
     same = lambda labels: {(i, j) for i in range(6) for j in range(6) if labels[i] == labels[j]}  # noqa: E731

@@ -20,7 +20,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     object's point sample is, ``(cell file, index in it)``, for objects that do not hold it (the workers read
     them)."""
     from ..matching.match import MatchStats, ModelCache
-    from ..stages import classify
+    from ..stages import taxonomy
 
     shapes = [o.shape for o in objects]
     sections = [s.sections for s in shapes]
@@ -45,7 +45,7 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
         d[perm] = np.concatenate(out) if out else np.zeros(0)
         return d
 
-    tax = classify(shapes, params, timing, distances_of=distances_of, spacing=[o.spacing for o in objects])
+    tax = taxonomy(shapes, params, timing, distances_of=distances_of, spacing=[o.spacing for o in objects])
     noise_of = {r.name: r.noise for r in results}
     noise = np.array([noise_of[o.cell] for o in objects])
     t = time.perf_counter()

@@ -89,7 +89,7 @@ def classify_cmd(
     unit: UnitOpt = "auto",
     min_confidence: Annotated[Optional[float], typer.Option(
         "--min-confidence", help="Below this confidence no model is claimed (match null, candidates listed) "
-                                 "[default: 0.5].", show_default=False)] = None,
+                                 f"[default: {cosco.DEFAULT.model_min_confidence}, build-twin's].", show_default=False)] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):

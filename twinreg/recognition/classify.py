@@ -22,9 +22,6 @@ from .kinds import UNKNOWN, References, object_types, recognise_kind
 #: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
 #: scan's noise on)
 OBJECT_NOISE_M = 0.03
-#: the models' confidence below which no model is claimed, unless --min-confidence says otherwise (provisional:
-#: the calibration of issue 35 chooses it)
-MIN_CONFIDENCE = 0.5
 
 
 @dataclass
@@ -83,7 +80,8 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
 
     from cosco.segment import point_spacing
 
-    floor = MIN_CONFIDENCE if min_confidence is None else require_probability("--min-confidence", min_confidence)
+    floor = (params.model_min_confidence if min_confidence is None
+             else require_probability("--min-confidence", min_confidence))  # build-twin's floor, one default
     refs = References.of_catalogue(catalogue, params)
     shapes = [o.shape for o in objects]
     # the threshold at least cluster_spacing_k point spacings, as a twin's
@@ -136,7 +134,8 @@ def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float |
     """``classify``: every object file of ``paths`` (a folder stands for its point files) read, then
     :func:`classify_objects`. A file that cannot be read or described does not stop the batch: its item, in its
     place, holds ``error`` (the one line said to ``warn``) and nulls."""
-    floor = MIN_CONFIDENCE if min_confidence is None else require_probability("--min-confidence", min_confidence)
+    floor = (params.model_min_confidence if min_confidence is None
+             else require_probability("--min-confidence", min_confidence))  # build-twin's floor, one default
     say = warn or (lambda line: None)
     files = object_files(paths)
     objects, failed = [], {}

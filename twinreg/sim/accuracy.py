@@ -82,7 +82,7 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
     from ..io.points import PointSet
     from ..matching.acceptance import scene_noise
     from ..matching.match import Evidence, match_objects
-    from ..stages import classify
+    from ..stages import taxonomy
     from .scan import car_park
 
     rows = sorted(catalogue.list(), key=lambda r: r.name)
@@ -92,7 +92,7 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
     scene = PointSet(path=None, points=park.points, offset=np.zeros(3), unit="m")
     det = detect_points(scene, params)
     shapes = describe_detected(det, params)
-    tax = classify(shapes, params, {})
+    tax = taxonomy(shapes, params, {})
     t1 = time.perf_counter()
     results, stats = match_objects(shapes, catalogue, labels=tax.labels, params=params,
                                    evidence=Evidence([object_points(det, o) for o in det.objects],
