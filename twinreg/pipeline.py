@@ -176,11 +176,11 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     with staged_folder(Path(out), protect=[scene_path, catalogue.folder], kind="twin") as stage:
         try:
             names = [f"obj{k + 1}" for k in range(len(targets))]
-            taxonomy = Pending(painter, plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,
+            pictures = Pending(painter, plot_taxonomy, stage, names, clusters.matrix, clusters.linkage,
                                clusters.threshold) if clusters.method == "full" else None
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
-                           timing=timing, t_start=t_start, painter=painter, taxonomy=taxonomy, ply=ply, date=date,
+                           timing=timing, t_start=t_start, painter=painter, taxonomy=pictures, ply=ply, date=date,
                            templates=templates, prober=prober, tick=tick, levels=levels, clouds=clouds,
                            spacing=spacing)
             twin = _match_and_export(run)
