@@ -107,3 +107,25 @@ def voxel_downsample(points: np.ndarray, voxel: float) -> tuple[np.ndarray, np.n
     sums = np.zeros((len(counts), pts.shape[1]))
     np.add.at(sums, inverse, pts)
     return sums / counts[:, None], counts
+
+
+def point_spacing(local: np.ndarray, cell: float = 0.5) -> float:
+    """Typical point spacing (m) from the density over the occupied footprint (O(n), no tree).
+
+    >>> g = np.mgrid[0:10:0.1, 0:10:0.1].reshape(2, -1).T
+    >>> round(point_spacing(np.c_[g, np.zeros(len(g))]), 3)
+    0.1
+    """
+    if len(local) < 3:
+        return 0.0
+    density = len(local) / (n_cells(local, cell) * cell * cell)
+    return float(1.0 / np.sqrt(density))
+
+
+def n_cells(points: np.ndarray, cell: float) -> int:
+    """How many ``cell`` squares (m) of the x/y grid anchored at 0 the (n, 2+) points occupy.
+
+    >>> n_cells(np.array([[0.05, 0.0], [0.09, 0.01], [-0.01, 0.0], [0.3, 0.2]]), 0.1)
+    3
+    """
+    return len(np.unique(cell_keys(np.floor(np.asarray(points)[:, :2] / cell).astype(np.int64))))

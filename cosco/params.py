@@ -205,7 +205,7 @@ class CoscoParams:
     uses at most half of its limit, falling to 0.5 at ``decision_poor_fit`` of a limit (a poor fit is never above
     0.5) and to 0.25 at the limit.
 
-    Joining and cutting objects (cosco/segment.py; docs/METHOD.md, "Sparse scans: one object per car"): a
+    Joining and cutting objects (cosco/segment/cars.py; docs/METHOD.md, "Sparse scans: one object per car"): a
     component of fewer than ``seg_fragment_points`` points and at most ``seg_fragment_share`` of a larger one's,
     whose centre lies within that one's footprint rectangle grown by ``seg_fragment_margin`` (m), joins it; a
     piece continuing a larger one in line (its centre within ``seg_join_offset`` of the host's width from its axis,

@@ -248,3 +248,22 @@ def city_twin(small_city, parametric_catalogue):
     root, _ = small_city
     return build_city_twin([root / "laz"], parametric_catalogue, None, root / "out", cell=CELL, workers=2,
                            classified=True)
+
+
+@pytest.fixture(params=["numpy", "compiled"])
+def kernel_path(request, monkeypatch):
+    """Each test that takes it runs twice in this process: with the numpy references (what a scene of fewer than
+    ``jit_min_objects`` objects runs) and with the compiled kernels (a city's); the path's name is the value."""
+    from cosco import kernels
+
+    monkeypatch.setattr(kernels, "_STATE", {})
+    monkeypatch.delenv("TWINREG_JIT", raising=False)
+    if request.param == "numpy":
+        monkeypatch.setenv("TWINREG_NO_NUMBA", "1")
+        assert kernels.jit() is None
+    else:
+        monkeypatch.delenv("TWINREG_NO_NUMBA", raising=False)
+        kernels.enable()
+        if kernels.jit() is None:
+            pytest.skip("numba is not installed")
+    return request.param

@@ -169,7 +169,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     levels = object_levels(clouds, shapes, params)
     timing["sections"] = time.perf_counter() - t
 
-    from cosco.segment import point_spacing
+    from cosco.arrays import point_spacing
 
     spacing = [point_spacing(c) for c in clouds]
     clusters = taxonomy(shapes, params, timing, progress, spacing=spacing)

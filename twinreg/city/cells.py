@@ -100,7 +100,7 @@ def process_cell(job: CellJob, *ready) -> CellResult:
 
 def _process_cell(job: CellJob) -> CellResult:
     from cosco.footprint import min_area_rectangle
-    from cosco.segment import point_spacing
+    from cosco.arrays import point_spacing
 
     from ..io.observed import raster
     from ..detect import describe_detected, detect_points, object_ground, object_levels, object_points

@@ -187,7 +187,7 @@ class _Matcher:
     model cache, the statistics and the outcomes so far."""
 
     def __init__(self, shapes, catalogue, params: CoscoParams, evidence: Evidence | None, cache: ModelCache):
-        from cosco.segment import point_spacing
+        from cosco.arrays import point_spacing
 
         self.shapes, self.params, self.evidence, self.cache = shapes, params, evidence, cache
         self.stats = MatchStats()

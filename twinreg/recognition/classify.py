@@ -78,7 +78,7 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
 
     from ..matching.match import Evidence, ModelCache, match_objects
 
-    from cosco.segment import point_spacing
+    from cosco.arrays import point_spacing
 
     floor = (params.model_min_confidence if min_confidence is None
              else require_probability("--min-confidence", min_confidence))  # build-twin's floor, one default

@@ -1,0 +1,281 @@
+"""The passes of a street's segmentation (``seg_targets="all"``): the overhangs set aside taken back (a sign's plate,
+a shelter's roof), the pieces of one street object stacked over each other joined, and thin uprights grown up
+through the segmentation's ceiling (a pole's lamp, a tree's crown)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..arrays import cell_keys
+from ..params import CoscoParams
+from .components import car_sized, describe, members as _members, voxel_components
+
+
+def _boxes(p: np.ndarray, hag: np.ndarray, labels, members: dict, params: CoscoParams):
+    """Per component: its plan box (lo, hi), lowest and highest height above ground, and whether it is a car's
+    body (on the ground, at least a car's width across in plan, no taller than a car)."""
+    lo = np.array([p[members[lab], :2].min(0) for lab in labels]).reshape(-1, 2)
+    hi = np.array([p[members[lab], :2].max(0) for lab in labels]).reshape(-1, 2)
+    base = np.array([hag[members[lab]].min() for lab in labels])
+    top = np.array([hag[members[lab]].max() for lab in labels])
+    body = (base <= params.seg_max_base) & (np.hypot(*(hi - lo).T) >= params.car_width[0]) \
+        & (top <= params.car_height[1])
+    return lo, hi, base, top, body
+
+
+def with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: float, origin) -> tuple:
+    """``cand`` and ``comp`` with the overhang points ``lowest_runs`` set aside taken back (a sign's plate over its
+    post, a shelter's roof, the upper part of a wall a scan's gaps cut), except over a car's body (a canopy, a wire
+    stay off it, as in car mode). They join the components they touch (patches of ``voxel``), and link them: the
+    pieces of a wall become one wall again; a car's body neither joins nor links. Overhangs touching nothing form
+    components of their own (they count only once joined to something standing under them: the caller's rule).
+    The overhangs come after ``cand``'s own points in the result."""
+    if len(over) == 0 or len(cand) == 0:
+        return cand, comp
+    labels, _, members = _members(comp)
+    body = _boxes(pts[cand], hag[cand], labels, members, params)[4]
+    over = over[~_over_bodies(pts, cand, body[np.searchsorted(labels, comp)], over, params)]
+    if len(over) == 0:
+        return cand, comp
+    both = np.r_[cand, over]
+    vc, _, _ = voxel_components(pts[both] - origin, voxel)
+    n = len(cand)
+    # each voxel component's label: the smallest of the (non-body) components it touches, or a new one; the
+    # components one voxel component touches become one (their smallest label): connected components of the graph
+    # of (component, voxel component) pairs, each pair once (as many as there are components, not points)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    mine = ~body[np.searchsorted(labels, comp)]
+    nxt = int(comp.max()) + 1
+    span = nxt
+    pairs = np.unique(vc[:n][mine] * span + comp[mine])
+    vs, cs = pairs // span, pairs % span
+    nv = int(vc.max()) + 1
+    graph = coo_matrix((np.ones(len(pairs), dtype=np.int8), (cs, span + vs)), shape=(span + nv, span + nv))
+    _, group = connected_components(graph, directed=False)
+    low = np.full(int(group.max()) + 1, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(low, group[:span], np.arange(span, dtype=np.int64))
+    root = low[group]  # per node: the smallest component label of its group
+    touched = np.zeros(nv, dtype=bool)
+    touched[vs] = True
+    ov, inverse = np.unique(vc[n:], return_inverse=True)
+    lab_v = np.where(touched[ov], root[span + ov], nxt + np.arange(len(ov), dtype=np.int64))
+    out_over = lab_v[inverse.ravel()]
+    merged = root[comp]
+    return both, np.r_[merged, out_over]
+
+
+def standing_overhangs(p, hag, comp, n_kept: int, params: CoscoParams) -> np.ndarray:
+    """(len(comp) - n_kept,) bool: which overhang points (those after the first ``n_kept``) count. Those that
+    joined a component of the lowest runs do; of the rest, a group that stands on the ground (its lowest point
+    under ``seg_max_base``: a thin pole whose only lower run is a stray point at its foot) and is over no other
+    component's footprint; not one off the ground or over another object (a canopy, a wire, a barrier's top edge),
+    as in car mode."""
+    rest = comp[n_kept:]
+    kept = np.unique(comp[:n_kept])
+    out = np.isin(rest, kept)
+    lone = np.unique(rest[~out])
+    if len(lone) == 0 or len(kept) == 0:
+        return out
+    labels, _, members = _members(comp)
+    lo, hi, base, _, _ = _boxes(p, hag, labels, members, params)
+    at = np.searchsorted(labels, lone)
+    standing = at[base[at] <= params.seg_max_base]
+    if len(standing) == 0:
+        return out
+    from scipy.spatial import cKDTree
+
+    others = np.searchsorted(labels, kept)
+    half = np.hypot(*(hi - lo).T) / 2
+    tree = cKDTree((lo[others] + hi[others]) / 2)
+    ok = []
+    for k in standing:
+        near = others[tree.query_ball_point((lo[k] + hi[k]) / 2, float(half[k] + half[others].max()))]
+        over = ~((lo[near] > hi[k]).any(1) | (lo[k] > hi[near]).any(1))
+        if not over.any():
+            ok.append(labels[k])
+    return out | np.isin(rest, ok)
+
+
+def _over_bodies(pts, cand, inside: np.ndarray, over, params: CoscoParams) -> np.ndarray:
+    """(len(over),) bool: the overhang points in a column (``seg_column``) of a car body's points (``inside``:
+    which of ``cand`` are)."""
+    ij = np.floor(pts[np.r_[cand[inside], over], :2] / params.seg_column).astype(np.int64)
+    key = cell_keys(ij)
+    return np.isin(key[int(inside.sum()):], key[:int(inside.sum())])
+
+
+def _touching(p: np.ndarray, labels, members: dict, these: np.ndarray, link: float) -> np.ndarray:
+    """(len(labels),) bool: the components with a point in a voxel of ``link`` m next to (or in) one of a point of
+    ``these`` components. Keys on one grid, one sorted search: no tree over a building's points."""
+    out = np.zeros(len(labels), dtype=bool)
+    if not these.any() or these.all():
+        return out
+    origin = p.min(0) - 2 * link
+    dims = np.floor((p.max(0) - origin) / link).astype(np.int64) + 3
+
+    def keys(ijk):
+        return (ijk[..., 0] * dims[1] + ijk[..., 1]) * dims[2] + ijk[..., 2]
+
+    big = np.unique(keys(np.floor((p[np.concatenate([members[lab] for lab in labels[these]])] - origin) / link)
+                         .astype(np.int64)))
+    steps = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    for k in np.flatnonzero(~these):
+        ijk = np.unique(np.floor((p[members[labels[k]]] - origin) / link).astype(np.int64), axis=0)
+        near = keys(ijk[:, None, :] + steps[None]).ravel()
+        pos = np.searchsorted(big, near).clip(0, len(big) - 1)
+        out[k] = bool((big[pos] == near).any())
+    return out
+
+
+def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, voxel: float) -> np.ndarray:
+    """Pieces of one street object that a sparse scan left apart, joined: components stacked one over the other in
+    plan (their footprint boxes, widened by half a patch, overlap) with at most a link (``object_link`` m, or three
+    patches) of height between them (a sign's plate and its post, a shelter's roof and its posts, a crown's pieces,
+    a mailbox's box and its foot); a piece off the ground (lowest point over ``seg_max_base``) joins what is within
+    a link of it in plan too (a roof's, a crown's pieces). Components as large as a car in plan and no taller are left alone (a car under
+    a crown, cars side by side stay apart). Union-find over neighbours from a KD-tree: no pair of far components
+    is looked at."""
+    from scipy.spatial import cKDTree
+
+    labels, _, members = _members(comp)
+    if len(labels) < 2:
+        return comp
+    link = max(params.object_link, 3 * voxel)
+    lo, hi, base, top, body = _boxes(p, hag, labels, members, params)
+    diag = np.hypot(*(hi - lo).T)
+    # what may join: not a car's body nor larger than a street object, nor a piece touching such a large one (a
+    # building wall's pieces the scan's gaps left apart)
+    large = diag > params.object_max_extent
+    free = ~body & ~large & ~_touching(p, labels, members, large, link)
+    pick = np.flatnonzero(free)
+    if len(pick) < 2:
+        return comp
+    base, top = base[pick], top[pick]
+    floating = base > params.seg_max_base
+    # a piece off the ground (a roof's, a crown's) reaches a link across; pieces on the ground must stand over
+    # each other (two bins side by side stay apart)
+    widen = np.where(floating, link, voxel)[:, None] / 2
+    lo, hi = lo[pick] - widen, hi[pick] + widen
+    pairs = cKDTree((lo + hi) / 2).query_pairs(float(np.hypot(*(hi - lo).T).max()), output_type="ndarray")
+    if len(pairs) == 0:
+        return comp
+    a, b = pairs[:, 0], pairs[:, 1]
+    overlap = ~((lo[a] > hi[b]).any(1) | (lo[b] > hi[a]).any(1))
+    gap = np.maximum(base[a], base[b]) - np.minimum(top[a], top[b])
+    # a thin upright (a pole, a post: under a link across) is hit sparsely along its height: twice the link
+    thin = np.hypot(*(hi - lo).T) - 2 * widen[:, 0] <= link
+    keep = overlap & (gap <= np.where(thin[a] & thin[b], 2 * link, link))
+    pairs, gap = pairs[keep], gap[keep]
+    if len(pairs) == 0:
+        return comp
+    # the union's plan box: stacking does not widen it beyond the wider piece (a wall's corner pieces stay apart);
+    # pieces off the ground (a roof's, a crown's) widen it up to a street object's size
+    box_lo, box_hi = lo.copy(), hi.copy()
+    up = floating.copy()
+    parent = np.arange(len(pick))
+
+    def root(k):
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    def diag(lo_, hi_):
+        return float(np.hypot(*(hi_ - lo_)))
+
+    for k in np.lexsort((pairs[:, 1], pairs[:, 0], np.round(gap, 3))):
+        ra, rb = root(int(pairs[k, 0])), root(int(pairs[k, 1]))
+        if ra == rb:
+            continue
+        mlo, mhi = np.minimum(box_lo[ra], box_lo[rb]), np.maximum(box_hi[ra], box_hi[rb])
+        grown = diag(mlo, mhi)
+        if up[ra] and up[rb]:
+            if grown > params.object_max_extent:
+                continue
+        elif grown > max(diag(box_lo[ra], box_hi[ra]), diag(box_lo[rb], box_hi[rb])) + link:
+            continue
+        parent[ra] = rb
+        box_lo[rb], box_hi[rb], up[rb] = mlo, mhi, up[ra] and up[rb]
+    pr = np.array([root(k) for k in range(len(pick))])
+    if (pr == np.arange(len(pick))).all():
+        return comp
+    roots = np.arange(len(labels))
+    roots[pick] = pick[pr]
+    return labels[roots][np.searchsorted(labels, comp)]
+
+
+def reach_link(voxel: float) -> float:
+    """How far apart (m) the points of a thin upright may be and still link, growing it up through the ceiling:
+    two patches, at least half a metre (an airborne scan hits a pole every metre of its height or so, and the
+    voxels link their neighbours); its top is what lies within two links under the ceiling."""
+    return max(2 * voxel, 0.5)
+
+
+def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, spacing: float) -> list:
+    """Every object that is not car-sized and reaches the segmentation's ceiling (``seg_max_height``: it keeps
+    tree crowns off the cars under them) grown upwards: the points above the ceiling (up to ``object_height``'s
+    top) connected to its top join it (a pole's upper part and its lamp, a sign's plate, a tree's crown), unless
+    they run on beyond ``object_reach`` plus half ``object_max_extent`` m of it in plan (a building's wall under its
+    roof: the object is then no target). Objects whose tops join the same high points are one object (a crown's
+    lower pieces under its top); the larger objects look first."""
+    from scipy.spatial import cKDTree
+
+    ceiling = params.seg_max_height
+    high = np.flatnonzero(~ground & (hag > ceiling) & (hag <= params.object_height[1]))
+    if len(high) == 0:
+        return objects
+    link = reach_link(max(params.seg_voxel, 1.2 * spacing))
+    tree = cKDTree(pts[high, :2])
+    owner = np.full(len(high), -1, dtype=np.int64)
+    slots: list = []  # per grown object: [indices, edge], or None once merged into another
+    out = []
+    for k in sorted(range(len(objects)), key=lambda k: -objects[k].n_points):
+        o = objects[k]
+        top = o.indices[hag[o.indices] > ceiling - 2 * link]
+        if car_sized(o.length, o.width, o.height, params) or len(top) < 2 or max(o.length, o.width) > params.object_max_extent:
+            out.append(o)
+            continue
+        xy = pts[o.indices, :2]
+        centre = (xy.min(0) + xy.max(0)) / 2
+        # looked at beyond the reach, by half the largest street object: a lamp's arm or a crown wider than the
+        # trunk's reach is the object's own unless it runs on further still
+        radius = float(np.hypot(*(xy.max(0) - xy.min(0))) / 2 + params.object_reach + params.object_max_extent / 2)
+        near = np.asarray(tree.query_ball_point(centre, radius), dtype=np.int64)
+        joined = np.zeros(0, dtype=bool)
+        if len(near):
+            # thin uprights are sparse along their height: linked across two patches, a pole (under a link
+            # across) across twice that
+            thin = max(o.length, o.width) <= params.object_link
+            comp, _, _ = voxel_components(np.vstack([pts[top], pts[high[near]]]), 2 * link if thin else link)
+            joined = np.isin(comp[len(top):], comp[:len(top)])
+        if not joined.any():
+            out.append(o)
+            continue
+        mine = near[joined & (owner[near] < 0)]
+        others = sorted({int(v) for v in owner[near[joined]] if v >= 0})
+        # what the first (largest) of an object's pieces joins runs on beyond the reach looked at: part of
+        # something larger (a building's wall under its roof), not an object of its own; a smaller piece joining
+        # it later (a crown's side) looks from nearer its edge, and does not decide
+        edge = not others and bool(np.hypot(*(pts[high[near[joined]], :2] - centre).T).max() > radius - link)
+        parts = [o.indices, high[mine]]
+        slot = others[0] if others else len(slots)
+        if not others:
+            slots.append(None)
+        for s in others:
+            parts.append(slots[s][0])
+            edge = edge or slots[s][1]
+            if s != slot:
+                owner[owner == s] = slot
+                slots[s] = None
+        owner[mine] = slot
+        slots[slot] = [np.concatenate(parts), edge]
+    for indices, edge in (s for s in slots if s is not None):
+        grown = describe(pts, hag, np.unique(indices), params, cell, spacing)
+        if edge and not car_sized(grown.length, grown.width, grown.height, params):
+            grown = dataclasses.replace(grown, target=False)
+        out.append(grown)
+    return out

@@ -1,0 +1,53 @@
+"""A scene's cosco stages in this process by both paths (the ``kernel_path`` fixture): the ground, the far
+outliers, the segmentation, every object's description and level of symmetry are the same with the numpy
+references and with the compiled kernels."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import cosco
+from cosco.ground import remove_ground
+from cosco.levels import symmetry_level
+from cosco.params import DEFAULT
+from cosco.segment import far_outliers, segment_objects
+from tests.conftest import toy_car
+
+_RESULTS: dict = {}
+
+
+def _scene() -> np.ndarray:
+    rng = np.random.default_rng(7)
+    ground = np.c_[rng.uniform(-15, 15, (30000, 2)), rng.normal(0, 0.02, 30000)]
+    cars = [toy_car(seed) + [x, y, 0.0] for seed, (x, y) in enumerate([(-6, -3), (0, 4), (7, -2)])]
+    pole = np.c_[rng.normal(9, 0.05, (400, 2)), rng.uniform(0, 6, 400)]
+    stray = np.array([[2000.0, 0.0, 5.0]])
+    return np.vstack([ground, *cars, pole, stray])
+
+
+def _run() -> dict:
+    pts = _scene()
+    far = far_outliers(pts)
+    kept = pts[~far]
+    is_ground, hag, _ = remove_ground(kept)
+    seg = segment_objects(kept, hag, DEFAULT.with_(seg_targets="all"), is_ground=is_ground)
+    shapes = [cosco.describe_object(kept[o.indices], DEFAULT) for o in seg.objects if o.target]
+    levels = [symmetry_level(kept[o.indices], DEFAULT).level for o in seg.objects if o.target]
+    return {"far": far, "ground": is_ground, "hag": hag, "labels": seg.labels,
+            "shapes": [(s.size.as_array(), s.heading, s.symmetry.pcr, s.sections.longitudinal) for s in shapes],
+            "levels": levels}
+
+
+def test_a_scene_is_the_same_by_both_paths(kernel_path):
+    _RESULTS[kernel_path] = got = _run()
+    assert got["far"].sum() == 1 and len(got["shapes"]) >= 3
+    if len(_RESULTS) < 2:  # compared once both paths have run (numpy first)
+        return
+    a, b = _RESULTS["numpy"], _RESULTS["compiled"]
+    for key in ("far", "ground", "labels"):
+        assert np.array_equal(a[key], b[key]), key
+    assert np.allclose(a["hag"], b["hag"], rtol=0, atol=1e-12)
+    assert a["levels"] == b["levels"]
+    for (sa, ha, pa, la), (sb, hb, pb, lb) in zip(a["shapes"], b["shapes"]):
+        assert np.allclose(sa, sb, atol=1e-9) and abs(ha - hb) < 1e-9 and abs(pa - pb) < 1e-9
+        assert np.allclose(la, lb, atol=1e-9)
