@@ -27,13 +27,10 @@ from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .report.scene import plot_taxonomy, warm_up, write_report
 from .stages import (
     checked_params,
-    fuse,
+    finish,
     locate,
-    place,
-    recognise,
     require_models,
     taxonomy,
-    types_of,
     with_targets,
 )
 
@@ -243,12 +240,9 @@ def _match_and_export(run: SceneRun) -> dict:
 
     _say(progress, "export")
     t = time.perf_counter()
-    results, kinds = recognise(results, shapes, run.levels, catalogue, params)
-    types = types_of(clusters.labels, results, kinds, params, run.spacing)
-    _say(progress, "shapes of the types without a model")
-    fused = fuse(types, results, run.clouds, run.levels, params, timing, kinds)
-    placed = place([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
-                   clusters.labels, [offset] * len(targets), georef, models, kinds, run.levels, types, fused)
+    results, placed = finish([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
+                             shapes, clusters.labels, [offset] * len(targets), run.levels, run.spacing,
+                             lambda outcomes: run.clouds, georef, models, catalogue, params, timing, progress)
     objects = [p.doc for p in placed]
 
     sc = det.scene

@@ -172,6 +172,22 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     return out
 
 
+def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, labels, offsets: list,
+           levels: list, spacing: list, clouds_of, georef, models, catalogue, params: CoscoParams, timing: dict,
+           progress=None) -> tuple[list, list]:
+    """What a scene and a city both do once every object is matched: the kinds recognised and the models under the
+    floor withdrawn (:func:`recognise`), the types (:func:`types_of`), the types without a model fused
+    (:func:`fuse`; ``clouds_of(outcomes)`` gives each object's points, read only then: a city keeps them in its
+    cells' files), every object placed (:func:`place`). Returns the outcomes (after the floor) and the placed
+    objects."""
+    outcomes, kinds = recognise(outcomes, shapes, levels, catalogue, params)
+    types = types_of(labels, outcomes, kinds, params, spacing)
+    _say(progress, "shapes of the types without a model")
+    fused = fuse(types, outcomes, clouds_of(outcomes), levels, params, timing, kinds)
+    placed = place(ids, n_points, outcomes, labels, offsets, georef, models, kinds, levels, types, fused)
+    return outcomes, placed
+
+
 def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: list, georef, models,
           kinds: list | None = None, levels: list | None = None, types: list | None = None,
           fused: dict | None = None) -> list:

@@ -18,7 +18,7 @@ from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_docu
 from ..io import observed
 from ..io.outdir import staged_folder
 from .classified import FOLDER as CLASSIFIED
-from ..stages import fuse, place, recognise, types_of
+from ..stages import finish
 from .resume import WORK
 
 def _cell_bounds(georef, cell) -> dict:
@@ -76,12 +76,14 @@ def _unmatched_clouds(run: CityRun) -> list:
 def export_city(run: CityRun) -> dict:
     """Write a tiled run's twin (see the module's text); returns twin.json's document."""
     t = time.perf_counter()
-    levels = [o.level for o in run.objects]
-    run.outcomes, kinds = recognise(run.outcomes, [o.shape for o in run.objects], levels, run.catalogue, run.params)
-    types = types_of(run.tax.labels, run.outcomes, kinds, run.params, [o.spacing for o in run.objects])
-    fused = fuse(types, run.outcomes, _unmatched_clouds(run), levels, run.params, run.timing, kinds)
-    outs = place([o.id for o in run.objects], [o.n_points for o in run.objects], run.outcomes, run.tax.labels,
-                 [o.offset for o in run.objects], run.georef, run.models, kinds, levels, types, fused)
+    def clouds_of(outcomes):
+        run.outcomes = outcomes  # (the samples of the objects left without a model once the floor is applied)
+        return _unmatched_clouds(run)
+
+    run.outcomes, outs = finish([o.id for o in run.objects], [o.n_points for o in run.objects], run.outcomes,
+                                [o.shape for o in run.objects], run.tax.labels, [o.offset for o in run.objects],
+                                [o.level for o in run.objects], [o.spacing for o in run.objects], clouds_of,
+                                run.georef, run.models, run.catalogue, run.params, run.timing)
     run.timing["records"] = time.perf_counter() - t
     by_cell: dict = {}
     for item, o in zip(outs, run.objects):
