@@ -10,7 +10,7 @@ import typer
 import cosco
 
 from ..errors import require_positive
-from ..objects import cluster_objects, inspect_file, shape_json
+from ..given import cluster_objects, inspect_file, shape_json
 from ._common import (
     Command,
     JsonOpt,
