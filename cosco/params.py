@@ -183,15 +183,15 @@ class CoscoParams:
         An object of a cluster first tries the models its cluster's first object liked best; it tries all of its
         candidates when the best of those fits it worse than that by more than this RMSE (m).
 
-    Accepting a match (twinreg/acceptance.py; docs/METHOD.md): a point is explained by the placed model when it
+    Accepting a match (twinreg/matching/acceptance.py; docs/METHOD.md): a point is explained by the placed model when it
     lies within ``accept_sigmas * noise + accept_model_tol + accept_spacing_k * spacing`` (m) of its surface;
     the match is accepted when at most ``accept_max_outliers`` of the points are not explained. The best
-    ``accept_candidates`` models by section RMSE are scored (twinreg/decision.py: weights ``decision_w_sections``
+    ``accept_candidates`` models by section RMSE are scored (twinreg/matching/decision.py: weights ``decision_w_sections``
     and ``decision_w_size``); a match must also leave at most ``accept_max_unseen`` of the placed model's top
     surface with no point near it. Candidates within ``decision_ambiguous_sigma`` noise units of the winner's
     score are ambiguous with it; ``decision_confidence_sigma`` scales the margin into a 0-1 confidence, which is
     multiplied by ``decision_outside_factor`` for a model outside the size window. Before it is scored, each
-    candidate's pose is refined on at most ``refine_max_points`` of the points (twinreg/refine.py; pairs within
+    candidate's pose is refined on at most ``refine_max_points`` of the points (twinreg/matching/refine.py; pairs within
     ``refine_reach`` m), unless its score on those points, as the registration placed it, lies more than
     ``decision_refine_sigma`` noise units behind the best candidate's (it cannot win then). Objects with more than
     ``accept_max_points`` points are judged on that many, taken at a regular stride of their sorted points (the share of unexplained
