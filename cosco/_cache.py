@@ -26,6 +26,23 @@ from pathlib import Path
 _WRITE_OTHERS = stat.S_IWGRP | stat.S_IWOTH
 
 
+def _unsafe(current: Path, st: os.stat_result, last: bool) -> str | None:
+    """Why one folder on the way to the cache (``last``: the cache itself) lets another user in, or None: the one
+    rule both walks apply (:func:`untrusted_reason`, :func:`_untrusted_chain`)."""
+    if not stat.S_ISDIR(st.st_mode):
+        return f"{current} is not a folder"
+    if st.st_uid not in (os.geteuid(), 0):
+        return f"{current} belongs to another user (uid {st.st_uid})"
+    if st.st_mode & _WRITE_OTHERS and not (st.st_uid == 0 and st.st_mode & stat.S_ISVTX and not last):
+        return f"{current} is writable by other users (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
+def _link_problem(current: Path, st: os.stat_result) -> str | None:
+    return (f"{current} is a symlink (the cache folder is taken only without links on the way)"
+            if st.st_uid != 0 else None)
+
+
 def untrusted_reason(folder) -> str | None:
     """Why ``folder`` cannot hold this user's compiled code, or None when it can (made, 0700, where missing)."""
     path = Path(os.path.abspath(os.fspath(folder)))
@@ -46,19 +63,13 @@ def untrusted_reason(folder) -> str | None:
         except OSError as exc:
             return f"{current} cannot be read ({exc.strerror or exc})"
         if stat.S_ISLNK(st.st_mode):
-            if st.st_uid != 0:
-                return f"{current} is a symlink (the cache folder is taken only without links on the way)"
             target = os.path.realpath(current)
-            why = untrusted_reason(target) if last else _untrusted_chain(Path(target))
-            if why:
-                return why
-            continue
-        if not stat.S_ISDIR(st.st_mode):
-            return f"{current} is not a folder"
-        if st.st_uid not in (me, 0):
-            return f"{current} belongs to another user (uid {st.st_uid})"
-        if st.st_mode & _WRITE_OTHERS and not (st.st_uid == 0 and st.st_mode & stat.S_ISVTX and not last):
-            return f"{current} is writable by other users (mode {stat.S_IMODE(st.st_mode):o})"
+            why = _link_problem(current, st) or (untrusted_reason(target) if last else
+                                                 _untrusted_chain(Path(target)))
+        else:
+            why = _unsafe(current, st, last)
+        if why:
+            return why
     st = os.stat(path)
     if st.st_uid != me:
         return f"{path} belongs to another user (uid {st.st_uid})"
@@ -74,7 +85,6 @@ def untrusted_reason(folder) -> str | None:
 
 def _untrusted_chain(target: Path) -> str | None:
     """Why an existing folder a root symlink points to is not safe above the cache (its chain checked alike)."""
-    me = os.geteuid()
     current = Path(target.parts[0])
     for part in target.parts[1:]:
         current = current / part
@@ -82,11 +92,9 @@ def _untrusted_chain(target: Path) -> str | None:
             st = os.lstat(current)
         except OSError as exc:
             return f"{current} cannot be read ({exc.strerror or exc})"
-        if stat.S_ISLNK(st.st_mode) and st.st_uid != 0:
-            return f"{current} is a symlink (the cache folder is taken only without links on the way)"
-        if not stat.S_ISLNK(st.st_mode) and (st.st_uid not in (me, 0) or (
-                st.st_mode & _WRITE_OTHERS and not (st.st_uid == 0 and st.st_mode & stat.S_ISVTX))):
-            return f"{current} is writable by other users or belongs to one"
+        why = _link_problem(current, st) if stat.S_ISLNK(st.st_mode) else _unsafe(current, st, last=False)
+        if why:
+            return why
     return None
 
 

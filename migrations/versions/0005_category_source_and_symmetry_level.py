@@ -33,8 +33,8 @@ def upgrade() -> None:
         if 'ix_ref_models_category' not in indexes:
             batch_op.create_index(batch_op.f('ix_ref_models_category'), ['category'], unique=False)
     # every model so far is a car from a mesh; its level of symmetry is measured from the surface points it holds
-    # by the catalogue when it opens (twinreg.catalogue.db.fill_levels): a migration changes the schema only and
-    # never runs the method's live code (it must not change when the code does)
+    # by the catalogue's upgrade, in this upgrade's transaction (twinreg.catalogue.db.fill_levels): a migration
+    # changes the schema only and never runs the method's live code (it must not change when the code does)
 
 
 def downgrade() -> None:

@@ -75,6 +75,8 @@ def upgrade(engine: Engine, revision: str = "head") -> None:
     with engine.begin() as conn:
         cfg.attributes["connection"] = conn
         command.upgrade(cfg, revision)
+        if revision == "head":  # in the upgrade's transaction: killed half-way, the next open upgrades again
+            fill_levels(conn)
 
 
 def current_revision(engine: Engine) -> str | None:
@@ -111,36 +113,29 @@ def _upgrade_to_head(engine: Engine, folder: Path) -> None:
 
     head = head_revision()
     try:
-        if current_revision(engine) == head and not _levels_missing(engine):
+        if current_revision(engine) == head:
             return
     except OperationalError:
         pass
     with writer_lock(folder):
         if current_revision(engine) != head:
             upgrade(engine)
-        fill_levels(engine)
 
 
-def _levels_missing(engine: Engine) -> bool:
-    with engine.connect() as conn:
-        return conn.exec_driver_sql("SELECT 1 FROM ref_models WHERE sym_level IS NULL LIMIT 1").first() is not None
-
-
-def fill_levels(engine: Engine) -> int:
+def fill_levels(conn) -> int:
     """Measure the level of symmetry of the models that have none (a catalogue from before revision 0005: its
-    migration adds the column, the method's live code fills it here) from the surface points each holds; how many.
-    """
+    migration adds the column, the method's live code fills it in the upgrade's transaction) from the surface
+    points each holds; how many."""
     from sqlalchemy import text
 
     from cosco.levels import symmetry_level
 
     from .models import unpack
 
-    with engine.begin() as conn:
-        rows = conn.execute(text("SELECT id, points FROM ref_models WHERE sym_level IS NULL")).fetchall()
-        for mid, blob in rows:
-            conn.execute(text("UPDATE ref_models SET sym_level = :l WHERE id = :i"),
-                         {"l": symmetry_level(unpack(blob)).level, "i": mid})
+    rows = conn.execute(text("SELECT id, points FROM ref_models WHERE sym_level IS NULL")).fetchall()
+    for mid, blob in rows:
+        conn.execute(text("UPDATE ref_models SET sym_level = :l WHERE id = :i"),
+                     {"l": symmetry_level(unpack(blob)).level, "i": mid})
     return len(rows)
 
 

@@ -80,6 +80,7 @@ def read_manifest(path, folder) -> dict[Path, dict]:
                              "(file required)")
     root = folder.resolve()
     rows: dict[Path, dict] = {}
+    seen: set = set()  # the listed files, resolved (two spellings of one file are one file)
     for line, cells in enumerate(reader, start=2):
         if not any(c.strip() for c in cells):
             continue
@@ -97,8 +98,9 @@ def read_manifest(path, folder) -> dict[Path, dict]:
                                  "relative to the folder")
         if not target.is_file():
             raise CatalogueError(f"{where}{printable(rel)[:100]} is not in {folder}; fix the manifest's file column")
-        if target.resolve() in {p.resolve() for p in rows}:
+        if target.resolve() in seen:
             raise CatalogueError(f"{where}{printable(rel)[:100]} is listed twice")
+        seen.add(target.resolve())
         try:
             if "name" in row:
                 check_name(row["name"])
@@ -111,10 +113,10 @@ def read_manifest(path, folder) -> dict[Path, dict]:
                 if not (math.isfinite(row["scale"]) and 1e-4 <= row["scale"] <= 1e4):
                     raise ValueError
             for key, allowed in (("unit", _UNITS), ("up", _UPS), ("front", _FRONTS)):
-                if key in row and row[key].lower() not in allowed:
-                    raise CatalogueError(f"{key} {printable(row[key])[:20]!r} is not one of {', '.join(allowed)}")
                 if key in row:
                     row[key] = row[key].lower()
+                    if row[key] not in allowed:
+                        raise CatalogueError(f"{key} {printable(row[key])[:20]!r} is not one of {', '.join(allowed)}")
         except ValueError as exc:
             raise CatalogueError(f"{where}scale {printable(row.get('scale'))[:20]!r} is not a factor between 0.0001 "
                                  "and 10000") from exc

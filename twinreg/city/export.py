@@ -62,28 +62,25 @@ class CityRun:
     classified: dict | None = None
 
 
-def _unmatched_clouds(run: CityRun) -> list:
-    """Each object's point sample (its local frame, as its shape's) for the objects without a model, read from
-    their cells' files (:func:`~.batches.read_clouds`: each file opened once; the run holds no sample beyond
-    these); None for the others."""
+def _unmatched_clouds(run: CityRun, outcomes: list) -> list:
+    """Each object's point sample (its local frame, as its shape's) for the objects without a model in
+    ``outcomes``, read from their cells' files (:func:`~.batches.read_clouds`: each file opened once; the run
+    holds no sample beyond these); None for the others."""
     from .batches import read_clouds
 
     where = [(str(run.store.path(r.name, r.key)), i) for r in run.results for i in range(len(r.objects))]
     return read_clouds([o.cloud for o in run.objects],
-                       [w if res.match is None else None for w, res in zip(where, run.outcomes)])
+                       [w if res.match is None else None for w, res in zip(where, outcomes)])
 
 
 def export_city(run: CityRun) -> dict:
     """Write a tiled run's twin (see the module's text); returns twin.json's document."""
     t = time.perf_counter()
-    def clouds_of(outcomes):
-        run.outcomes = outcomes  # (the samples of the objects left without a model once the floor is applied)
-        return _unmatched_clouds(run)
-
     run.outcomes, outs = finish([o.id for o in run.objects], [o.n_points for o in run.objects], run.outcomes,
                                 [o.shape for o in run.objects], run.tax.labels, [o.offset for o in run.objects],
-                                [o.level for o in run.objects], [o.spacing for o in run.objects], clouds_of,
-                                run.georef, run.models, run.catalogue, run.params, run.timing)
+                                [o.level for o in run.objects], [o.spacing for o in run.objects],
+                                lambda outcomes: _unmatched_clouds(run, outcomes), run.georef, run.models,
+                                run.catalogue, run.params, run.timing)
     run.timing["records"] = time.perf_counter() - t
     by_cell: dict = {}
     for item, o in zip(outs, run.objects):

@@ -219,7 +219,7 @@ class RunProgress:
 
     def _say(self, text: str, now: float) -> None:
         prefix = f"{self.title}: " if self.title else ""
-        info(f"[{_clock(now - self.t0)}] {prefix}{text}")  # (silent with -q)
+        info(f"[{_clock(now - self.t0)}] {prefix}{text}")
         self.printed, self.last = self.key, now
 
     def update(self, stage: str, done: int | None = 0, total: int | None = 0) -> None:

@@ -94,12 +94,9 @@ def classify_cmd(
     json_: JsonOpt = False,
 ):
     """The kind, type and (when the scan decides it) model of objects given one per file."""
-    from ..errors import require_probability
     from ..recognition.classify import classify_files
     from ..recognition.summary import classify_lines
 
-    if min_confidence is not None:  # before a file is read
-        require_probability("--min-confidence", min_confidence)
     cat = open_catalogue(library, create=False)
     said: list[str] = []
     with RunProgress(f"{len(objects)} paths") as bars:

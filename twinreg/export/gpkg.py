@@ -19,14 +19,12 @@ LAYER = "objects"
 METRE_FIELDS = ("length", "width", "height", "measured_length", "measured_width", "measured_height")
 
 
-def unit_name(metres: float | None) -> str:
-    """The name of a CRS's unit from its length in metres (None: WGS84 degrees).
+def unit_name(metres: float) -> str:
+    """The name of a CRS's unit from its length in metres.
 
-    >>> unit_name(1.0), unit_name(0.3048), unit_name(1200 / 3937), unit_name(None)
-    ('m', 'ft', 'US ft', 'degree')
+    >>> unit_name(1.0), unit_name(0.3048), unit_name(1200 / 3937)
+    ('m', 'ft', 'US ft')
     """
-    if metres is None:
-        return "degree"
     for name, m in (("m", 1.0), ("ft", 0.3048), ("US ft", 1200 / 3937)):
         if abs(metres - m) < 1e-9:
             return name

@@ -68,7 +68,7 @@ def _style_id(kind: str) -> str:
 
 
 def kind_style(kind: str) -> str:
-    """A Style for the placemarks of one kind: its label and list icon in the kind's colour."""
+    """A Style for the placemarks of one kind: its icon and label in the kind's colour."""
     c = kind_colour(kind)
     return (f'<Style id="{_style_id(kind)}"><IconStyle><color>{c}</color></IconStyle><LabelStyle><color>{c}</color>'
             "<scale>0.8</scale></LabelStyle></Style>")

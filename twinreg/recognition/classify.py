@@ -134,8 +134,8 @@ def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float |
     """``classify``: every object file of ``paths`` (a folder stands for its point files) read, then
     :func:`classify_objects`. A file that cannot be read or described does not stop the batch: its item, in its
     place, holds ``error`` (the one line said to ``warn``) and nulls."""
-    floor = (params.model_min_confidence if min_confidence is None
-             else require_probability("--min-confidence", min_confidence))  # build-twin's floor, one default
+    if min_confidence is not None:  # refused before a file is read
+        require_probability("--min-confidence", min_confidence)
     say = warn or (lambda line: None)
     files = object_files(paths)
     objects, failed = [], {}
@@ -147,7 +147,7 @@ def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float |
             say(f"skipped: {exc}")
         if progress:
             progress("reading", k + 1, len(files))
-    items = iter(classify_objects(objects, catalogue, floor, params, progress) if objects else [])
+    items = iter(classify_objects(objects, catalogue, min_confidence, params, progress) if objects else [])
     return [_failed_item(f, failed[k]) if k in failed else next(items) for k, f in enumerate(files)]
 
 
