@@ -7,7 +7,7 @@ build-twin runs it.
 A match is right when it is the car's own model ("strict"), or one flagged as not told apart from it ("or
 ambiguous", the recognition bench's measure). For each floor, the matches at or above it and the share right:
 the lowest one at which that share is at least 95 % (strict) at every density is reported as ``floor``
-(build-twin's default, ``CoscoParams.model_min_confidence``, is drawn beside it: docs/PERFORMANCE.md says why).
+(build-twin's default, ``Settings.min_confidence``, is drawn beside it: docs/PERFORMANCE.md says why).
 """
 
 from __future__ import annotations
@@ -94,9 +94,9 @@ def _plot(doc: dict, path: Path) -> None:
             ax.plot(x, y, marker="o", label=f"{density} pts/m2")
             for xi, yi, ni in pts:
                 ax.annotate(str(ni), (xi, yi), fontsize=6, xytext=(2, -8), textcoords="offset points")
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
 
-    used = DEFAULT.model_min_confidence
+    used = DEFAULT.min_confidence
     ax.axvline(used, color="tab:red", lw=1, label=f"floor used {used:.1f} (these parks allow {doc.get('floor')})")
     ax.axhline(0.95, color="tab:red", lw=0.5, ls=":")
     ax.set_xlabel("claimed confidence (bin mean)")

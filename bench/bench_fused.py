@@ -164,7 +164,7 @@ def box_frame(o: dict) -> np.ndarray:
 def members_curve(cat, meshes: dict, density: float, tmp: Path, counts=(1, 2, 5, 10, 20)) -> dict:
     """For each held-out car: a park of 20 copies; the fused shape of its first k members (1, 2, 5, 10, 20) against
     the true mesh of each of those members (median over them), beside their boxes'."""
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
     from twinreg.detect import describe_detected, detect_points, object_levels, object_points
     from twinreg.export.objects import box_mesh, fused_pose
     from twinreg.io.points import PointSet

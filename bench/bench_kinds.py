@@ -44,11 +44,14 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--json", type=Path)
     ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                    help="a CoscoParams value for this run (e.g. kind_unknown_distance=3.0)")
+                    help="a setting for this run, GROUP.NAME=VALUE (e.g. kinds.unknown_distance=3.0)")
     args = ap.parse_args()
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
 
-    params = DEFAULT.with_(**{k: type(getattr(DEFAULT, k))(v) for k, v in (a.split("=", 1) for a in args.param)})
+    params = DEFAULT
+    for name, value in (a.split("=", 1) for a in args.param):
+        group, field = name.split(".")
+        params = params.with_(**{group: {field: type(getattr(getattr(DEFAULT, group), field))(value)}})
     from sklearn.ensemble import RandomForestClassifier
 
     from twinreg.catalogue.repository import Catalogue

@@ -72,7 +72,7 @@ def clone_catalogue(base, folder: Path, n: int, seed: int = 0, own_files: bool =
 def run(sizes=(10, 100, 1000, 10000), parks: int = 1) -> list[Row]:
     from bench_twin import _catalogue
 
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise

@@ -48,7 +48,7 @@ def objects_of(out: Path) -> list:
 
 def sections(out: Path, library: Path, n_objects: int, n_pairs: int, repeat: int) -> None:
     import cosco
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
     from cosco.taxonomy import candidate_pairs, descriptor, pair_distances
     from twinreg.catalogue.repository import Catalogue
     from twinreg.matching.cache import ModelCache
@@ -58,7 +58,7 @@ def sections(out: Path, library: Path, n_objects: int, n_pairs: int, repeat: int
     some = shapes[:n_objects]
     prep = best_cpu(lambda: [cosco.SectionPair(s.sections, DEFAULT) for s in some], repeat)
     pairs = candidate_pairs(np.array([descriptor(s.size.as_array(), s.sections.longitudinal) for s in shapes]),
-                            DEFAULT.taxonomy_neighbours)[:n_pairs]
+                            DEFAULT.taxonomy.neighbours)[:n_pairs]
     taxonomy = best_cpu(lambda: pair_distances([s.sections for s in shapes], pairs, DEFAULT), repeat)
     cat = Catalogue(library, create=False)
     cache = ModelCache(cat, DEFAULT)
@@ -75,12 +75,12 @@ def sections(out: Path, library: Path, n_objects: int, n_pairs: int, repeat: int
 
 
 def splits(tiles: Path, repeat: int) -> None:
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
     from twinreg.city.build import plan
     from twinreg.city.sources import open_sources, read_splits, split_tile
 
     srcs = open_sources([tiles])
-    p = plan(srcs, None, 10.0, DEFAULT.ground_reach)
+    p = plan(srcs, None, 10.0, DEFAULT.ground.reach)
     source = max((s for s in srcs if not s.copc), key=lambda s: s.n_points)
     work = Path(tempfile.mkdtemp(prefix="bench-splits-"))
     try:

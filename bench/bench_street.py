@@ -40,7 +40,7 @@ def catalogue(folder: Path):
 
 
 def run_street(cat, density: float, seed: int) -> list[dict]:
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
     from twinreg.detect import describe_detected, detect_points, object_levels, object_points
     from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise

@@ -48,10 +48,10 @@ def copy_shifted(src: Path, dst: Path, dx: float, dy: float) -> None:
 def survey_step(cell: float) -> float:
     """The smallest shift (m) that is a multiple of the cells and of the ground's blocks (512 m; they lie on the
     run's frame, which every copy shares: the frame's origin is taken from the first tiles)."""
-    from cosco.params import DEFAULT
+    from twinreg.settings import DEFAULT
 
     step = 1
-    for g in (int(round(cell)), int(round(DEFAULT.ground_block * DEFAULT.ground_cell))):
+    for g in (int(round(cell)), int(round(DEFAULT.ground.block * DEFAULT.ground.cell))):
         step = step * g // np.gcd(step, g)
     return float(step)
 

@@ -35,7 +35,7 @@ def check_matrix(matrix) -> np.ndarray:
 
 
 def cluster(matrix, params: CoscoParams = DEFAULT, threshold: float | None = None) -> Clustering:
-    """Cluster objects whose dissimilarity is below ``threshold`` (default ``params.cluster_threshold``, m).
+    """Cluster objects whose dissimilarity is below ``threshold`` (default ``params.taxonomy.threshold``, m).
 
     >>> d = np.array([[0, .01, .3], [.01, 0, .3], [.3, .3, 0]])
     >>> cluster(d).labels.tolist()
@@ -45,12 +45,12 @@ def cluster(matrix, params: CoscoParams = DEFAULT, threshold: float | None = Non
     from scipy.spatial.distance import squareform
 
     m = check_matrix(matrix)
-    t = params.cluster_threshold if threshold is None else float(threshold)
+    t = params.taxonomy.threshold if threshold is None else float(threshold)
     n = len(m)
     if n == 0:
         return Clustering(np.zeros(0, dtype=int), np.zeros((0, 4)), t)
     if n == 1:
         return Clustering(np.ones(1, dtype=int), np.zeros((0, 4)), t)
-    z = linkage(squareform(m, checks=False), method=params.linkage)
+    z = linkage(squareform(m, checks=False), method=params.taxonomy.linkage)
     labels = fcluster(z, t=t, criterion="distance").astype(int)
     return Clustering(labels=labels, linkage=z, threshold=t)

@@ -102,13 +102,13 @@ class SectionPair:
         self.probes = {"lon": _nonempty(sections.longitudinal), "tra": _nonempty(sections.transverse)}
         fine_lon, fine_tra = sections.fine
         fine = {"lon": _nonempty(fine_lon), "tra": _nonempty(fine_tra)}
-        pad = max(params.tz_max, params.du_max) + 0.5
-        self.fields = {k: distance_field(v, params.field_cell, pad, params.dist_cap) for k, v in fine.items()}
+        pad = max(params.registration.tz_max, params.registration.du_max) + 0.5
+        self.fields = {k: distance_field(v, params.sections.field_cell, pad, params.registration.dist_cap) for k, v in fine.items()}
         self.trees = {k: cKDTree(v) for k, v in fine.items()}
         self._bounded: dict = {}
         self.n = len(self.probes["lon"]) + len(self.probes["tra"])
         # the contour's own noise: its probes against its own fine set (0 for a noise-free, densely seen object)
-        self.floor_sq = sum(float((self.capped(k, self.probes[k], params.dist_cap) ** 2).sum()) for k in ("lon", "tra"))
+        self.floor_sq = sum(float((self.capped(k, self.probes[k], params.registration.dist_cap) ** 2).sum()) for k in ("lon", "tra"))
 
     def capped(self, key: str, points: np.ndarray, cap: float) -> np.ndarray:
         """(n,) distances of (n, 2) ``points`` to the fine set ``key`` ("lon" or "tra"), each at most ``cap`` (m):
@@ -221,13 +221,13 @@ def _polish(a: SectionPair, b: SectionPair, r: int, tz: float, du: float, params
     def scores(moves):
         t = np.array([tz + dt for dt, _ in moves])
         d = np.array([du + dd for _, dd in moves])
-        return _sq_sums(a, b, r, d, t, params.dist_cap, exact=True, one_way=one_way)
+        return _sq_sums(a, b, r, d, t, params.registration.dist_cap, exact=True, one_way=one_way)
 
     best = float(scores([(0.0, 0.0)])[0])
-    step = params.field_cell / 2
-    while step >= params.field_cell / 8:
+    step = params.sections.field_cell / 2
+    while step >= params.sections.field_cell / 8:
         moves = [(dt, dd) for dt, dd in ((step, 0.0), (-step, 0.0), (0.0, step), (0.0, -step))
-                 if not (dd and params.du_max <= 0)]
+                 if not (dd and params.registration.du_max <= 0)]
         ahead = scores(moves)
         start = (tz, du)
         for (dt, dd), val in zip(moves, ahead):
@@ -258,22 +258,22 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
     paper's Eq. 1 writes it); the default is symmetric (object against object).
     """
     starts = []
-    dus0 = _grid(0.0, params.du_max, params.du_step * 2) if params.du_max > 0 else np.array([0.0])
-    tzs0 = _grid(0.0, params.tz_max, params.tz_step * 2)
+    dus0 = _grid(0.0, params.registration.du_max, params.registration.du_step * 2) if params.registration.du_max > 0 else np.array([0.0])
+    tzs0 = _grid(0.0, params.registration.tz_max, params.registration.tz_step * 2)
     T, D = np.meshgrid(tzs0, dus0, indexing="ij")
     coarse = []
     for r in rotations:
-        sq = _sq_sums(a, b, r, D.ravel(), T.ravel(), params.dist_cap, one_way=one_way, n_du=len(dus0))
+        sq = _sq_sums(a, b, r, D.ravel(), T.ravel(), params.registration.dist_cap, one_way=one_way, n_du=len(dus0))
         k = int(np.argmin(sq))
         coarse.append((float(sq[k]), r, float(T.ravel()[k]), float(D.ravel()[k])))
     coarse.sort()
     # refine the best rotation, and the runner-up when its coarse score is close, at one field cell
-    cell = params.field_cell
+    cell = params.sections.field_cell
     for score, r, tz_c, du_c in [c for c in coarse[:2] if c[0] <= 1.25 * coarse[0][0]]:
-        tzs = _grid(tz_c, params.tz_step * 2, cell)
-        dus = _grid(du_c, params.du_step * 2, cell) if params.du_max > 0 else np.array([0.0])
+        tzs = _grid(tz_c, params.registration.tz_step * 2, cell)
+        dus = _grid(du_c, params.registration.du_step * 2, cell) if params.registration.du_max > 0 else np.array([0.0])
         T2, D2 = np.meshgrid(tzs, dus, indexing="ij")
-        sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.dist_cap, one_way=one_way, n_du=len(dus))
+        sq = _sq_sums(a, b, r, D2.ravel(), T2.ravel(), params.registration.dist_cap, one_way=one_way, n_du=len(dus))
         k = int(np.argmin(sq))
         starts.append((r, float(T2.ravel()[k]), float(D2.ravel()[k])))
     return _finish(a, b, tuple(starts), params, polish, one_way)
@@ -297,7 +297,7 @@ def _finish(a: SectionPair, b: SectionPair, starts: tuple, params: CoscoParams, 
         if polish:
             exact, tz_c, du_c = _polish(a, b, r, tz_c, du_c, params, one_way)
         else:
-            exact = float(_sq_sums(a, b, r, np.array([du_c]), np.array([tz_c]), params.dist_cap, exact=True,
+            exact = float(_sq_sums(a, b, r, np.array([du_c]), np.array([tz_c]), params.registration.dist_cap, exact=True,
                                    one_way=one_way)[0])
         if exact < best[0]:
             best = (exact, r, tz_c, du_c)

@@ -13,8 +13,8 @@ so that slopes, kerbs and ramps of real car parks stay ground:
    by the median of the points near the surface (the lowest of noisy points lies a few sigmas too low);
 4. every point's height above ground is its z minus the bilinear ground surface under it.
 
-Memory goes by occupied cells, not by the bounding box: the grid is cut into blocks of ``ground_block`` cells and
-only blocks holding points are processed, each as a dense window with a halo of ``ground_halo`` cells (more than
+Memory goes by occupied cells, not by the bounding box: the grid is cut into blocks of ``ground.block`` cells and
+only blocks holding points are processed, each as a dense window with a halo of ``ground.halo`` cells (more than
 the widest opening window and the smoothing reach), of which the block's core is kept. A scan that fits in one
 block is processed as one window, exactly as the steps above say; one stray point 30 km away adds one small block,
 not a 60,000 x 60,000 grid.
@@ -220,7 +220,7 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
 
     from .kernels import jit
 
-    cell = params.ground_cell
+    cell = params.ground.cell
     mod = jit()
     if mod is not None:  # compiled (cosco.kernels): the same cells and lowest points in one pass
         pts = np.ascontiguousarray(pts, dtype=np.float64)
@@ -237,16 +237,16 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
     ground = occupied.copy()
     raw = surface
     previous = 0.0
-    for window in params.ground_windows:
+    for window in params.ground.windows:
         size = max(1, int(round(window / cell)))
         opened = ndimage.grey_opening(surface, size=(size, size), mode="nearest")
-        threshold = min(params.ground_dh_max, params.ground_dh0 + params.ground_slope * (window - previous))
+        threshold = min(params.ground.dh_max, params.ground.dh0 + params.ground.slope * (window - previous))
         ground &= surface - opened <= threshold
         surface = opened
         previous = window
     # an opening keeps planar slopes exactly, so a strict last test against the widest opening drops the edges
     # of cars (bumpers, sills) that the growing thresholds let through, and keeps ramps
-    ground &= raw - surface <= params.ground_dh_final
+    ground &= raw - surface <= params.ground.dh_final
     if not ground.any():
         ground = occupied
     z = _fill_smooth(np.where(ground, zmin, 0.0), ground, sigma_cells=max(1.0, 2.0 / cell))
@@ -254,10 +254,10 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
     # median of the points near that first surface in each ground cell
     if mod is not None:  # the same test, compiled: no (n,) heights
         near = mod.near_surface(pts, origin, float(cell), np.ascontiguousarray(z, dtype=np.float64), ground.ravel(),
-                                flat, float(params.ground_tol))
+                                flat, float(params.ground.tol))
     else:
         h = _Grid(origin=origin, cell=cell, z=z).height(pts)
-        near = np.abs(h, out=h) < params.ground_tol
+        near = np.abs(h, out=h) < params.ground.tol
         del h
         near &= ground.ravel()[flat]
     if near.any():
@@ -279,7 +279,7 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     arithmetic exact).
     """
     pts = as_points(points)
-    cell, b, h = params.ground_cell, params.ground_block, params.ground_halo
+    cell, b, h = params.ground.cell, params.ground.block, params.ground.halo
     # blocks on a lattice anchored at the frame's origin: a tile of a larger scene (same frame) gets the same blocks
     origin = (np.floor(column_min(pts[:, :2]) / (cell * b)) * (cell * b)).astype(np.float64)
     # cell indices: truncation is floor (the offsets are non-negative) and monotonic, so the largest index is the
@@ -363,4 +363,4 @@ def remove_ground(points, params: CoscoParams = DEFAULT) -> tuple[np.ndarray, np
     pts = as_points(points)
     ground = estimate_ground(pts, params)
     hag = ground.height(pts)
-    return hag < params.ground_tol, hag, ground
+    return hag < params.ground.tol, hag, ground

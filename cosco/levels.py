@@ -8,7 +8,7 @@ on a scanned object.
 - ``mirror``: one (a car, a sign, a mailbox);
 - ``none``.
 
-A share of the points, not all, must map onto the others (``level_share``): a lamp post's arm or a hydrant's
+A share of the points, not all, must map onto the others (``levels.share``): a lamp post's arm or a hydrant's
 nozzles leave most of the column's points matched. At a scan's resolution a thin object (a pole a few points
 across) is rotational: its level says what the scan can tell, not what the design is.
 """
@@ -77,7 +77,7 @@ def _mirrored(xy: np.ndarray, centre: np.ndarray, phi: float) -> np.ndarray:
 def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Level:
     """The level of symmetry of one object's points ((n, 3) metres, z up; see the module's text). ``symmetry``:
     the object's :class:`~cosco.symmetry.Symmetry` when already detected (a scan's objects): its plane, when found,
-    is the mirror plane tried (no sweep of planes), on at most ``level_object_points`` points.
+    is the mirror plane tried (no sweep of planes), on at most ``levels.object_points`` points.
 
     >>> rng = np.random.default_rng(0)
     >>> a = rng.uniform(0, 2 * np.pi, 4000); z = rng.uniform(0, 3, 4000)
@@ -88,17 +88,17 @@ def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Leve
     """
     pts = as_points(points)
     extent = float(np.ptp(pts[:, :2], axis=0).max())
-    voxel = max(params.level_voxel, extent / params.level_cells)
+    voxel = max(params.levels.voxel, extent / params.levels.cells)
     pts = voxel_downsample(pts, voxel)[0]
-    cap = params.level_object_points if symmetry is not None else params.level_max_points
+    cap = params.levels.object_points if symmetry is not None else params.levels.max_points
     if len(pts) > cap:
         pts = pts[np.random.default_rng(0).choice(len(pts), cap, replace=False)]
     tree3 = cKDTree(pts)
     spacing = float(np.median(tree3.query(pts, k=2)[0][:, 1])) if len(pts) > 1 else voxel
-    tol = max(params.level_tol, params.level_tol_spacing * spacing)
+    tol = max(params.levels.tol, params.levels.tol_spacing * spacing)
     share = _sharer(pts, tree3, tol)
     xy, z = pts[:, :2], pts[:, 2]
-    low = z <= np.quantile(z, params.level_base_share)
+    low = z <= np.quantile(z, params.levels.base_share)
     axis = xy[low].mean(0)
     # the rotational test in 3D (the turned points keep their heights)
     rot = min(share(np.c_[_turned(xy, axis, a), z]) for a in (np.pi / 2, np.pi / 4))
@@ -108,22 +108,22 @@ def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Leve
         normal = np.array([np.cos(phi), np.sin(phi)])
         centre = centre + (symmetry.rho - centre @ normal) * normal  # onto the detected plane
     else:
-        phis = np.arange(0.0, np.pi, params.level_step)
+        phis = np.arange(0.0, np.pi, params.levels.step)
         scores = [share(np.c_[_mirrored(xy, centre, p), z]) for p in phis]
         phi = float(phis[int(np.argmax(scores))])
     # a detail on one side (a spare wheel, a mirror) moves the box's centre off the plane: the plane's offset
     # searched along its normal, for the best plane and the one across it
-    shifts = np.linspace(-1.0, 1.0, 2 * params.level_offsets + 1) * params.level_offset_share * extent
+    shifts = np.linspace(-1.0, 1.0, 2 * params.levels.offsets + 1) * params.levels.offset_share * extent
 
     def best_offset(angle: float, steps: np.ndarray) -> float:
         n = np.array([np.cos(angle), np.sin(angle)])
         return max(share(np.c_[_mirrored(xy, centre + d * n, angle), z]) for d in steps)
 
     if symmetry is not None and symmetry.found:  # the detected plane as it is; the one across it coarsely
-        mirror, second = best_offset(phi, np.zeros(1)), best_offset(phi + np.pi / 2, shifts[::params.level_offsets])
+        mirror, second = best_offset(phi, np.zeros(1)), best_offset(phi + np.pi / 2, shifts[::params.levels.offsets])
     else:
         mirror, second = best_offset(phi, shifts), best_offset(phi + np.pi / 2, shifts)
-    share = params.level_share
+    share = params.levels.share
     level = ("rotational" if rot >= share else "two_mirrors" if min(mirror, second) >= share else
              "mirror" if mirror >= share else "none")
     return Level(level, rot, mirror, second, phi, (float(axis[0]), float(axis[1])))

@@ -122,12 +122,12 @@ def voxelise_2d(points2d: np.ndarray, res: float, centroids: bool = True) -> np.
 
 def _slab(coord: np.ndarray, centre: float, params: CoscoParams) -> np.ndarray:
     """Mask of a slab around ``centre``, widened on sparse objects until it holds enough points."""
-    eps = params.section_eps
+    eps = params.sections.eps
     while True:
         mask = np.abs(coord - centre) <= eps
-        if mask.sum() >= params.section_min_points or eps >= params.section_eps_max:
+        if mask.sum() >= params.sections.min_points or eps >= params.sections.eps_max:
             return mask
-        eps = min(eps * 1.5, params.section_eps_max)
+        eps = min(eps * 1.5, params.sections.eps_max)
 
 
 def _robust_range(x: np.ndarray, q: float) -> tuple[float, float]:
@@ -154,13 +154,13 @@ def object_frame(points: np.ndarray, sym: Symmetry, ground_z: float | None, para
     if front_hint is not None and np.cos(heading - front_hint) < 0:
         heading = float(np.mod(heading + np.pi, 2 * np.pi))
     uvz = to_frame(pts, base, heading)
-    lo, hi = _robust_range(uvz[:, 0], params.size_quantile)
+    lo, hi = _robust_range(uvz[:, 0], params.sections.size_quantile)
     axis = np.array([np.cos(heading), np.sin(heading)])
     return Frame(origin_xy=base + axis * (lo + hi) / 2, heading=float(heading), ground_z=gz)
 
 
 def cut_sections(points: np.ndarray, frame: Frame, symmetric: bool, params: CoscoParams = DEFAULT) -> Sections:
-    """Longitudinal and transverse sections of an object in its frame, voxelised at ``params.section_res``.
+    """Longitudinal and transverse sections of an object in its frame, voxelised at ``params.sections.res``.
 
     A symmetric object's transverse section is mirrored about v = 0, so a side the scanner barely saw is filled
     from the side it saw well.
@@ -172,7 +172,7 @@ def cut_sections(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
     tra_vz = tra[:, [1, 2]]
     if symmetric:
         tra_vz = np.vstack([tra_vz, tra_vz * [-1.0, 1.0]])
-    res, fine = params.section_res, params.field_cell
+    res, fine = params.sections.res, params.sections.field_cell
     return Sections(voxelise_2d(lon[:, [0, 2]], res), voxelise_2d(tra_vz, res), res,
                     voxelise_2d(lon[:, [0, 2]], fine), voxelise_2d(tra_vz, fine))
 
@@ -206,29 +206,29 @@ def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
 
     - length: robust extent along u;
     - width: the body width without mirrors: the half-width profile along u (largest ``|v|`` per
-      ``params.profile_bin`` slice, both sides for a symmetric object, so the better-seen side counts) read at its
-      ``params.width_quantile`` quantile, so mirrors and stray points (a few slices) do not count while a side that
+      ``params.sections.profile_bin`` slice, both sides for a symmetric object, so the better-seen side counts) read at its
+      ``params.sections.width_quantile`` quantile, so mirrors and stray points (a few slices) do not count while a side that
       was seen in most slices does; sparse airborne scans rarely see mirrors, so this is what both can agree on;
-    - height: the top of the footprint cells (``params.top_cell`` squares): each cell's top is its
-      ``params.cell_top_quantile`` quantile of z (noise averages out), and the height is the
-      ``params.top_quantile`` quantile of the cell tops, so a whip antenna or a shark fin (one or two cells) does
+    - height: the top of the footprint cells (``params.sections.top_cell`` squares): each cell's top is its
+      ``params.sections.cell_top_quantile`` quantile of z (noise averages out), and the height is the
+      ``params.sections.top_quantile`` quantile of the cell tops, so a whip antenna or a shark fin (one or two cells) does
       not count while a roof rack does.
     """
     uvz = frame.to_local(as_points(points))
-    q = params.size_quantile
+    q = params.sections.size_quantile
     lo, hi = _robust_range(uvz[:, 0], q)
-    slices = np.floor(uvz[:, 0] / params.profile_bin).astype(np.int64)
+    slices = np.floor(uvz[:, 0] / params.sections.profile_bin).astype(np.int64)
     if symmetric:
         half = _grouped(slices, np.abs(uvz[:, 1]), _max_of_groups)
-        width = 2.0 * float(np.quantile(half, params.width_quantile))
+        width = 2.0 * float(np.quantile(half, params.sections.width_quantile))
     else:
         spread = (_grouped(slices, uvz[:, 1], _max_of_groups) - _grouped(slices, uvz[:, 1], _min_of_groups))
-        width = float(np.quantile(spread, params.width_quantile))
-    cu = np.floor(uvz[:, 0] / params.top_cell).astype(np.int64)
-    cv = np.floor(uvz[:, 1] / params.top_cell).astype(np.int64)
+        width = float(np.quantile(spread, params.sections.width_quantile))
+    cu = np.floor(uvz[:, 0] / params.sections.top_cell).astype(np.int64)
+    cv = np.floor(uvz[:, 1] / params.sections.top_cell).astype(np.int64)
     cells = (cu - cu.min()) * (cv.max() - cv.min() + 1) + (cv - cv.min())
-    tops = _grouped(cells, uvz[:, 2], _quantile_of_groups(params.cell_top_quantile))
-    height = float(np.quantile(tops, params.top_quantile))
+    tops = _grouped(cells, uvz[:, 2], _quantile_of_groups(params.sections.cell_top_quantile))
+    height = float(np.quantile(tops, params.sections.top_quantile))
     return Size(length=hi - lo, width=width, height=max(height, 0.0))
 
 
@@ -254,7 +254,7 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     v_centre = 0.0
     if not sym.found:
         uvz = frame.to_local(pts)
-        lo, hi = _robust_range(uvz[:, 1], params.size_quantile)
+        lo, hi = _robust_range(uvz[:, 1], params.sections.size_quantile)
         v_centre = (lo + hi) / 2
     centre = frame.to_scene(np.array([[0.0, v_centre, size.height / 2]]))[0]
     return ObjectShape(n_points=len(pts), symmetry=sym, frame=frame, sections=sections, size=size, centroid=centre)

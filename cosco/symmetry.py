@@ -117,14 +117,14 @@ class _Objective:
 
 
 def _start_angles(xy: np.ndarray, params: CoscoParams, rect=None) -> np.ndarray:
-    """Candidate normal angles: rectangle sides, principal axes and a sweep every ``params.sym_sweep_step``
+    """Candidate normal angles: rectangle sides, principal axes and a sweep every ``params.symmetry.sweep_step``
     (``rect``: the points' minimum-area rectangle, when already known)."""
     rect = min_area_rectangle(xy) if rect is None else rect
     centred = xy - xy.mean(0)
     _, vecs = np.linalg.eigh(centred.T @ centred)
     pca = np.arctan2(vecs[1, -1], vecs[0, -1])
     guided = [rect.angle + np.pi / 2, rect.angle, pca + np.pi / 2, pca]
-    sweep = np.arange(0, np.pi, params.sym_sweep_step)
+    sweep = np.arange(0, np.pi, params.symmetry.sweep_step)
     return np.mod(np.concatenate([guided, sweep]), np.pi)
 
 
@@ -170,7 +170,7 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     """Find the vertical reflective symmetry plane of one object.
 
     points : (n, 3) float, metres, n >= 10. Returns a :class:`Symmetry`; ``found`` is False when the best PCR is
-    below ``params.pcr_threshold``.
+    below ``params.symmetry.pcr_threshold``.
 
     >>> rng = np.random.default_rng(0)
     >>> box = rng.uniform([-2, -0.8, 0], [2, 0.8, 1.4], (2000, 3))
@@ -190,16 +190,16 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     c, s = np.cos(frame_angle), np.sin(frame_angle)
     local = np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1], pts[:, 2] - offset[2]])
     # the reference set: the object at the base voxel size (equalised density); the tolerance follows its spacing
-    ref, _ = voxel_downsample(local, params.sym_voxel)
+    ref, _ = voxel_downsample(local, params.symmetry.voxel)
     ref_tree = cKDTree(ref)
-    tol = max(params.sym_tol, params.sym_tol_spacing * _median_spacing(ref_tree, ref))
+    tol = max(params.symmetry.tol, params.symmetry.tol_spacing * _median_spacing(ref_tree, ref))
     # the probes: a coarser down-sampling when the object is large (speed), mirrored against the reference
-    voxel, down = params.sym_voxel, ref
-    while len(down) > params.sym_max_points:
+    voxel, down = params.symmetry.voxel, ref
+    while len(down) > params.symmetry.max_points:
         # a surface's voxel count falls with the square of the voxel size
-        voxel *= max(1.1, 1.05 * np.sqrt(len(down) / params.sym_max_points))
+        voxel *= max(1.1, 1.05 * np.sqrt(len(down) / params.symmetry.max_points))
         down, _ = voxel_downsample(local, voxel)
-    obj = _Objective(down, tol, ref_tree, params.sym_side_share)
+    obj = _Objective(down, tol, ref_tree, params.symmetry.side_share)
 
     rect = min_area_rectangle(down[:, :2])
     scored = []
@@ -215,32 +215,32 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
             lambda x: -obj.soft(x[0], x[1]),
             x0=[phi0, rho0],
             method="Nelder-Mead",
-            options={"maxiter": params.sym_iterations, "xatol": params.sym_xatol, "fatol": params.sym_fatol,
-                     "initial_simplex": [[phi0, rho0], [phi0 + params.sym_simplex_turn, rho0],
-                                         [phi0, rho0 + params.sym_simplex_shift]]},
+            options={"maxiter": params.symmetry.iterations, "xatol": params.symmetry.xatol, "fatol": params.symmetry.fatol,
+                     "initial_simplex": [[phi0, rho0], [phi0 + params.symmetry.simplex_turn, rho0],
+                                         [phi0, rho0 + params.symmetry.simplex_shift]]},
         )
-        return _refine_pairs(ref, ref_tree, res.x[0], res.x[1], tol, params.sym_refine_steps, obj.index)
+        return _refine_pairs(ref, ref_tree, res.x[0], res.x[1], tol, params.symmetry.refine_steps, obj.index)
 
     # the best start overall, and the best start whose plane contains the footprint's long axis (a vehicle's
     # mirror plane does; a box-like van is nearly symmetric front to back too)
     long_normal = rect.angle + np.pi / 2
-    along = [t for t in scored if axis_difference(t[1], long_normal) < params.sym_along_axis]
+    along = [t for t in scored if axis_difference(t[1], long_normal) < params.symmetry.along_axis]
     candidates = []
     for k, (_, phi0, rho0) in enumerate([scored[0]] + along[:1]):
-        if k == 1 and axis_difference(phi0, scored[0][1]) < params.sym_same_plane:
+        if k == 1 and axis_difference(phi0, scored[0][1]) < params.symmetry.same_plane:
             break
         phi, rho = optimise(phi0, rho0)
         pcr, rmse = obj.hard(phi, rho)
-        candidates.append((pcr, rmse, phi, rho, axis_difference(phi, long_normal) < params.sym_along_axis))
+        candidates.append((pcr, rmse, phi, rho, axis_difference(phi, long_normal) < params.symmetry.along_axis))
     best = max(candidates, key=lambda c: c[0])
     longitudinal = [c for c in candidates if c[4]]
-    if longitudinal and longitudinal[0][0] >= best[0] - params.sym_long_axis_margin:
+    if longitudinal and longitudinal[0][0] >= best[0] - params.symmetry.long_axis_margin:
         best = longitudinal[0]
     pcr, rmse, phi, rho, _ = best
     phi, rho = _canonical(phi + frame_angle, rho)
     rho_scene = rho + float(offset[:2] @ np.array([np.cos(phi), np.sin(phi)]))
     return Symmetry(
-        found=bool(pcr >= params.pcr_threshold),
+        found=bool(pcr >= params.symmetry.pcr_threshold),
         pcr=pcr,
         rmse=rmse,
         phi=phi,
@@ -253,31 +253,31 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
 def with_footprint(sym: Symmetry, points, params: CoscoParams = DEFAULT) -> Symmetry:
     """The symmetry plane reconciled with the footprint's edges (beyond the paper; docs/METHOD.md, "Heading").
 
-    On a sparse object (fewer than ``params.heading_sparse_points`` points) the mirror search has few pairs to
+    On a sparse object (fewer than ``params.symmetry.heading_sparse_points`` points) the mirror search has few pairs to
     go by, while the long straight sides of a car still show in its footprint's minimum-area rectangle. When the
-    footprint is elongated (length at least ``params.heading_elongation`` times the width):
+    footprint is elongated (length at least ``params.symmetry.heading_elongation`` times the width):
 
-    - a plane within ``params.heading_snap`` of the rectangle's axis is turned onto that axis (about its point
+    - a plane within ``params.symmetry.heading_snap`` of the rectangle's axis is turned onto that axis (about its point
       nearest the rectangle's centre: the plane keeps its position across the car);
     - a plane farther from it is replaced by the rectangle's axis when the symmetry is weak (not found, or a PCR
-      under ``params.heading_trust_pcr``): a wrong plane across a sparse car is not kept.
+      under ``params.symmetry.heading_trust_pcr``): a wrong plane across a sparse car is not kept.
 
     Dense objects, squarish footprints and strong planes that disagree with the rectangle keep their plane.
     """
     pts = as_points(points)
-    if len(pts) >= params.heading_sparse_points:
+    if len(pts) >= params.symmetry.heading_sparse_points:
         return sym
     rect = min_area_rectangle(pts[:, :2])
-    if rect.width <= 0 or rect.length < params.heading_elongation * rect.width:
+    if rect.width <= 0 or rect.length < params.symmetry.heading_elongation * rect.width:
         return sym
     d = axis_difference(sym.heading, rect.angle)
-    weak = not sym.found or sym.pcr < params.heading_trust_pcr
-    if d > params.heading_snap and not weak:
+    weak = not sym.found or sym.pcr < params.symmetry.heading_trust_pcr
+    if d > params.symmetry.heading_snap and not weak:
         return sym
     heading = wrap_axis(rect.angle)
     phi = float(np.mod(heading + np.pi / 2, np.pi))
     normal = np.array([np.cos(phi), np.sin(phi)])
-    if d <= params.heading_snap:  # the old plane's point nearest the rectangle's centre
+    if d <= params.symmetry.heading_snap:  # the old plane's point nearest the rectangle's centre
         base = rect.centre - sym.normal * (rect.centre @ sym.normal - sym.rho)
     else:
         base = rect.centre

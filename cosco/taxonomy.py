@@ -1,12 +1,12 @@
 """The taxonomy of many objects without the N x N matrix (beyond the paper, for city scale).
 
-Up to ``params.taxonomy_full_max`` objects (32: a car park like the paper's) the paper's way is kept: every pair compared, average-linkage
-dendrogram cut at ``params.cluster_threshold``. Beyond, the work must not grow with the square of the objects:
+Up to ``params.taxonomy.full_max`` objects (32: a car park like the paper's) the paper's way is kept: every pair compared, average-linkage
+dendrogram cut at ``params.taxonomy.threshold``. Beyond, the work must not grow with the square of the objects:
 
 1. each object gets a cheap descriptor: its length, width and height, and the height of its longitudinal
    section's top at two stations each side of the middle (averaged over both sides, so a car seen front-first
    or back-first has the same descriptor);
-2. each object is compared (section registration, as in the matrix) with only its ``taxonomy_neighbours``
+2. each object is compared (section registration, as in the matrix) with only its ``taxonomy.neighbours``
    nearest objects by descriptor (a KD-tree): O(n k) comparisons, each pair once;
 3. clusters are the connected parts of the graph whose edges are the pairs closer than the threshold (single
    linkage on the sparse graph), numbered by their first object.
@@ -125,14 +125,14 @@ def pair_distances(sections: list, pairs: np.ndarray, params: CoscoParams = DEFA
 
 def taxonomy(shapes: list, params: CoscoParams = DEFAULT, distances_of=None) -> Taxonomy:
     """The taxonomy of objects' :class:`~cosco.sections.ObjectShape`: full (matrix and dendrogram) up to
-    ``params.taxonomy_full_max`` objects, sparse beyond. ``distances_of(pairs) -> (m,)`` computes the pairs'
+    ``params.taxonomy.full_max`` objects, sparse beyond. ``distances_of(pairs) -> (m,)`` computes the pairs'
     dissimilarities (default :func:`pair_distances` here; a caller may spread them over workers)."""
     from .cluster import cluster
     from .dissimilarity import dissimilarity_matrix
 
     n = len(shapes)
-    t = params.cluster_threshold
-    if n <= params.taxonomy_full_max:
+    t = params.taxonomy.threshold
+    if n <= params.taxonomy.full_max:
         if distances_of is None:
             m = dissimilarity_matrix([s.sections for s in shapes], params)
         else:
@@ -142,7 +142,7 @@ def taxonomy(shapes: list, params: CoscoParams = DEFAULT, distances_of=None) -> 
         c = cluster(m, params)
         return Taxonomy(c.labels, "full", t, matrix=m, linkage=c.linkage)
     desc = np.array([descriptor(s.size.as_array(), s.sections.longitudinal) for s in shapes])
-    pairs = candidate_pairs(desc, params.taxonomy_neighbours)
+    pairs = candidate_pairs(desc, params.taxonomy.neighbours)
     if distances_of is None:
         d = pair_distances([s.sections for s in shapes], pairs, params)
     else:
@@ -153,9 +153,9 @@ def taxonomy(shapes: list, params: CoscoParams = DEFAULT, distances_of=None) -> 
 def taxonomy_of(shapes: list, params: CoscoParams = DEFAULT, timing: dict | None = None, say=None,
                 distances_of=None, spacing=None) -> Taxonomy:
     """The objects' taxonomy as a run takes it: the paper's matrix and dendrogram up to
-    ``params.taxonomy_full_max`` objects (timed in ``timing`` as "matrix" and "clustering"), the sparse graph of
+    ``params.taxonomy.full_max`` objects (timed in ``timing`` as "matrix" and "clustering"), the sparse graph of
     :func:`taxonomy` beyond (timed as "matrix": its comparisons and its components); ``say(text)`` as each part
-    starts. ``spacing``: the objects' point spacings (m): the threshold is at least ``params.cluster_spacing_k``
+    starts. ``spacing``: the objects' point spacings (m): the threshold is at least ``params.taxonomy.spacing_k``
     times their median (a sparse scan's sections differ by their sampling)."""
     import time
 
@@ -163,12 +163,12 @@ def taxonomy_of(shapes: list, params: CoscoParams = DEFAULT, timing: dict | None
     from .dissimilarity import dissimilarity_matrix
 
     if spacing is not None and len(spacing):
-        floor = params.cluster_spacing_k * float(np.median(spacing))
-        if floor > params.cluster_threshold:
-            params = params.with_(cluster_threshold=floor)
+        floor = params.taxonomy.spacing_k * float(np.median(spacing))
+        if floor > params.taxonomy.threshold:
+            params = params.with_(taxonomy={"threshold": floor})
     timing = {} if timing is None else timing
     t = time.perf_counter()
-    if len(shapes) > params.taxonomy_full_max or distances_of is not None:
+    if len(shapes) > params.taxonomy.full_max or distances_of is not None:
         if say:
             say(f"taxonomy of {len(shapes)} objects")
         tax = taxonomy(shapes, params, distances_of=distances_of)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from cosco.ground import Ground, estimate_ground
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 from cosco.segment import Segmentation, far_outliers, segment_objects
 
 from .errors import SceneReadError
@@ -37,7 +37,7 @@ class Detection:
         return [(f"obj{k + 1}", o) for k, o in enumerate(objs)]
 
 
-def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None, keep=None) -> Detection:
+def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, keep=None) -> Detection:
     """Ground removal and connectivity-based object detection on a read scene (points far from the scan are
     dropped first and counted in ``scene.n_outliers``). ``keep``: a function of the (n, 3) scene points giving
     the (n,) mask of those to search for objects after the ground is computed on all of them (a tile read wider
@@ -56,7 +56,7 @@ def detect_points(scene: PointSet, params: CoscoParams = DEFAULT, progress=None,
         scene = replace(scene, points=scene.points[inside])
         local = local[inside]
     hag = ground.height(local)
-    is_ground = hag < params.ground_tol
+    is_ground = hag < params.ground.tol
     t1 = time.perf_counter()
     if progress:
         progress("ground")
@@ -85,7 +85,7 @@ def object_ground(det: Detection, obj) -> float:
     return float(np.median(z - det.hag[obj.indices]))
 
 
-def describe_detected(det: Detection, params: CoscoParams = DEFAULT, objects=None) -> list:
+def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) -> list:
     """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
     from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
     import cosco
@@ -94,7 +94,7 @@ def describe_detected(det: Detection, params: CoscoParams = DEFAULT, objects=Non
             for o in (det.objects if objects is None else objects)]
 
 
-def object_levels(clouds: list, shapes: list, params: CoscoParams = DEFAULT) -> list[str]:
+def object_levels(clouds: list, shapes: list, params: Settings = DEFAULT) -> list[str]:
     """The level of symmetry (:mod:`cosco.levels`) of each described object: its points (``clouds``, as
     :func:`object_points` gives them) and its shape (``shapes``), whose detected plane is reused."""
     from cosco.levels import symmetry_level
@@ -102,7 +102,7 @@ def object_levels(clouds: list, shapes: list, params: CoscoParams = DEFAULT) -> 
     return [symmetry_level(c, params, symmetry=s.symmetry).level for c, s in zip(clouds, shapes)]
 
 
-def detect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None,
+def detect_file(path, unit: str = "auto", params: Settings = DEFAULT, progress=None,
                 crs: str | None = None, override_crs: bool = False, on_read=None) -> Detection:
     """Read a scene (``crs``: its projected CRS; one that differs from a LAS header's only with ``override_crs``)
     and detect its objects; ``on_read(scene)`` is called once the points are read, before the detection (to

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 import cosco
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from .errors import SceneReadError
 from .io.points import POINT_SUFFIXES, read_points
@@ -33,7 +33,7 @@ def shape_json(shape: cosco.ObjectShape, sections: bool = True) -> dict:
     return doc
 
 
-def inspect_file(path, unit: str = "auto", params: CoscoParams = DEFAULT, notes: list | None = None
+def inspect_file(path, unit: str = "auto", params: Settings = DEFAULT, notes: list | None = None
                  ) -> tuple[cosco.ObjectShape, np.ndarray]:
     """Read one object's points and describe it. Returns the shape and the points; what the reader dropped is
     appended to ``notes``."""
@@ -54,7 +54,7 @@ class ObjectSet:
     shapes: list[cosco.ObjectShape]
 
 
-def objects_from_scene(path, unit: str = "auto", params: CoscoParams = DEFAULT) -> ObjectSet:
+def objects_from_scene(path, unit: str = "auto", params: Settings = DEFAULT) -> ObjectSet:
     """The car-sized objects detected in a scene file (ground removal and connectivity), named obj1, obj2, ..."""
     from .detect import describe_detected, detect_file
 
@@ -65,7 +65,7 @@ def objects_from_scene(path, unit: str = "auto", params: CoscoParams = DEFAULT) 
     return ObjectSet([f"obj{k + 1}" for k in range(len(shapes))], shapes)
 
 
-def objects_from_folder(folder, unit: str = "auto", params: CoscoParams = DEFAULT, progress=None) -> ObjectSet:
+def objects_from_folder(folder, unit: str = "auto", params: Settings = DEFAULT, progress=None) -> ObjectSet:
     """Every point file in a folder, one object per file (e.g. DALES objects)."""
     folder = Path(folder)
     files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in POINT_SUFFIXES)
@@ -82,13 +82,13 @@ def objects_from_folder(folder, unit: str = "auto", params: CoscoParams = DEFAUL
 
 
 def cluster_objects(path, unit: str = "auto", threshold: float | None = None, plot=None,
-                    params: CoscoParams = DEFAULT, progress=None) -> dict:
+                    params: Settings = DEFAULT, progress=None) -> dict:
     """``cluster``: the objects of a scene file (detected) or of a folder (one object per file), the paper's
     dissimilarity matrix between them, their clusters at ``threshold`` (m; the paper's when None) and, with
     ``plot`` (a folder), its heat map and dendrogram. Returns the command's JSON document. ``progress(stage,
     done, total)`` is called as the sections and the matrix advance."""
     path = Path(path)
-    threshold = params.cluster_threshold if threshold is None else threshold
+    threshold = params.taxonomy.threshold if threshold is None else threshold
     if not path.exists():
         raise SceneReadError(f"{path}: no such file or folder")
     if path.is_dir():

@@ -8,7 +8,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from .catalogue.repository import Catalogue
 from .detect import describe_detected, detect_file, object_levels, object_points
@@ -93,7 +93,7 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
-               tol: float | None = None, params: CoscoParams = DEFAULT, progress=None,
+               tol: float | None = None, params: Settings = DEFAULT, progress=None,
                threshold: float | None = None, ply: bool = True, date: str | None = None,
                templates: bool = False, tick=None, min_confidence: float | None = None) -> dict:
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
@@ -101,7 +101,7 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     ``templates``: CityJSON with geometry templates).
 
     georef : from :func:`~twinreg.geo.georef.georef_from_options`, or None to use the CRS the file states. tol,
-    threshold : the size tolerance and cluster threshold (m), ``params.size_tol`` and ``params.cluster_threshold``
+    threshold : the size tolerance and cluster threshold (m), ``params.matching.size_tol`` and ``params.taxonomy.threshold``
     when None. progress : ``progress(message)`` as each stage starts; tick : ``tick(stage, done, total)`` as the
     objects of a counted stage (the matching) are done.
     """
@@ -152,7 +152,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     timing.update(det.timing_s)
     targets = det.objects
     if not targets:
-        what = "objects" if params.seg_targets == "all" else "car-sized objects"
+        what = "objects" if params.segment.targets == "all" else "car-sized objects"
         raise SceneReadError(f"{scene_path}: no {what} were found; check --unit (the scene's unit) and that the "
                              "scan covers what the catalogue holds")
     if len(targets) >= params.jit_min_objects:  # the compiled kernels pay for numba's import (cosco.kernels)
@@ -205,7 +205,7 @@ class SceneRun:
     targets: list
     shapes: list
     clusters: object
-    params: CoscoParams
+    params: Settings
     progress: object
     timing: dict
     t_start: float

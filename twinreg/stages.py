@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 
-from cosco.params import CoscoParams
+from twinreg.settings import Settings
 
 from .errors import CatalogueError
 
@@ -20,21 +20,22 @@ def _say(progress, msg):
         progress(msg)
 
 
-def checked_params(params: CoscoParams, tol: float | None, threshold: float | None,
-                   min_confidence: float | None = None) -> CoscoParams:
+def checked_params(params: Settings, tol: float | None, threshold: float | None,
+                   min_confidence: float | None = None) -> Settings:
     """``params`` with the size tolerance and cluster threshold the user gave (both must be positive) and the
     models' confidence floor (0-1)."""
     from .errors import require_positive, require_probability
 
     if min_confidence is not None:
-        params = params.with_(model_min_confidence=require_probability("--min-confidence", min_confidence))
-    tol = require_positive("--tol", tol, f" (default {params.size_tol:g})")
-    threshold = require_positive("--threshold", threshold, f" (default {params.cluster_threshold:g})")
+        params = params.with_(min_confidence=require_probability("--min-confidence", min_confidence))
+    tol = require_positive("--tol", tol, f" (default {params.matching.size_tol:g})")
+    threshold = require_positive("--threshold", threshold, f" (default {params.taxonomy.threshold:g})")
     # a tolerance given by the user is the window, as in the paper: it no longer grows with the point spacing
-    return params.with_(size_tol=params.size_tol if tol is None else tol,
-                        size_spacing_k=params.size_spacing_k if tol is None else 0.0,
-                        cluster_threshold=params.cluster_threshold if threshold is None else threshold,
-                        cluster_spacing_k=params.cluster_spacing_k if threshold is None else 0.0)
+    if tol is not None:
+        params = params.with_(matching={"size_tol": tol, "size_spacing_k": 0.0})
+    if threshold is not None:
+        params = params.with_(taxonomy={"threshold": threshold, "spacing_k": 0.0})
+    return params
 
 
 def require_models(catalogue) -> None:
@@ -66,36 +67,36 @@ def locate(georef, lo, hi, where: str):
     return georef.identified(centre["lon"], centre["lat"])
 
 
-def taxonomy(shapes, params: CoscoParams, timing: dict, progress=None, distances_of=None, spacing=None):
+def taxonomy(shapes, params: Settings, timing: dict, progress=None, distances_of=None, spacing=None):
     """The objects' :class:`~cosco.taxonomy.Taxonomy` (:func:`cosco.taxonomy.taxonomy_of`: the paper's matrix and
-    dendrogram up to ``params.taxonomy_full_max`` objects, the sparse graph beyond), its parts timed in
+    dendrogram up to ``params.taxonomy.full_max`` objects, the sparse graph beyond), its parts timed in
     ``timing``. ``spacing``: the objects' point spacings (m): the threshold is at least
-    ``params.cluster_spacing_k`` times their median (a sparse scan)."""
+    ``params.taxonomy.spacing_k`` times their median (a sparse scan)."""
     from cosco.taxonomy import taxonomy_of
 
     return taxonomy_of(shapes, params, timing, (lambda text: _say(progress, text)) if progress else None,
                        distances_of, spacing)
 
 
-def with_targets(catalogue, params: CoscoParams) -> CoscoParams:
-    """``params`` detecting every object on the ground (``seg_targets="all"``) when the catalogue holds models of
+def with_targets(catalogue, params: Settings) -> Settings:
+    """``params`` detecting every object on the ground (``segment.targets="all"``) when the catalogue holds models of
     other kinds than vehicles (what a run can recognise is what it looks for), else as given."""
     from .catalogue.categories import VEHICLES
 
     kinds = {r.category or "car" for r in catalogue.list()}
-    return params.with_(seg_targets="all") if kinds - VEHICLES else params
+    return params.with_(segment={"targets": "all"}) if kinds - VEHICLES else params
 
 
-def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params: CoscoParams) -> tuple[list, list]:
+def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params: Settings) -> tuple[list, list]:
     """The recognition's two steps for every object: its kind (:class:`~twinreg.recognition.kinds.KindResult`)
     from the catalogue's nearest references by size and level of symmetry (:mod:`twinreg.recognition.kinds`; one
-    query for the references, numpy for the rest), and its model kept only at ``params.model_min_confidence`` or
+    query for the references, numpy for the rest), and its model kept only at ``params.min_confidence`` or
     above (:func:`apply_floor`). Returns (the matching outcomes, the kinds)."""
     from .recognition.kinds import References, recognise_kind
 
     refs = References.of_catalogue(catalogue, params)
     kinds = [recognise_kind(s.size.as_array(), level, refs, params) for s, level in zip(shapes, levels)]
-    return apply_floor(outcomes, params.model_min_confidence), kinds
+    return apply_floor(outcomes, params.min_confidence), kinds
 
 
 def apply_floor(outcomes: list, floor: float) -> list:
@@ -116,12 +117,12 @@ def apply_floor(outcomes: list, floor: float) -> list:
     return out
 
 
-def types_of(labels, outcomes: list, kinds: list | None, params: CoscoParams, spacing=None) -> list[int]:
+def types_of(labels, outcomes: list, kinds: list | None, params: Settings, spacing=None) -> list[int]:
     """Each object's type (:func:`twinreg.recognition.kinds.object_types`): its taxonomy group split by kind, by
     decided model and by size, two objects of a type no farther apart in size than the catalogue's size window
-    (``params.size_tol`` plus ``params.size_spacing_k`` times the objects' median point ``spacing``). Twice the
+    (``params.matching.size_tol`` plus ``params.matching.size_spacing_k`` times the objects' median point ``spacing``). Twice the
     window grouped more of a sparse scan's copies, but let a type's shape outgrow a member cut by the scan's edge
-    by over 3 m on an AHN tile. Poles without a model group by kind and size alone (``params.type_pole_ratio``)."""
+    by over 3 m on an AHN tile. Poles without a model group by kind and size alone (``params.fusion.pole_ratio``)."""
     import numpy as np
 
     from .recognition.kinds import object_types
@@ -130,19 +131,19 @@ def types_of(labels, outcomes: list, kinds: list | None, params: CoscoParams, sp
     return object_types(labels, [k.kind for k in kinds] if kinds is not None else None,
                         sizes=[res.shape.size.as_array() for res in outcomes],
                         models=[res.match.name if res.match is not None else None for res in outcomes],
-                        tol=params.size_tol + params.size_spacing_k * s, pole_ratio=params.type_pole_ratio)
+                        tol=params.matching.size_tol + params.matching.size_spacing_k * s, pole_ratio=params.fusion.pole_ratio)
 
 
-def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: CoscoParams,
+def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: Settings,
          timing: dict | None = None, kinds: list | None = None) -> dict:
     """The fused shape of every type whose members have no decided model (:func:`twinreg.shapes.fuse.fuse_type`:
     the members co-registered, their points gathered and completed by the type's level of symmetry, meshed), by
     type: ``(member indices, FusedShape)``. ``clouds``: each object's points (the scene frame); the type's level is
-    its members' most common one. Types whose members have too few points together (``params.fuse_min_points``)
+    its members' most common one. Types whose members have too few points together (``params.fusion.min_points``)
     keep their boxes, but for vehicles (``kinds``), which get the kind's template: a body lofted from each one's
     own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``). In a type that is not
     of vehicles (a van's roof is all a scan sees of it), parts whose points all stand over
-    ``params.fuse_hang_height`` hang (a lamp's arm, a sign's plate, a shelter's roof)."""
+    ``params.fusion.hang_height`` hang (a lamp's arm, a sign's plate, a shelter's roof)."""
     from collections import Counter
 
     import numpy as np
@@ -157,7 +158,7 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
             groups.setdefault(t, []).append(k)
     out = {}
     for t, ks in groups.items():
-        if sum(len(clouds[k]) for k in ks) < params.fuse_min_points:
+        if sum(len(clouds[k]) for k in ks) < params.fusion.min_points:
             for k in ks:
                 got = generic_solid(outcomes[k].shape) if kinds is not None and kinds[k].kind in VEHICLES else None
                 if got is not None:
@@ -166,14 +167,14 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
         level = Counter(levels[k] for k in ks).most_common(1)[0][0] if levels is not None else "mirror"
         vehicles = kinds is not None and Counter(kinds[k].kind for k in ks).most_common(1)[0][0] in VEHICLES
         out[t] = (ks, fuse_type([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params,
-                                hang=None if vehicles else params.fuse_hang_height))
+                                hang=None if vehicles else params.fusion.hang_height))
     if timing is not None:
         timing["shapes"] = time.perf_counter() - t0
     return out
 
 
 def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, labels, offsets: list,
-           levels: list, spacing: list, clouds_of, georef, models, catalogue, params: CoscoParams, timing: dict,
+           levels: list, spacing: list, clouds_of, georef, models, catalogue, params: Settings, timing: dict,
            progress=None) -> tuple[list, list]:
     """What a scene and a city both do once every object is matched: the kinds recognised and the models under the
     floor withdrawn (:func:`recognise`), the types (:func:`types_of`), the types without a model fused

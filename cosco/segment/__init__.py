@@ -4,14 +4,14 @@ street's overhangs, stacks and uprights).
 
 1. Points above the ground are cut into columns; in each column only the lowest run of points counts (a point
    above a vertical gap is an overhang: tree canopy or a wire over a car does not join it).
-2. The points are over-segmented into patches: occupied voxels of ``seg_voxel`` (the paper's 15 cm seeds), adjacent
+2. The points are over-segmented into patches: occupied voxels of ``segment.voxel`` (the paper's 15 cm seeds), adjacent
    through their 26 neighbours (the paper's 3 x 3 x 3 adjacency).
 3. Connected patches form objects (scipy's connected components on the sparse adjacency graph).
 4. An object too large for the target class is split where its footprint has a neck (two cars touching by their
    mirrors): the footprint is eroded until it falls apart into car-sized parts.
 5. The size filter keeps objects of the target class (defaults for cars in :class:`~cosco.params.CoscoParams`); with
-   ``seg_targets="all"`` every object standing on the ground within a street's sizes too (poles, signs, bins,
-   bollards, trees, kiosks: ``object_height``, ``object_max_extent``, ``object_max_area``).
+   ``segment.targets="all"`` every object standing on the ground within a street's sizes too (poles, signs, bins,
+   bollards, trees, kiosks: ``segment.object_height``, ``segment.object_max_extent``, ``segment.object_max_area``).
 """
 
 from __future__ import annotations
@@ -39,17 +39,17 @@ __all__ = ["DetectedObject", "Segmentation", "far_outliers", "lowest_runs", "n_c
 def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) -> Segmentation:
     """Objects of a scene from its points and their heights above ground, pass by pass: the candidates (off the
     ground, under the ceiling, the lowest run of each column), the cores' patches and components with the low
-    points joined, the cars' passes (:mod:`.cars`), a street's (:mod:`.street`, ``seg_targets="all"``), then the
+    points joined, the cars' passes (:mod:`.cars`), a street's (:mod:`.street`, ``segment.targets="all"``), then the
     objects described and kept by size.
 
     points : (n, 3) float, metres. hag : (n,) height above ground (m). is_ground : (n,) bool, or None to use
-    ``hag < params.ground_tol``. Objects are ordered by x then y of their centre.
+    ``hag < params.ground.tol``. Objects are ordered by x then y of their centre.
     """
     pts = as_points(points)
     hag = np.asarray(hag, dtype=np.float64)
-    ground = hag < params.ground_tol if is_ground is None else np.asarray(is_ground, dtype=bool)
+    ground = hag < params.ground.tol if is_ground is None else np.asarray(is_ground, dtype=bool)
     labels = np.full(len(pts), -1, dtype=np.int64)
-    street = params.seg_targets == "all"
+    street = params.segment.targets == "all"
     # grids anchored at the frame's origin, not at the data: a tile or a cell of a larger scene (same frame) cuts
     # the same columns and voxels as the whole scene
     origin = np.zeros(3)
@@ -70,9 +70,9 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
         comp = join_stacked(pts[cand], hag[cand], comp, params, voxel)
         keep = np.r_[np.ones(n_kept, dtype=bool), standing_overhangs(pts[cand], hag[cand], comp, n_kept, params)]
         cand, comp = cand[keep], comp[keep]
-    least = min(params.seg_min_points, params.object_min_points) if street else params.seg_min_points
+    least = min(params.segment.min_points, params.segment.object_min_points) if street else params.segment.min_points
     # on a street a few points reaching the ceiling may be a thin pole's lower part: counted after growing up
-    high = params.seg_max_height - 2 * reach_link(voxel) if street else np.inf
+    high = params.segment.max_height - 2 * reach_link(voxel) if street else np.inf
     objects = []
     for rows in groups(comp):
         idx = cand[rows]
@@ -89,7 +89,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
 def _candidates(pts, hag, ground, params: CoscoParams, origin, street: bool) -> tuple[np.ndarray, np.ndarray]:
     """The rows that may belong to objects (off the ground, under the ceiling, the lowest run of their column) and,
     on a street, the overhangs set aside (taken back by :func:`.street.with_overhangs`)."""
-    cand = np.flatnonzero(~ground & (hag <= params.seg_max_height))
+    cand = np.flatnonzero(~ground & (hag <= params.segment.max_height))
     if len(cand) == 0:
         return cand, cand
     runs = lowest_runs(pts[cand] - origin, hag[cand], params)
@@ -101,13 +101,13 @@ def _components(pts, hag, cand, params: CoscoParams, origin):
     parked cars cannot bridge them; the cores' patches (no smaller than the point spacing, or a sparse scan falls
     apart) connected, then the low points joined to the core within two patches of them. ``(rows, component of
     each, patches, components, spacing, voxel)``, or None without a core."""
-    core = cand[hag[cand] >= params.seg_core_height]
-    low = cand[hag[cand] < params.seg_core_height]
+    core = cand[hag[cand] >= params.segment.core_height]
+    low = cand[hag[cand] < params.segment.core_height]
     if len(core) == 0:
         return None
     local = pts[core] - origin
     spacing = point_spacing(local)
-    voxel = max(params.seg_voxel, 1.2 * spacing)
+    voxel = max(params.segment.voxel, 1.2 * spacing)
     comp, n_patches, n_comp = voxel_components(local, voxel)
     if len(low):
         from scipy.spatial import cKDTree

@@ -15,7 +15,7 @@ def absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: 
     """A small component whose centre lies inside a larger, at most target-sized one's footprint rectangle (a piece
     of a car's side that scan-line gaps cut off, a mirror) joins it; neighbours side by side keep apart (their
     centres are outside), and nothing joins a hedge or an island (larger than the target class)."""
-    big, share, margin = params.seg_fragment_points, params.seg_fragment_share, params.seg_fragment_margin
+    big, share, margin = params.joins.fragment_points, params.joins.fragment_share, params.joins.fragment_margin
     labels, counts, members = _members(comp)
     if len(labels) < 2:
         return comp
@@ -27,7 +27,7 @@ def absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: 
     for lab in bigs:
         if len(members[lab]) >= 3:
             r = min_area_rectangle(xy[members[lab]])
-            if r.length <= params.car_length[1] and r.width <= params.car_width[1]:
+            if r.length <= params.segment.car_length[1] and r.width <= params.segment.car_width[1]:
                 rects[lab] = r
     out = comp.copy()
     if not rects:
@@ -37,7 +37,7 @@ def absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: 
     # hosts by decreasing size (ties in label order); a host can only take a piece within its half-diagonal
     hosts = sorted(rects, key=lambda h: -len(members[h]))
     tree = cKDTree(np.array([rects[h].centre for h in hosts]))
-    reach = float(np.hypot(params.car_length[1] / 2 + margin, params.car_width[1] / 2 + margin))
+    reach = float(np.hypot(params.segment.car_length[1] / 2 + margin, params.segment.car_width[1] / 2 + margin))
     for lab, c in sorted(zip(labels, counts), key=lambda t: t[1]):
         near = sorted(tree.query_ball_point(centres[lab], reach))
         for host in (hosts[k] for k in near):
@@ -61,20 +61,20 @@ def join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosc
     most ``widen`` (m) wider than the wider of the two and at most ``max_length`` (m) long (a long car; two cars
     nose to tail, of which a scan saw one only in part, are longer). A bin or a bollard by a car is narrower than
     the car and stays apart; two cars side by side are off each other's axis."""
-    gap, min_cover = params.seg_join_gap + spacing, params.seg_join_cover
-    widen, offset, max_length = params.seg_join_widen, params.seg_join_offset, params.seg_join_max_length
+    gap, min_cover = params.joins.gap + spacing, params.joins.cover
+    widen, offset, max_length = params.joins.widen, params.joins.offset, params.joins.max_length
     labels, counts, members = _members(comp, min_count=3)
     if len(labels) < 2:
         return comp
     rects = {lab: min_area_rectangle(xy[idx]) for lab, idx in members.items()}
-    pieces = [lab for lab in members if rects[lab].length < params.car_length[0]]
+    pieces = [lab for lab in members if rects[lab].length < params.segment.car_length[0]]
     if not pieces:
         return comp
     from scipy.spatial import cKDTree
 
     labs = list(members)
     tree = cKDTree(np.array([rects[h].centre for h in labs]))
-    reach = params.car_length[1] / 2 + gap
+    reach = params.segment.car_length[1] / 2 + gap
     group = {lab: [lab] for lab in labs}  # the components each surviving one has taken in
     owner = {lab: lab for lab in labs}
     out = comp.copy()
@@ -88,7 +88,7 @@ def join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosc
             if host == lab or len(h_idx) < len(p_idx) or hag[p_idx].min() > hag[h_idx].max():
                 continue
             both = min_area_rectangle(np.vstack([xy[h_idx], xy[p_idx]]))
-            if both.length > max_length or both.width > params.car_width[1]:
+            if both.length > max_length or both.width > params.segment.car_width[1]:
                 continue
             # in line along the axis of their union: side by side, the union would be as wide as two cars
             if not _in_line(xy[h_idx], xy[p_idx], both.centre, both.angle, gap, min_cover, offset):
@@ -98,7 +98,7 @@ def join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosc
             if both.width > max(widths) + widen:
                 continue
             # a whole-length host before a piece; then the narrowest union
-            rank = (rects[host].length < params.car_length[0] if host in rects and len(group[host]) == 1 else False,
+            rank = (rects[host].length < params.segment.car_length[0] if host in rects and len(group[host]) == 1 else False,
                     both.width)
             if best is None or rank < best[1]:
                 best = (host, rank)
@@ -136,10 +136,10 @@ def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing
     has the deepest such valley with at least the class's smallest width on each side; parts still too large are
     cut again (``depth`` times). None when no slice is lower than three quarters of the tops on both sides."""
     r = min_area_rectangle(xy)
-    if r.length <= params.car_length[1] and r.width <= params.car_width[1] or depth == 0 or len(xy) < 6:
+    if r.length <= params.segment.car_length[1] and r.width <= params.segment.car_width[1] or depth == 0 or len(xy) < 6:
         return None
-    bin_ = max(params.seg_split_bin, spacing)
-    edge = params.car_width[0]
+    bin_ = max(params.joins.split_bin, spacing)
+    edge = params.segment.car_width[0]
     best = None
     for a in (r.angle, r.angle + np.pi / 2):
         t = xy @ np.array([np.cos(a), np.sin(a)])
@@ -152,7 +152,7 @@ def _profile_split(xy: np.ndarray, hag: np.ndarray, params: CoscoParams, spacing
         centres = (np.arange(n) + 0.5) * bin_
         for j in np.flatnonzero((centres >= edge) & (centres <= n * bin_ - edge)):
             ratio = top[j] / max(min(top[:j].max(), top[j + 1:].max()), 1e-9)
-            if ratio < params.seg_split_ratio and (best is None or ratio < best[0]):
+            if ratio < params.joins.split_ratio and (best is None or ratio < best[0]):
                 best = (ratio, (k > j).astype(np.int64), k != j)
     if best is None:
         return None
@@ -192,7 +192,7 @@ def _footprint_split(xy: np.ndarray, params: CoscoParams, cell: float) -> np.nda
     occ = np.zeros(shape, dtype=bool)
     occ[ij[:, 0], ij[:, 1]] = True
     occ = ndimage.binary_closing(occ, structure=np.ones((3, 3)), iterations=2)
-    min_cells = params.car_area[0] / cell**2
+    min_cells = params.segment.car_area[0] / cell**2
     for radius in (1, 2, 3, 4, 5):
         core = ndimage.binary_erosion(occ, structure=ndimage.generate_binary_structure(2, 1), iterations=radius)
         lab, k = ndimage.label(core, structure=np.ones((3, 3)))
@@ -226,14 +226,14 @@ def split_too_big(pts, hag, cand, comp, params: CoscoParams, cell: float, spacin
 
 def _parts(pts, hag, cand, rows, params: CoscoParams, cell: float, spacing: float, depth: int) -> list:
     """The rows of one component, cut into parts no larger than the target class where it can be."""
-    if len(rows) < params.seg_min_points or depth == 0:
+    if len(rows) < params.segment.min_points or depth == 0:
         return [rows]
     idx = cand[rows]
     obj = describe(pts, hag, idx, params, cell, spacing)
-    if not too_big(obj, params) or obj.height > params.car_height[1]:
+    if not too_big(obj, params) or obj.height > params.segment.car_height[1]:
         return [rows]
-    labels = _footprint_split(pts[idx, :2], params, cell=max(params.seg_split_bin, spacing / 2))
-    if labels is None and obj.length <= 2 * params.car_length[1] and obj.width <= 2 * params.car_width[1]:
+    labels = _footprint_split(pts[idx, :2], params, cell=max(params.joins.split_bin, spacing / 2))
+    if labels is None and obj.length <= 2 * params.segment.car_length[1] and obj.width <= 2 * params.segment.car_width[1]:
         # a few cars a sparse scan joined, not a hedge or a row of planters cut into car-sized pieces
         labels = _profile_split(pts[idx, :2], hag[idx], params, spacing)
     if labels is None:

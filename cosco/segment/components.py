@@ -58,10 +58,10 @@ def _group_runs(key: np.ndarray, value: np.ndarray, gap: float) -> np.ndarray:
 
 def lowest_runs(points: np.ndarray, hag: np.ndarray, params: CoscoParams = DEFAULT) -> np.ndarray:
     """Mask of the points that belong to the lowest run of their column (no overhangs)."""
-    ij = np.floor(points[:, :2] / params.seg_column).astype(np.int64)
+    ij = np.floor(points[:, :2] / params.segment.column).astype(np.int64)
     ij -= column_min(ij)
     key = ij[:, 0] * (ij[:, 1].max() + 1) + ij[:, 1]
-    return _group_runs(key, hag, params.seg_gap)
+    return _group_runs(key, hag, params.segment.gap)
 
 
 def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int, int]:
@@ -96,7 +96,7 @@ def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int,
 
 def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6) -> np.ndarray:
     """Mask of points far from the rest of the scan (birds, multipath, a stray return kilometres away): groups of
-    at most ``params.outlier_points`` points with no other point in the 26 neighbouring ``params.outlier_voxel``
+    at most ``params.segment.outlier_points`` points with no other point in the 26 neighbouring ``params.segment.outlier_voxel``
     cubes. A dense grid of coarse voxels counts them when it has at most ``dense_limit`` cells; beyond that,
     sparse voxel keys do (memory and time by points, whatever the bounding box).
 
@@ -105,7 +105,7 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
     ([500], [500])
     """
     pts = as_points(points)
-    lo, v = column_min(pts), params.outlier_voxel
+    lo, v = column_min(pts), params.segment.outlier_voxel
     # voxel indices are non-negative (truncation is floor) and monotonic: the largest is the largest coordinate's
     dims = ((column_max(pts) - lo) / v).astype(np.int64) + 1
     if np.prod(dims.astype(np.float64)) > dense_limit:
@@ -135,11 +135,11 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
         if np.count_nonzero(sizes) < 2:
             return np.zeros(len(pts), dtype=bool)
         if mod is not None:
-            return mod.in_voxels(pts, lo, float(v), dims, sizes[labels] <= params.outlier_points)
+            return mod.in_voxels(pts, lo, float(v), dims, sizes[labels] <= params.segment.outlier_points)
         comp = labels[flat]
     if np.count_nonzero(sizes) < 2:
         return np.zeros(len(pts), dtype=bool)
-    return sizes[comp] <= params.outlier_points
+    return sizes[comp] <= params.segment.outlier_points
 
 
 def members(comp: np.ndarray, min_count: int = 1) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -167,18 +167,18 @@ def groups(comp: np.ndarray) -> list[np.ndarray]:
 
 def car_sized(length: float, width: float, height: float, params: CoscoParams) -> bool:
     """Whether a footprint of ``length`` x ``width`` and a ``height`` (m) are within the target class's ranges
-    (``car_length``, ``car_width``, ``car_height``): the one size test of the segmentation's passes.
+    (``segment.car_length``, ``segment.car_width``, ``segment.car_height``): the one size test of the segmentation's passes.
 
     >>> car_sized(4.3, 1.8, 1.5, DEFAULT), car_sized(4.3, 1.8, 3.5, DEFAULT)
     (True, False)
     """
-    return (params.car_length[0] <= length <= params.car_length[1] and params.car_width[0] <= width
-            <= params.car_width[1] and params.car_height[0] <= height <= params.car_height[1])
+    return (params.segment.car_length[0] <= length <= params.segment.car_length[1] and params.segment.car_width[0] <= width
+            <= params.segment.car_width[1] and params.segment.car_height[0] <= height <= params.segment.car_height[1])
 
 
 def too_big(o: DetectedObject, params: CoscoParams) -> bool:
     """Whether an object is larger in plan than the target class (a few cars a scan joined, a hedge)."""
-    return o.length > params.car_length[1] or o.width > params.car_width[1] or o.area > params.car_area[1]
+    return o.length > params.segment.car_length[1] or o.width > params.segment.car_width[1] or o.area > params.segment.car_area[1]
 
 
 def describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: CoscoParams,
@@ -190,15 +190,15 @@ def describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosco
     area = n_cells(p, cell) * cell * cell
     length = rect.length if rect else 0.0
     width = rect.width if rect else 0.0
-    height = float(np.quantile(hag[idx], params.seg_height_quantile))
+    height = float(np.quantile(hag[idx], params.segment.height_quantile))
     base = float(hag[idx].min())
-    grounded = base <= params.seg_max_base + spacing
-    target = car_sized(length, width, height, params) and params.car_area[0] <= area <= params.car_area[1] and grounded
-    if params.seg_targets == "all" and not target:  # every object standing on the ground, of a street's sizes
+    grounded = base <= params.segment.max_base + spacing
+    target = car_sized(length, width, height, params) and params.segment.car_area[0] <= area <= params.segment.car_area[1] and grounded
+    if params.segment.targets == "all" and not target:  # every object standing on the ground, of a street's sizes
         # (a tree's crown above a trunk the airborne scan does not see stands on the ground too)
-        crown = height >= params.object_crown_height and base <= height / 2
-        target = (params.object_height[0] <= height <= params.object_height[1] and (grounded or crown)
-                  and max(length, width) <= params.object_max_extent and area <= params.object_max_area
+        crown = height >= params.segment.object_crown_height and base <= height / 2
+        target = (params.segment.object_height[0] <= height <= params.segment.object_height[1] and (grounded or crown)
+                  and max(length, width) <= params.segment.object_max_extent and area <= params.segment.object_max_area
                   and describable(p))
     return DetectedObject(np.sort(idx), float(length), float(width), height, float(area), base, bool(target))
 

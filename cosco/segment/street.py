@@ -1,4 +1,4 @@
-"""The passes of a street's segmentation (``seg_targets="all"``): the overhangs set aside taken back (a sign's plate,
+"""The passes of a street's segmentation (``segment.targets="all"``): the overhangs set aside taken back (a sign's plate,
 a shelter's roof), the pieces of one street object stacked over each other joined, and thin uprights grown up
 through the segmentation's ceiling (a pole's lamp, a tree's crown)."""
 
@@ -20,8 +20,8 @@ def _boxes(p: np.ndarray, hag: np.ndarray, labels, members: dict, params: CoscoP
     hi = np.array([p[members[lab], :2].max(0) for lab in labels]).reshape(-1, 2)
     base = np.array([hag[members[lab]].min() for lab in labels])
     top = np.array([hag[members[lab]].max() for lab in labels])
-    body = (base <= params.seg_max_base) & (np.hypot(*(hi - lo).T) >= params.car_width[0]) \
-        & (top <= params.car_height[1])
+    body = (base <= params.segment.max_base) & (np.hypot(*(hi - lo).T) >= params.segment.car_width[0]) \
+        & (top <= params.segment.car_height[1])
     return lo, hi, base, top, body
 
 
@@ -71,7 +71,7 @@ def with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: float
 def standing_overhangs(p, hag, comp, n_kept: int, params: CoscoParams) -> np.ndarray:
     """(len(comp) - n_kept,) bool: which overhang points (those after the first ``n_kept``) count. Those that
     joined a component of the lowest runs do; of the rest, a group that stands on the ground (its lowest point
-    under ``seg_max_base``: a thin pole whose only lower run is a stray point at its foot) and is over no other
+    under ``segment.max_base``: a thin pole whose only lower run is a stray point at its foot) and is over no other
     component's footprint; not one off the ground or over another object (a canopy, a wire, a barrier's top edge),
     as in car mode."""
     rest = comp[n_kept:]
@@ -83,7 +83,7 @@ def standing_overhangs(p, hag, comp, n_kept: int, params: CoscoParams) -> np.nda
     labels, _, members = _members(comp)
     lo, hi, base, _, _ = _boxes(p, hag, labels, members, params)
     at = np.searchsorted(labels, lone)
-    standing = at[base[at] <= params.seg_max_base]
+    standing = at[base[at] <= params.segment.max_base]
     if len(standing) == 0:
         return out
     from scipy.spatial import cKDTree
@@ -101,9 +101,9 @@ def standing_overhangs(p, hag, comp, n_kept: int, params: CoscoParams) -> np.nda
 
 
 def _over_bodies(pts, cand, inside: np.ndarray, over, params: CoscoParams) -> np.ndarray:
-    """(len(over),) bool: the overhang points in a column (``seg_column``) of a car body's points (``inside``:
+    """(len(over),) bool: the overhang points in a column (``segment.column``) of a car body's points (``inside``:
     which of ``cand`` are)."""
-    ij = np.floor(pts[np.r_[cand[inside], over], :2] / params.seg_column).astype(np.int64)
+    ij = np.floor(pts[np.r_[cand[inside], over], :2] / params.segment.column).astype(np.int64)
     key = cell_keys(ij)
     return np.isin(key[int(inside.sum()):], key[:int(inside.sum())])
 
@@ -133,9 +133,9 @@ def _touching(p: np.ndarray, labels, members: dict, these: np.ndarray, link: flo
 
 def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, voxel: float) -> np.ndarray:
     """Pieces of one street object that a sparse scan left apart, joined: components stacked one over the other in
-    plan (their footprint boxes, widened by half a patch, overlap) with at most a link (``object_link`` m, or three
+    plan (their footprint boxes, widened by half a patch, overlap) with at most a link (``segment.object_link`` m, or three
     patches) of height between them (a sign's plate and its post, a shelter's roof and its posts, a crown's pieces,
-    a mailbox's box and its foot); a piece off the ground (lowest point over ``seg_max_base``) joins what is within
+    a mailbox's box and its foot); a piece off the ground (lowest point over ``segment.max_base``) joins what is within
     a link of it in plan too (a roof's, a crown's pieces). Components as large as a car in plan and no taller are left alone (a car under
     a crown, cars side by side stay apart). Union-find over neighbours from a KD-tree: no pair of far components
     is looked at."""
@@ -144,18 +144,18 @@ def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosco
     labels, _, members = _members(comp)
     if len(labels) < 2:
         return comp
-    link = max(params.object_link, 3 * voxel)
+    link = max(params.segment.object_link, 3 * voxel)
     lo, hi, base, top, body = _boxes(p, hag, labels, members, params)
     diag = np.hypot(*(hi - lo).T)
     # what may join: not a car's body nor larger than a street object, nor a piece touching such a large one (a
     # building wall's pieces the scan's gaps left apart)
-    large = diag > params.object_max_extent
+    large = diag > params.segment.object_max_extent
     free = ~body & ~large & ~_touching(p, labels, members, large, link)
     pick = np.flatnonzero(free)
     if len(pick) < 2:
         return comp
     base, top = base[pick], top[pick]
-    floating = base > params.seg_max_base
+    floating = base > params.segment.max_base
     # a piece off the ground (a roof's, a crown's) reaches a link across; pieces on the ground must stand over
     # each other (two bins side by side stay apart)
     widen = np.where(floating, link, voxel)[:, None] / 2
@@ -194,7 +194,7 @@ def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosco
         mlo, mhi = np.minimum(box_lo[ra], box_lo[rb]), np.maximum(box_hi[ra], box_hi[rb])
         grown = diag(mlo, mhi)
         if up[ra] and up[rb]:
-            if grown > params.object_max_extent:
+            if grown > params.segment.object_max_extent:
                 continue
         elif grown > max(diag(box_lo[ra], box_hi[ra]), diag(box_lo[rb], box_hi[rb])) + link:
             continue
@@ -216,19 +216,19 @@ def reach_link(voxel: float) -> float:
 
 
 def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, spacing: float) -> list:
-    """Every object that is not car-sized and reaches the segmentation's ceiling (``seg_max_height``: it keeps
-    tree crowns off the cars under them) grown upwards: the points above the ceiling (up to ``object_height``'s
+    """Every object that is not car-sized and reaches the segmentation's ceiling (``segment.max_height``: it keeps
+    tree crowns off the cars under them) grown upwards: the points above the ceiling (up to ``segment.object_height``'s
     top) connected to its top join it (a pole's upper part and its lamp, a sign's plate, a tree's crown), unless
-    they run on beyond ``object_reach`` plus half ``object_max_extent`` m of it in plan (a building's wall under its
+    they run on beyond ``segment.object_reach`` plus half ``segment.object_max_extent`` m of it in plan (a building's wall under its
     roof: the object is then no target). Objects whose tops join the same high points are one object (a crown's
     lower pieces under its top); the larger objects look first."""
     from scipy.spatial import cKDTree
 
-    ceiling = params.seg_max_height
-    high = np.flatnonzero(~ground & (hag > ceiling) & (hag <= params.object_height[1]))
+    ceiling = params.segment.max_height
+    high = np.flatnonzero(~ground & (hag > ceiling) & (hag <= params.segment.object_height[1]))
     if len(high) == 0:
         return objects
-    link = reach_link(max(params.seg_voxel, 1.2 * spacing))
+    link = reach_link(max(params.segment.voxel, 1.2 * spacing))
     tree = cKDTree(pts[high, :2])
     owner = np.full(len(high), -1, dtype=np.int64)
     slots: list = []  # per grown object: [indices, edge], or None once merged into another
@@ -236,20 +236,20 @@ def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, 
     for k in sorted(range(len(objects)), key=lambda k: -objects[k].n_points):
         o = objects[k]
         top = o.indices[hag[o.indices] > ceiling - 2 * link]
-        if car_sized(o.length, o.width, o.height, params) or len(top) < 2 or max(o.length, o.width) > params.object_max_extent:
+        if car_sized(o.length, o.width, o.height, params) or len(top) < 2 or max(o.length, o.width) > params.segment.object_max_extent:
             out.append(o)
             continue
         xy = pts[o.indices, :2]
         centre = (xy.min(0) + xy.max(0)) / 2
         # looked at beyond the reach, by half the largest street object: a lamp's arm or a crown wider than the
         # trunk's reach is the object's own unless it runs on further still
-        radius = float(np.hypot(*(xy.max(0) - xy.min(0))) / 2 + params.object_reach + params.object_max_extent / 2)
+        radius = float(np.hypot(*(xy.max(0) - xy.min(0))) / 2 + params.segment.object_reach + params.segment.object_max_extent / 2)
         near = np.asarray(tree.query_ball_point(centre, radius), dtype=np.int64)
         joined = np.zeros(0, dtype=bool)
         if len(near):
             # thin uprights are sparse along their height: linked across two patches, a pole (under a link
             # across) across twice that
-            thin = max(o.length, o.width) <= params.object_link
+            thin = max(o.length, o.width) <= params.segment.object_link
             comp, _, _ = voxel_components(np.vstack([pts[top], pts[high[near]]]), 2 * link if thin else link)
             joined = np.isin(comp[len(top):], comp[:len(top)])
         if not joined.any():

@@ -1,4 +1,4 @@
-"""Segmentation of every object on the ground (``seg_targets="all"``): a pole taller than the segmentation's
+"""Segmentation of every object on the ground (``segment.targets="all"``): a pole taller than the segmentation's
 ceiling is one object with its arm, a small bollard and a tree crown over an unseen trunk are objects, while a car
 beside them is the same object as in car mode and a building's roof and the walls joined to it stay out. (What is
 left of the building are low pieces of its walls: a known limit, docs/PERFORMANCE.md.)"""
@@ -55,10 +55,10 @@ def test_every_object_on_the_ground_and_the_car_unchanged():
     pts, hag, labels, names = _scene()
     cars = _owner(segment_objects(pts, hag, DEFAULT, is_ground=hag < 0.03), labels, names)
     assert set(cars) == {"car"}
-    every = _owner(segment_objects(pts, hag, DEFAULT.with_(seg_targets="all"), is_ground=hag < 0.03), labels, names)
+    every = _owner(segment_objects(pts, hag, DEFAULT.with_(segment={"targets": "all"}), is_ground=hag < 0.03), labels, names)
     assert {"car", "pole", "bollard", "crown"} <= set(every)
     for piece in every.get("building", []):  # no roof: wall pieces under the ceiling
-        assert piece.height < DEFAULT.seg_max_height
+        assert piece.height < DEFAULT.segment.max_height
         assert sum(o.indices.size for o in every["building"]) < 0.1 * (labels == names.index("building")).sum()
     assert len(every["car"]) == 1 and np.array_equal(every["car"][0].indices, cars["car"][0].indices)
     pole = every["pole"]
@@ -102,7 +102,7 @@ def test_pieces_of_one_object_joined_and_neighbours_kept_apart():
     bins side by side stay two objects, what hangs over a car (a wire) stays off it, as in car mode, and a pole
     the scan hit every 0.7 m is one object up through the segmentation's ceiling."""
     pts, hag, labels, names = _street_pieces()
-    seg = segment_objects(pts, hag, DEFAULT.with_(seg_targets="all"), is_ground=hag < 0.03)
+    seg = segment_objects(pts, hag, DEFAULT.with_(segment={"targets": "all"}), is_ground=hag < 0.03)
     every = _owner(seg, labels, names)
     for name in ("sign", "shelter"):
         assert len(every[name]) == 1, name

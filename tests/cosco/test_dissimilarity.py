@@ -105,10 +105,10 @@ def test_fields_cut_at_the_distance_cap_register_as_the_whole_fields():
         pairs.append(SectionPair(Sections(lon[::3], tra[::3], 0.1, longitudinal_fine=lon, transverse_fine=tra)))
         fines.append({"lon": lon, "tra": tra})
     cut = [[register_sections(a, b, polish=True) for b in pairs] for a in pairs]
-    pad = max(DEFAULT.tz_max, DEFAULT.du_max) + 0.5
+    pad = max(DEFAULT.registration.tz_max, DEFAULT.registration.du_max) + 0.5
     for p, fine in zip(pairs, fines):
-        assert all(f.cap == DEFAULT.dist_cap for f in p.fields.values())
-        whole = {k: distance_field(v, DEFAULT.field_cell, pad) for k, v in fine.items()}
+        assert all(f.cap == DEFAULT.registration.dist_cap for f in p.fields.values())
+        whole = {k: distance_field(v, DEFAULT.sections.field_cell, pad) for k, v in fine.items()}
         assert sum(f.values.size for f in p.fields.values()) < 0.6 * sum(f.values.size for f in whole.values())
         p.fields = whole
     assert [[register_sections(a, b, polish=True) for b in pairs] for a in pairs] == cut

@@ -80,7 +80,7 @@ def test_ground_by_blocks_agrees_with_one_window():
 
     park = _parametric_park()
     whole = remove_ground(park.points)[0]
-    blocks = remove_ground(park.points, DEFAULT.with_(ground_block=24, ground_halo=40))[0]
+    blocks = remove_ground(park.points, DEFAULT.with_(ground={"block": 24, "halo": 40}))[0]
     assert (whole == blocks).mean() > 0.999
     truth = park.labels == -1
     assert (blocks & truth).sum() / truth.sum() > 0.99 and (blocks & (park.labels >= 0)).mean() < 0.02
@@ -93,7 +93,7 @@ def test_a_few_blocks_found_by_passes_equal_blocks_found_by_grouping(monkeypatch
     from cosco.params import DEFAULT
 
     park = _parametric_park()
-    params = DEFAULT.with_(ground_block=24, ground_halo=40)
+    params = DEFAULT.with_(ground={"block": 24, "halo": 40})
     monkeypatch.setattr(ground, "FEW_BLOCKS", 0)
     grouped = ground.estimate_ground(park.points, params)
     monkeypatch.setattr(ground, "FEW_BLOCKS", 10**6)

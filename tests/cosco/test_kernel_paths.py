@@ -30,7 +30,7 @@ def _run() -> dict:
     far = far_outliers(pts)
     kept = pts[~far]
     is_ground, hag, _ = remove_ground(kept)
-    seg = segment_objects(kept, hag, DEFAULT.with_(seg_targets="all"), is_ground=is_ground)
+    seg = segment_objects(kept, hag, DEFAULT.with_(segment={"targets": "all"}), is_ground=is_ground)
     shapes = [cosco.describe_object(kept[o.indices], DEFAULT) for o in seg.objects if o.target]
     levels = [symmetry_level(kept[o.indices], DEFAULT).level for o in seg.objects if o.target]
     return {"far": far, "ground": is_ground, "hag": hag, "labels": seg.labels,

@@ -136,7 +136,6 @@ def test_min_area_rectangle_of_collinear_points_is_the_references():
 def test_ground_heights_are_the_references_bit_for_bit(seed):
     """A ground of several blocks and the heights above it (points inside blocks, across their edges and beyond the stored
     ones) and above one window (points beyond its edge cells): the compiled heights equal the references exactly."""
-    from dataclasses import replace
 
     from cosco.ground import _Grid, estimate_ground
     from cosco.params import DEFAULT
@@ -146,7 +145,7 @@ def test_ground_heights_are_the_references_bit_for_bit(seed):
     xy = rng.uniform(0, 700, (n, 2))  # blocks of 64 cells of 0.5 m: many blocks and edges
     z = 0.02 * xy[:, 0] + np.sin(xy[:, 1] / 30) + rng.normal(0, 0.02, n)
     pts = np.c_[xy, z]
-    params = replace(DEFAULT, ground_block=64, ground_halo=16)
+    params = DEFAULT.with_(ground={"block": 64, "halo": 16})
     ground = estimate_ground(pts, params)
     assert len(ground.keys) > 4
     mod = kernels.jit()
@@ -308,9 +307,9 @@ def test_capped_section_distances_are_the_kd_trees(seed, monkeypatch):
     a, b = SectionPair(sa, DEFAULT), SectionPair(sb, DEFAULT)
     query = rng.uniform([-2.6, 0.8], [2.6, 1.7], (700, 2))
     for key in ("lon", "tra"):
-        got = a.capped(key, query, DEFAULT.dist_cap)
-        want = np.minimum(a.trees[key].query(query)[0], DEFAULT.dist_cap)
-        assert np.allclose(got, want, rtol=0, atol=1e-12) and (got <= DEFAULT.dist_cap).all()
+        got = a.capped(key, query, DEFAULT.registration.dist_cap)
+        want = np.minimum(a.trees[key].query(query)[0], DEFAULT.registration.dist_cap)
+        assert np.allclose(got, want, rtol=0, atol=1e-12) and (got <= DEFAULT.registration.dist_cap).all()
     reg = polished(a, b, register_sections(a, b, DEFAULT), DEFAULT)
     monkeypatch.setenv("TWINREG_NO_NUMBA", "1")
     monkeypatch.setattr(kernels, "_STATE", {})

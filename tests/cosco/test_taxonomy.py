@@ -29,14 +29,14 @@ def test_sparse_taxonomy_finds_the_kinds_the_full_matrix_finds():
     order = rng.permutation(len(shapes))
     shapes = [shapes[i] for i in order]
     truth = np.repeat(np.arange(3), 14)[order]
-    full = taxonomy(shapes, DEFAULT.with_(taxonomy_full_max=100))
-    sparse = taxonomy(shapes, DEFAULT.with_(taxonomy_full_max=10))
+    full = taxonomy(shapes, DEFAULT.with_(taxonomy={"full_max": 100}))
+    sparse = taxonomy(shapes, DEFAULT.with_(taxonomy={"full_max": 10}))
     assert full.method == "full" and sparse.method == "sparse"
     for tax in (full, sparse):
         assert tax.n_clusters == 3
         for k in range(3):  # each kind is one cluster, and each cluster one kind
             assert len(set(tax.labels[truth == k])) == 1
-    assert sparse.n_comparisons <= len(shapes) * DEFAULT.taxonomy_neighbours
+    assert sparse.n_comparisons <= len(shapes) * DEFAULT.taxonomy.neighbours
     assert full.n_comparisons == len(shapes) * (len(shapes) - 1) // 2
 
 

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from tests.twinreg.helpers import toy_shapes
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 from twinreg.errors import CatalogueError, ParameterError
 from twinreg.stages import checked_params, place, require_models, taxonomy
 
 
 def test_checked_params_takes_the_users_window_and_refuses_nonsense():
     p = checked_params(DEFAULT, 0.35, 0.1)
-    assert p.size_tol == 0.35 and p.size_spacing_k == 0.0 and p.cluster_threshold == 0.1
+    assert p.matching.size_tol == 0.35 and p.matching.size_spacing_k == 0.0 and p.taxonomy.threshold == 0.1
     assert checked_params(DEFAULT, None, None) == DEFAULT
     for tol, threshold in ((-0.1, None), (None, 0.0), (float("nan"), None)):
         with pytest.raises(ParameterError):
@@ -38,7 +38,7 @@ def test_taxonomy_full_matrix_up_to_the_limit_and_the_graph_beyond():
     timing: dict = {}
     full = taxonomy(shapes, DEFAULT, timing)
     assert full.method == "full" and full.matrix.shape == (6, 6) and {"matrix", "clustering"} <= set(timing)
-    sparse = taxonomy(shapes, DEFAULT.with_(taxonomy_full_max=3), {})
+    sparse = taxonomy(shapes, DEFAULT.with_(taxonomy={"full_max": 3}), {})
     assert sparse.method != "full" and len(sparse.labels) == 6
     # the two lengths of car: the same groups either way
     same = lambda labels: {(i, j) for i in range(6) for j in range(6) if labels[i] == labels[j]}  # noqa: E731
@@ -78,7 +78,7 @@ def test_placing_all_at_once_is_placing_each_alone(parametric_catalogue):
 
 def test_recognition_keeps_a_model_only_at_the_floor_or_above(parametric_catalogue):
     """stages.recognise: every object a kind from the catalogue (all cars here), and a model under
-    ``model_min_confidence`` withdrawn: no match, reason_code under_floor, the model first among the candidates."""
+    ``min_confidence`` withdrawn: no match, reason_code under_floor, the model first among the candidates."""
     from dataclasses import replace
 
     from twinreg.matching.match import ModelCache, match_objects
@@ -89,12 +89,12 @@ def test_recognition_keeps_a_model_only_at_the_floor_or_above(parametric_catalog
     assert all(r.match is not None for r in results)
     results[1] = replace(results[1], match=replace(results[1].match, confidence=0.1))  # a doubtful model
     levels = ["mirror"] * 4
-    kept, kinds = recognise(results, shapes, levels, parametric_catalogue, DEFAULT.with_(model_min_confidence=0.3))
+    kept, kinds = recognise(results, shapes, levels, parametric_catalogue, DEFAULT.with_(min_confidence=0.3))
     assert [k.kind for k in kinds] == ["car"] * 4 and all(0.5 < k.confidence <= 1.0 for k in kinds)
     assert kept[1].match is None and kept[1].reason_code == "under_floor"
     assert kept[1].candidates[0] == results[1].match.model_id and "0.10" in kept[1].reason
     assert [r.match for k, r in enumerate(kept) if k != 1] == [r.match for k, r in enumerate(results) if k != 1]
-    none_withdrawn, _ = recognise(results, shapes, levels, parametric_catalogue, DEFAULT.with_(model_min_confidence=0))
+    none_withdrawn, _ = recognise(results, shapes, levels, parametric_catalogue, DEFAULT.with_(min_confidence=0))
     assert none_withdrawn[1].match is not None
 
 

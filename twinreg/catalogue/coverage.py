@@ -4,7 +4,7 @@ The objects of the twins that got no model, or one outside the size window, are 
 (cells of ``LENGTH_BIN`` x ``WIDTH_BIN`` metres); each group is reported with its size range and the catalogue model
 nearest to it, and a group with no model in the matcher's size window is a size the catalogue is missing. The
 window is the one the twin was matched with (its ``matching.tol_m`` and ``tol_spacing_k``, the defaults of
-:class:`cosco.params.CoscoParams` otherwise): a model may be ``tol`` smaller and ``tol`` plus ``tol_spacing_k``
+:class:`twinreg.settings.Settings` otherwise): a model may be ``tol`` smaller and ``tol`` plus ``tol_spacing_k``
 point spacings larger in length and width (the spacing estimated from each object's points over its footprint).
 """
 
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 
 from ..errors import SceneReadError
 from ..io._files import MAX_TWIN_BYTES, read_json_doc
@@ -36,7 +36,7 @@ def read_objects(paths) -> list[dict]:
             if not isinstance(objs, list):
                 raise TypeError("its objects are not a list")
             m = doc.get("matching", {})
-            window = (float(m.get("tol_m", DEFAULT.size_tol)), float(m.get("tol_spacing_k", DEFAULT.size_spacing_k)))
+            window = (float(m.get("tol_m", DEFAULT.matching.size_tol)), float(m.get("tol_spacing_k", DEFAULT.matching.size_spacing_k)))
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             raise SceneReadError(f"{p}: not a twin.json written by build-twin ({exc}); give OUT/twin.json") from exc
         out += [o | {"twin": str(p), "window": window} for o in objs]
@@ -90,7 +90,7 @@ def window_of(objects: list[dict]) -> tuple[float, float]:
     """(tol, grow) m of the matcher's size window for these objects: the twin's tolerance, and its spacing factor
     times the objects' median point spacing (estimated as sqrt(footprint / points); 0 when a record has no point
     count)."""
-    windows = np.array([o.get("window", (DEFAULT.size_tol, DEFAULT.size_spacing_k)) for o in objects])
+    windows = np.array([o.get("window", (DEFAULT.matching.size_tol, DEFAULT.matching.size_spacing_k)) for o in objects])
     tol, k = (float(v) for v in np.median(windows, axis=0))
     spacing = np.median([np.sqrt(o["measured_size"]["length"] * o["measured_size"]["width"] / o["n_points"])
                          if o.get("n_points") else 0.0 for o in objects])  # unknown: the plain tolerance
@@ -120,7 +120,7 @@ def plot(objects: list[dict], models: np.ndarray, names: list[str], path) -> Pat
 
     plt = pyplot()
 
-    tol, grow = window_of(objects) if objects else (DEFAULT.size_tol, 0.0)
+    tol, grow = window_of(objects) if objects else (DEFAULT.matching.size_tol, 0.0)
     fig, ax = plt.subplots(figsize=(7, 4.6))
     lw = np.array([[o["measured_size"]["length"], o["measured_size"]["width"]] for o in objects]).reshape(-1, 2)
     ok = np.array([bool(o.get("match")) and not o["match"].get("outside_tolerance") for o in objects], dtype=bool)

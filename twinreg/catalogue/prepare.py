@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 import cosco
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from ..errors import MeshLoadError, UnitError
 from ..io.meshes import load_mesh
@@ -53,7 +53,7 @@ def file_sha256(path: Path) -> str:
 
 
 def prepare_model(path, unit: str = "auto", up: str = "auto", front: str = "auto",
-                  spacing: float = SAMPLE_SPACING, params: CoscoParams = DEFAULT, category: str = "car",
+                  spacing: float = SAMPLE_SPACING, params: Settings = DEFAULT, category: str = "car",
                   factor: float = 1.0) -> PreparedModel:
     """Load and measure one CAD model of a ``category`` (``factor``: a scale after the unit). Raises a
     :class:`~twinreg.errors.TwinregError` subclass on bad input."""
@@ -111,7 +111,7 @@ def is_scan_file(path: Path) -> bool:
     return not faces or (len(faces[0]) >= 3 and faces[0][2] == "0")
 
 
-def prepare_scan(path, category: str, unit: str = "auto", params: CoscoParams = DEFAULT,
+def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEFAULT,
                  factor: float = 1.0) -> PreparedModel:
     """A scanned object (one object's points: XYZ, PLY points, LAS/LAZ) as a catalogue reference: its points
     placed as a model is (footprint centred, lowest point z = 0, its frame's heading along +X), its sections, size
@@ -144,7 +144,7 @@ def prepare_scan(path, category: str, unit: str = "auto", params: CoscoParams = 
         ps.points = cosco.voxel_downsample(ps.points, SAMPLE_SPACING)[0]
         notes.append(f"thinned to {len(ps.points)} points ({SAMPLE_SPACING * 100:.0f} cm, the models' sampling)")
     try:
-        pts = check_object(ps.points, min_points=params.seg_min_points)
+        pts = check_object(ps.points, min_points=params.segment.min_points)
     except ValueError as exc:
         raise MeshLoadError(f"{path}: {exc}; a scanned reference needs one object's points") from exc
     shape = cosco.describe_object(pts, params)

@@ -24,6 +24,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 import cosco
+from twinreg.settings import DEFAULT
 from cosco.taxonomy import descriptor
 
 from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, require_positive
@@ -126,8 +127,8 @@ class Catalogue:
     def list(self, near=None, tol: float | None = None, body_class: str | None = None,
              category: str | None = None) -> list[RefModel]:
         """All models, or those whose L, W and H are each within ``tol`` (m, default the matcher's
-        ``CoscoParams.size_tol``) of ``near`` (one indexed query), of ``category`` when given."""
-        tol = require_positive("--tol", tol) or cosco.DEFAULT.size_tol
+        ``Settings.matching.size_tol``) of ``near`` (one indexed query), of ``category`` when given."""
+        tol = require_positive("--tol", tol) or DEFAULT.matching.size_tol
         if category is not None:
             from .categories import check_category
 
@@ -152,7 +153,7 @@ class Catalogue:
         return sorted(rows, key=key)
 
     @staticmethod
-    def size_query(near=None, tol: float = cosco.DEFAULT.size_tol, body_class: str | None = None,
+    def size_query(near=None, tol: float = DEFAULT.matching.size_tol, body_class: str | None = None,
                    category: str | None = None):
         """The SELECT of :meth:`list` (large columns deferred), for reuse and for checking its query plan."""
         q = select(RefModel)

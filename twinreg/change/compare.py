@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from ..io.outdir import check_replaceable, locked, staged_folder
 from .align import align
@@ -22,7 +22,7 @@ from .status import classify, summary
 from .tracks import occupancy, tracks
 
 
-def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[dict, list]:
+def changes_document(folders, params: Settings = DEFAULT, say=None) -> tuple[dict, list]:
     """The changes.json document of twins ``folders`` and their epochs (survey-date order)."""
     t0 = time.perf_counter()
     epochs = read_epochs(folders, say=say)
@@ -52,7 +52,7 @@ def changes_document(folders, params: CoscoParams = DEFAULT, say=None) -> tuple[
     return doc, epochs
 
 
-def compare(folders, out, params: CoscoParams = DEFAULT, say=None, progress=None, protect=()) -> dict:
+def compare(folders, out, params: Settings = DEFAULT, say=None, progress=None, protect=()) -> dict:
     """Compare twins into ``out`` (see the module's text); returns changes.json's document. Nothing is written
     when the twins cannot be compared; ``out`` may be neither a twin nor inside one of them or of ``protect`` (the
     catalogue)."""

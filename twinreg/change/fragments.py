@@ -12,16 +12,16 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cosco.footprint import min_area_rectangle
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from .epochs import Epoch
 from .footprints import corners, inside, samples
 
 def _pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
-            params: CoscoParams = DEFAULT) -> list[tuple[int, list[int]]]:
+            params: Settings = DEFAULT) -> list[tuple[int, list[int]]]:
     """(object of ``whole``, its pieces in ``parts`` (two or more, none with a model)) for every object of
     ``whole``; ``shift`` (2,) takes ``parts``' coordinates to ``whole``'s. A piece lies inside an object when
-    ``params.change_piece_inside`` of it is within the object's footprint grown by ``params.change_piece_grow``."""
+    ``params.change.piece_inside`` of it is within the object's footprint grown by ``params.change.piece_grow``."""
     free = np.array([m is None for m in parts.models], dtype=bool)
     if free.sum() < 2 or not len(whole):
         return []
@@ -35,10 +35,10 @@ def _pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
         j = idx[np.asarray(cand)]
         pts = samples(parts.centre[j, :2] + shift, parts.heading[j], parts.size[j, 0], parts.size[j, 1], nu=10, nv=4)
         k = np.full(len(j), i)
-        grow = params.change_piece_grow
+        grow = params.change.piece_grow
         share = inside(pts, whole.centre[k, :2], whole.heading[k], whole.size[k, 0] + 2 * grow,
                        whole.size[k, 1] + 2 * grow).mean(1)
-        mine = [int(x) for x in j[share >= params.change_piece_inside] if int(x) not in taken]
+        mine = [int(x) for x in j[share >= params.change.piece_inside] if int(x) not in taken]
         if len(mine) >= 2:
             out.append((i, mine))
             taken.update(mine)
@@ -46,7 +46,7 @@ def _pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
 
 
 def merge_pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
-                 params: CoscoParams = DEFAULT) -> tuple[Epoch, np.ndarray]:
+                 params: Settings = DEFAULT) -> tuple[Epoch, np.ndarray]:
     """``parts`` with the pieces of each of ``whole``'s objects merged into one object (appended; the pieces
     dropped), and the (n,) mask of its merged objects."""
     groups = _pieces(whole, parts, shift, params)

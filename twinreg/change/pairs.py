@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 import cosco
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from .epochs import Epoch
 from .footprints import overlap, turn
@@ -60,18 +60,18 @@ def _same_vehicle(a: Epoch, b: Epoch, i, j, section_m, params) -> tuple[np.ndarr
     placed = np.abs(a.size[i] - b.size[j]) / sigma
     z = np.where(both[:, None], np.minimum(measured, placed), measured)
     p_size = np.exp(-0.5 * np.sum(np.maximum(z - 1.0, 0.0) ** 2, axis=1))
-    theta = params.cluster_threshold + 0.5 * max(a.spacing, b.spacing) + 2 * np.hypot(a.noise, b.noise)
+    theta = params.taxonomy.threshold + 0.5 * max(a.spacing, b.spacing) + 2 * np.hypot(a.noise, b.noise)
     p_sec = np.exp(-0.5 * (np.maximum(np.nan_to_num(section_m) / theta - 1.0, 0.0) * 4) ** 2)
     # two sure matches (COSCO's confidence of 0.9 or more was right in every case measured) to different models
     # speak against one vehicle; an unsure or missing match says nothing (a sparse survey, a near-duplicate pair)
-    sure = ((np.nan_to_num(a.confidence[i]) >= params.change_sure)
-            & (np.nan_to_num(b.confidence[j]) >= params.change_sure))
+    sure = ((np.nan_to_num(a.confidence[i]) >= params.change.sure)
+            & (np.nan_to_num(b.confidence[j]) >= params.change.sure))
     other = both & sure & ~np.array([a.models[p] == b.models[q] for p, q in zip(i, j)], dtype=bool)
     p_model = np.where(other, 0.25, 1.0)
     return z.max(axis=1) if len(z) else np.zeros(0), np.clip(p_size * p_sec * p_model, 0.0, 1.0)
 
 
-def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: CoscoParams = DEFAULT,
+def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAULT,
                  pieces: tuple = (None, None)) -> Pairs:
     """Pair the objects of ``a`` (earlier) and ``b`` (later, offset by ``shift`` (3,) from ``a``). ``pieces``:
     each epoch's (n,) mask of objects merged from pieces (:mod:`.fragments`), whose sections are not compared."""

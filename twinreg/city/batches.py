@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 
 @dataclass(frozen=True)
@@ -17,7 +17,7 @@ class PairBatch:
 
     pairs: np.ndarray
     sections: dict
-    params: CoscoParams = DEFAULT
+    params: Settings = DEFAULT
 
 
 def compare_pairs(batch: PairBatch) -> np.ndarray:
@@ -62,7 +62,7 @@ def _cuts(n: int, size) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(np.r_[0, ends[:-1]], ends) if b > a]
 
 
-def pair_batches(sections: list, pairs: np.ndarray, params: CoscoParams, size=400) -> list[PairBatch]:
+def pair_batches(sections: list, pairs: np.ndarray, params: Settings, size=400) -> list[PairBatch]:
     """Consecutive batches of the pairs, as given, of ``size`` pairs (an int, or a list of sizes: see
     :func:`_cuts`); order them so that an object's pairs are together: each object is prepared once per batch
     that holds it."""
@@ -88,7 +88,7 @@ class MatchBatch:
     clouds: list
     noise: np.ndarray
     spacings: list
-    params: CoscoParams = DEFAULT
+    params: Settings = DEFAULT
     leaders: dict | None = None
     samples: list | None = None
 
@@ -120,7 +120,7 @@ def read_clouds(clouds: list, samples: list | None) -> list:
 _CACHES: dict = {}
 
 
-def _models(folder: str, params: CoscoParams):
+def _models(folder: str, params: Settings):
     """One catalogue and model cache per worker process and catalogue state (reused by the next batches)."""
     from pathlib import Path
 
@@ -152,7 +152,7 @@ def leader_indices(labels: np.ndarray) -> np.ndarray:
     return np.sort(first)
 
 
-def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: str, params: CoscoParams,
+def match_batches(objects: list, labels: np.ndarray, noise: np.ndarray, folder: str, params: Settings,
                   indices: np.ndarray, size=200, leaders: dict | None = None, samples: list | None = None
                   ) -> tuple[list[MatchBatch], list[np.ndarray]]:
     """The objects ``indices`` cut into batches of ``size`` (an int, or a list of sizes: see :func:`_cuts`; in

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from ..errors import CityError, ParameterError, SceneReadError
 from .cells import CellJob, process_cell
@@ -133,14 +133,14 @@ def _clean_work(store: CellStore) -> None:
 
 
 def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: float | None = None,
-                    threshold: float | None = None, params: CoscoParams = DEFAULT, cell: float | None = None,
+                    threshold: float | None = None, params: Settings = DEFAULT, cell: float | None = None,
                     buffer: float = 10.0, workers: int | None = None, scheduler: str | None = None,
                     restart: bool = False, ply: bool = False, progress=None, date: str | None = None,
                     classified: bool = False, min_confidence: float | None = None) -> dict:
     """Build the twin of tiles (files, folders, globs of LAS/LAZ/COPC) cell by cell on Dask; returns the twin JSON
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances;
     ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`);
-    ``min_confidence``: the models' confidence floor (None: ``params.model_min_confidence``)."""
+    ``min_confidence``: the models' confidence floor (None: ``params.min_confidence``)."""
     from ..io.outdir import check_replaceable, locked
     from ..stages import checked_params, locate, require_models, with_targets
 
@@ -152,7 +152,7 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     crs = georef.crs if georef is not None and georef.crs_source == "--crs" else None
     sources = open_sources(paths, unit=unit, crs=crs, override_crs=bool(georef is not None and georef.override))
     georef = city_georef(georef, sources)
-    p = plan(sources, cell, buffer, params.ground_reach)
+    p = plan(sources, cell, buffer, params.ground.reach)
     georef = locate(georef, np.min([s.lo for s in sources], axis=0), np.max([s.hi for s in sources], axis=0),
                     sources[0].path if len(sources) == 1 else f"{sources[0].path} and {len(sources) - 1} more tiles")
     if not p.cells:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from .classified import cell_labels, save_labels
 from .grid import Cell
@@ -33,7 +33,7 @@ class CellJob:
     cell: Cell
     splits: tuple = ()
     boxes: tuple = ()
-    params: CoscoParams = DEFAULT
+    params: Settings = DEFAULT
     key: str = ""
     offset: tuple = (0.0, 0.0, 0.0)
     scan_dir: str | None = None
@@ -43,7 +43,7 @@ class CellJob:
 @dataclass
 class CellObject:
     """An object the cell owns: ``id`` (cell name and index, the same from run to run), its shape and a sample of
-    its points (at most ``accept_max_points``, scene-local: add ``offset``), its point ``spacing`` (m), the
+    its points (at most ``matching.accept_max_points``, scene-local: add ``offset``), its point ``spacing`` (m), the
     ground under it and its ``level`` of symmetry (:mod:`cosco.levels`)."""
 
     id: str
@@ -159,7 +159,7 @@ def _process_cell(job: CellJob) -> CellResult:
     for k, (o, shape, level, cloud) in enumerate(zip(owned, shapes, levels, clouds)):
         out.objects.append(CellObject(
             id=f"{cell.name}-{k + 1}", cell=cell.name, offset=offset, n_points=int(o.n_points), shape=shape,
-            cloud=sample_cloud(cloud, params.accept_max_points),
+            cloud=sample_cloud(cloud, params.matching.accept_max_points),
             spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o), level=level))
     out.timing_s["sections"] = time.perf_counter() - t
     if job.labels:

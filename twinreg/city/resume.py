@@ -10,6 +10,7 @@ cell computed again.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import shutil
@@ -21,26 +22,25 @@ from . import cellfile
 WORK = ".cells"
 
 
-#: the parameters a cell reads (ground, segmentation, symmetry, headings, sections, levels, the objects' samples),
-#: by family and by name: a cell's key hashes these alone, so that matching's, kinds', the decision's, fusion's and
-#: change's parameters (``--min-confidence``, ``--tol``...) reuse every finished cell. A test runs cells with a
-#: recording copy of the parameters and checks that nothing outside these is read.
-CELL_FAMILIES = ("ground_", "seg_", "outlier_", "object_", "car_", "sym_", "heading_", "section_", "level_")
-CELL_FIELDS = ("pcr_threshold", "size_quantile", "profile_bin", "width_quantile", "top_cell", "cell_top_quantile",
-               "top_quantile", "field_cell", "accept_max_points")
+#: the groups a cell reads whole (ground, segmentation, symmetry and headings, levels, sections) and the one value
+#: it reads from another (the number of each object's points kept for the acceptance test): a cell's key hashes
+#: these alone, so that matching's, kinds', fusion's and change's settings (``--min-confidence``, ``--tol``...)
+#: reuse every finished cell. A test runs cells with recording settings and checks that nothing else is read.
+CELL_GROUPS = ("ground", "segment", "joins", "symmetry", "levels", "sections")
+CELL_VALUES = (("matching", "accept_max_points"),)
 
 
 def cell_params(params) -> dict:
-    """The parameters a cell reads (:data:`CELL_FAMILIES`, :data:`CELL_FIELDS`), by name.
+    """The settings a cell reads (:data:`CELL_GROUPS`, :data:`CELL_VALUES`), by ``group.name``.
 
-    >>> from cosco.params import DEFAULT
-    >>> p = cell_params(DEFAULT); "ground_cell" in p, "model_min_confidence" in p, "size_tol" in p
+    >>> from twinreg.settings import DEFAULT
+    >>> p = cell_params(DEFAULT); "ground.cell" in p, "min_confidence" in p, "matching.size_tol" in p
     (True, False, False)
     """
-    import dataclasses
-
-    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
-            if f.name.startswith(CELL_FAMILIES) or f.name in CELL_FIELDS}
+    out = {f"{g}.{f.name}": getattr(getattr(params, g), f.name)
+           for g in CELL_GROUPS for f in dataclasses.fields(getattr(params, g))}
+    out.update({f"{g}.{n}": getattr(getattr(params, g), n) for g, n in CELL_VALUES})
+    return out
 
 
 def cell_key(cell_name: str, sources: list, grid, params, version: str, offset=(0.0, 0.0, 0.0)) -> str:

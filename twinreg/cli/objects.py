@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 
 import typer
 
-import cosco
+from twinreg.settings import DEFAULT
 
 from ..errors import require_positive
 from ..given import cluster_objects, inspect_file, shape_json
@@ -63,7 +63,7 @@ def inspect(
 def cluster_cmd(
     scene: Annotated[Path, typer.Argument(help="A scene file (objects are detected) or a folder of object files.")],
     threshold: Annotated[Optional[float], typer.Option(
-        help=f"Dendrogram cut (m) [default: {cosco.DEFAULT.cluster_threshold}, the paper's].")] = None,
+        help=f"Dendrogram cut (m) [default: {DEFAULT.taxonomy.threshold}, the paper's].")] = None,
     plot: Annotated[Optional[Path], typer.Option("--plot", help="Folder for heatmap.png and dendrogram.png.")] = None,
     unit: UnitOpt = "auto",
     json_: JsonOpt = False,
@@ -89,7 +89,7 @@ def classify_cmd(
     unit: UnitOpt = "auto",
     min_confidence: Annotated[Optional[float], typer.Option(
         "--min-confidence", help="Below this confidence no model is claimed (match null, candidates listed) "
-                                 f"[default: {cosco.DEFAULT.model_min_confidence}, build-twin's].", show_default=False)] = None,
+                                 f"[default: {DEFAULT.min_confidence}, build-twin's].", show_default=False)] = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):

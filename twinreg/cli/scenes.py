@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
 from ..io.outdir import check_replaceable
@@ -67,7 +67,7 @@ def detect(
 # build-twin's options
 MinConfidenceOpt = Annotated[Optional[float], typer.Option(
     "--min-confidence", help=f"Below this confidence no model is claimed: match null, candidates listed [default: "
-                             f"{DEFAULT.model_min_confidence}].", show_default=False)]
+                             f"{DEFAULT.min_confidence}].", show_default=False)]
 LatOpt = Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")]
 LonOpt = Annotated[Optional[float], typer.Option(help="WGS84 longitude of the anchor point.")]
 AltOpt = Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")]
@@ -84,10 +84,10 @@ VerticalCrsOpt = Annotated[Optional[str], typer.Option(
                            "ellipsoidal].", show_default=False)]
 TolOpt = Annotated[Optional[float], typer.Option(
     help=f"Size tolerance (m) of the catalogue prefilter: the window is then exactly +-TOL (default: "
-         f"{DEFAULT.size_tol} m, models up to {DEFAULT.size_spacing_k} point spacings longer and wider "
+         f"{DEFAULT.matching.size_tol} m, models up to {DEFAULT.matching.size_spacing_k} point spacings longer and wider "
          "too).")]
 ThresholdOpt = Annotated[Optional[float], typer.Option(
-    help=f"Cluster threshold (m) [default: {DEFAULT.cluster_threshold}].")]
+    help=f"Cluster threshold (m) [default: {DEFAULT.taxonomy.threshold}].")]
 OutOpt = Annotated[Optional[Path], typer.Option(help="Output folder (default exports/<scene name>).")]
 CellOpt = Annotated[Optional[float], typer.Option(
     help="Tiled runs: cell side (m) [default: about 6M points a cell at the tiles' density].",

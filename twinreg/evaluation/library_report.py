@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 
 #: a pair is "cannot be told apart" when either is taken for the other in at least this share of its scans
 CONFUSED_SHARE = 0.2
@@ -225,7 +225,7 @@ def _heatmap(tax: dict, path) -> None:
     fig.colorbar(im, ax=a1, label="section dissimilarity (cm)")
     if tax["linkage"]:
         dendrogram(np.array(tax["linkage"]), labels=names, ax=a2, leaf_font_size=6, orientation="right")
-        a2.axvline(DEFAULT.cluster_threshold, color="#888", ls="--", lw=0.8)
+        a2.axvline(DEFAULT.taxonomy.threshold, color="#888", ls="--", lw=0.8)
     a2.set_xlabel("dissimilarity (m)")
     fig.tight_layout()
     fig.savefig(path, dpi=90)

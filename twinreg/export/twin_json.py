@@ -38,7 +38,7 @@ class MatchSummary:
 
 
 def taxonomy_json(tax) -> dict:
-    """twin.json's ``dissimilarity`` (the matrix, or None past ``taxonomy_full_max`` objects, when
+    """twin.json's ``dissimilarity`` (the matrix, or None past ``taxonomy.full_max`` objects, when
     ``dissimilarity_pairs`` lists the compared pairs as [i, j, metres]) and ``clustering``."""
     doc = {"clustering": {"threshold_m": tax.threshold, "n_clusters": tax.n_clusters, "method": tax.method,
                           "n_comparisons": tax.n_comparisons}}
@@ -68,7 +68,7 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
         "objects": objects,
         **taxonomy_json(tax),
     }
-    m = {"tol_m": params.size_tol, "tol_spacing_k": params.size_spacing_k,
+    m = {"tol_m": params.matching.size_tol, "tol_spacing_k": params.matching.size_spacing_k,
          "catalogue_models": matching.catalogue_models, "n_trials": stats.n_trials,
          "n_pairs_without_prefilter": stats.n_pairs_without_prefilter,
          "n_trials_saved_by_clusters": stats.n_trials_saved_by_clusters,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 import cosco
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from ..catalogue.repository import Catalogue, ModelGeometry
 
@@ -14,7 +14,7 @@ from ..catalogue.repository import Catalogue, ModelGeometry
 class ModelCache:
     """Catalogue models loaded once (arrays, section pairs and frames)."""
 
-    def __init__(self, catalogue: Catalogue, params: CoscoParams = DEFAULT, prober=None):
+    def __init__(self, catalogue: Catalogue, params: Settings = DEFAULT, prober=None):
         self.catalogue = catalogue
         self.params = params
         self.prober = prober  # a Prober: distance queries answered by a helper process (twinreg.matching.prober)

@@ -1,7 +1,7 @@
 """Which of the registered candidates an object is, and how sure: the decision score, the confidence and the
 ambiguity (docs/METHOD.md, "Deciding between candidates").
 
-Section RMSE ranks candidates; the best ``accept_candidates`` of them are then scored on all the evidence, each
+Section RMSE ranks candidates; the best ``matching.accept_candidates`` of them are then scored on all the evidence, each
 part in metres:
 
 - ``scan_fit``: the mean distance of the object's points to the placed model's surface, each capped at the
@@ -11,7 +11,7 @@ part in metres:
   tau plus one point spacing; a model wider or longer than the car leaves its edges with no point near them.
   What hides part of a car from every sensor (a tree's canopy, glass) hides it for every candidate alike, so it
   moves all the scores and not their order; ``unseen_share`` (the share of the top surface with no point within
-  reach) must stay under ``accept_max_unseen`` for a match to be accepted;
+  reach) must stay under ``matching.accept_max_unseen`` for a match to be accepted;
 - ``sections``: the section RMSE of the registration;
 - ``size``: by how much the model is smaller than the object (L, W, H summed, beyond the noise): scans are
   hardly ever larger than their car.
@@ -21,12 +21,12 @@ part in metres:
 The lowest score wins among the candidates the acceptance test (:mod:`twinreg.matching.acceptance`) passes and that stand
 on the object's ground: ``sink`` (m) is how far the placed model's lowest point lies below the ground under the
 object (negative: above it); a model sunk deeper than ``accept_sink_sigmas * noise + accept_sink_tol`` is taller
-than the object (its roof was brought down onto a box's top) and one floating higher than ``accept_max_float`` is
+than the object (its roof was brought down onto a box's top) and one floating higher than ``matching.accept_max_float`` is
 lower than it. The margin to the runner-up, in units of the scan's noise, is the match's ``margin_sigma``; the
 margin's confidence ``1 - exp(-margin_sigma / decision_confidence_sigma)`` (0 when two models score alike, near 1
 when the runner-up is far behind) times the fit factor (:func:`fit_factor`: how much of its acceptance limits
 the winner uses) is its ``confidence``, so that a poor fit is never above 0.5 however far behind the runner-up
-is; candidates whose score lies within ``decision_ambiguous_sigma`` noise units of the winner's are
+is; candidates whose score lies within ``matching.ambiguous_sigma`` noise units of the winner's are
 ``ambiguous_with`` it: the scan cannot tell them apart.
 """
 
@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from .acceptance import Verdict, verdict
 
@@ -56,7 +56,7 @@ class Evidence:
     sink: float = 0.0
     sink_limit: float = np.inf
     float_limit: float = np.inf
-    unseen_limit: float = DEFAULT.accept_max_unseen
+    unseen_limit: float = DEFAULT.matching.accept_max_unseen
     extra: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
@@ -105,14 +105,14 @@ class Evidence:
                 f"near it (at most {self.unseen_limit:.0%} allowed)")
 
 
-def fit_factor(ratio: float, params: CoscoParams = DEFAULT) -> float:
+def fit_factor(ratio: float, params: Settings = DEFAULT) -> float:
     """What the confidence of a placement using ``ratio`` of its acceptance limits is multiplied by: 1 up to half
-    a limit, 0.5 at ``decision_poor_fit``, 0.25 at the limit.
+    a limit, 0.5 at ``matching.poor_fit``, 0.25 at the limit.
 
     >>> [round(fit_factor(r), 2) for r in (0.2, 0.5, 0.75, 1.0)]
     [1.0, 1.0, 0.5, 0.25]
     """
-    poor = params.decision_poor_fit
+    poor = params.matching.poor_fit
     if ratio <= 0.5:
         return 1.0
     if ratio <= poor:
@@ -141,7 +141,7 @@ def top_surface(points: np.ndarray, cell: float = 0.1) -> np.ndarray:
 
 def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.ndarray, cloud_tree,
              model_size: np.ndarray, measured: np.ndarray, noise: float, spacing: float,
-             params: CoscoParams = DEFAULT, sink: float = 0.0) -> Evidence:
+             params: Settings = DEFAULT, sink: float = 0.0) -> Evidence:
     """Score one placed candidate. ``distances``: the object's (sampled) points to the placed model's surface;
     ``top_placed``: the model's top surface in the scene; ``cloud_tree`` a cKDTree of the object's points;
     ``sink`` (m): how far the placed model's lowest point lies below the object's ground."""
@@ -158,10 +158,10 @@ def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.n
         unseen = float(np.mean(d > reach))
     shortfall = np.maximum(np.asarray(measured) - np.asarray(model_size) - 2 * noise, 0.0)
     size = float(shortfall.sum())
-    score = scan_fit + model_fit + params.decision_w_sections * rmse + params.decision_w_size * size
-    sink_limit = params.accept_sink_sigmas * noise + params.accept_sink_tol
+    score = scan_fit + model_fit + params.matching.w_sections * rmse + params.matching.w_size * size
+    sink_limit = params.matching.accept_sink_sigmas * noise + params.matching.accept_sink_tol
     return Evidence(model_id, float(rmse), scan_fit, model_fit, size, float(score), v, unseen, float(sink),
-                    float(sink_limit), float(params.accept_max_float), float(params.accept_max_unseen))
+                    float(sink_limit), float(params.matching.accept_max_float), float(params.matching.accept_max_unseen))
 
 
 @dataclass
@@ -175,9 +175,9 @@ class Decision:
     ambiguous_with: list
 
 
-def decide(scored: list[Evidence], noise: float, params: CoscoParams = DEFAULT) -> Decision:
+def decide(scored: list[Evidence], noise: float, params: Settings = DEFAULT) -> Decision:
     """Pick the lowest score among accepted candidates; the margin to the next candidate (accepted or not), in
-    noise units, gives the confidence, and candidates within ``decision_ambiguous_sigma`` are ambiguous."""
+    noise units, gives the confidence, and candidates within ``matching.ambiguous_sigma`` are ambiguous."""
     ranked = sorted(scored, key=lambda e: e.score)
     accepted = [e for e in ranked if e.acceptable()]
     if not accepted:
@@ -189,7 +189,7 @@ def decide(scored: list[Evidence], noise: float, params: CoscoParams = DEFAULT) 
     else:  # the only candidate: the margin to the acceptance limit of its outliers
         margin = (best.verdict.max_share - best.verdict.outlier_share) * best.verdict.tolerance_m / noise
     margin = max(float(margin), 0.0)
-    confidence = float(1.0 - np.exp(-margin / params.decision_confidence_sigma))
+    confidence = float(1.0 - np.exp(-margin / params.matching.confidence_sigma))
     confidence *= fit_factor(best.fit_ratio(), params)
-    ambiguous = [e.model_id for e in others if (e.score - best.score) / noise < params.decision_ambiguous_sigma]
+    ambiguous = [e.model_id for e in others if (e.score - best.score) / noise < params.matching.ambiguous_sigma]
     return Decision(best, ranked, margin, confidence, ambiguous)

@@ -1,13 +1,13 @@
 """Matching detected objects to catalogue models (paper 4.3, and beyond it for sparse scans and large catalogues).
 
 1. Candidates (:mod:`twinreg.matching.prefilter`): every model's descriptor is read once; an object's candidates are the
-   models in its density-aware size window, ranked by descriptor (the best ``match_register_k``), and the
-   ``match_nearest_k`` nearest outside the window.
+   models in its density-aware size window, ranked by descriptor (the best ``matching.register_k``), and the
+   ``matching.nearest_k`` nearest outside the window.
 2. Registration (the paper): each candidate's sections are registered to the object's over rz in {0, pi/2, pi,
    3pi/2}, a continuous tz and a small axial shift du, and ranked by RMSE. Objects of one cluster share work: the
    cluster's first object (its leader) tries every candidate, the others first the leader's favourites and their
-   own nearest, and all of their candidates only when those fit clearly worse (by ``share_margin``).
-3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best ``accept_candidates``
+   own nearest, and all of their candidates only when those fit clearly worse (by ``matching.share_margin``).
+3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best ``matching.accept_candidates``
    are placed, their pose refined on the points (:mod:`twinreg.matching.refine`), checked
    (:mod:`twinreg.matching.acceptance`) and scored on all the evidence; the lowest acceptable score wins, with a
    confidence, the models it cannot be told from, and whether it lies outside the size window. An object no
@@ -24,7 +24,7 @@ import numpy as np
 
 import cosco
 from cosco.frames import yaw_pose
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from ..catalogue.repository import Catalogue
 from .cache import ModelCache
@@ -127,7 +127,7 @@ def placement(obj_frame: cosco.Frame, model_frame: cosco.Frame, reg: cosco.Regis
     return to_scene @ registered @ to_model_frame
 
 
-def _trial(obj_pair, cache: ModelCache, model_id: int, params: CoscoParams):
+def _trial(obj_pair, cache: ModelCache, model_id: int, params: Settings):
     return cosco.register_sections(obj_pair, cache.pair(model_id), params)
 
 
@@ -147,7 +147,7 @@ class Evidence:
 
 
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
-                  params: CoscoParams = DEFAULT, evidence: Evidence | None = None, cache: ModelCache | None = None,
+                  params: Settings = DEFAULT, evidence: Evidence | None = None, cache: ModelCache | None = None,
                   leaders: dict | None = None, done=None) -> tuple[list[ObjectMatch], MatchStats]:
     """Match every object; returns the per-object outcomes and statistics (trials, timings); ``done(k, n)`` is
     called as each of the n objects is decided.
@@ -186,7 +186,7 @@ class _Matcher:
     """One call's state: the objects' section pairs, their prefiltered candidates (``found``, ``cands``), the
     model cache, the statistics and the outcomes so far."""
 
-    def __init__(self, shapes, catalogue, params: CoscoParams, evidence: Evidence | None, cache: ModelCache):
+    def __init__(self, shapes, catalogue, params: Settings, evidence: Evidence | None, cache: ModelCache):
         from cosco.arrays import point_spacing
 
         self.shapes, self.params, self.evidence, self.cache = shapes, params, evidence, cache
@@ -211,7 +211,7 @@ class _Matcher:
         """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member tries its leader's
         favourites first (``ranking``: the leader's models best first and its best RMSE). Returns the ranking
         the cluster's members follow."""
-        ids, share = self.cands[i], self.params.cluster_share
+        ids, share = self.cands[i], self.params.matching.cluster_share
         if ranking is not None and share and ranking[0]:
             # the leader's favourites, and this object's own nearest by descriptor (a cluster may hold two kinds
             # of car that the leader's ranking alone would not tell apart)
@@ -232,7 +232,7 @@ class _Matcher:
         return ranking
 
 
-def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, leader_best,
+def _registrations(pair, ids, all_ids, cache: ModelCache, params: Settings, leader_best,
                    stats: MatchStats) -> list:
     """The section registrations of one object to the models ``ids``, best (lowest RMSE) first, the best one
     polished. A member of a cluster (``leader_best``: the RMSE its leader reached) that fits those clearly worse
@@ -242,7 +242,7 @@ def _registrations(pair, ids, all_ids, cache: ModelCache, params: CoscoParams, l
         regs.append(Candidate(_trial(pair, cache, mid, params), mid))
         stats.n_trials += 1
     regs.sort(key=lambda c: c.reg.rmse)
-    if leader_best is not None and regs and regs[0].reg.rmse > leader_best + params.share_margin:
+    if leader_best is not None and regs and regs[0].reg.rmse > leader_best + params.matching.share_margin:
         for mid in [m for m in all_ids if m not in ids]:
             regs.append(Candidate(_trial(pair, cache, mid, params), mid))
             stats.n_trials += 1
@@ -257,13 +257,13 @@ class _Scorer:
     judged (the same sample whether the cloud is all of the object's points, a scene, or already its sample, a city
     cell) and their KD-tree, the object's measured size, the scan's noise and spacing."""
 
-    def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
+    def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: Settings):
         from cosco.kernels import BoundedTree
 
         from .acceptance import sample_cloud
 
         self.shape, self.cache, self.noise, self.spacing, self.params = shape, cache, noise, spacing, params
-        self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.accept_max_points)
+        self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.matching.accept_max_points)
         # the evidence's bounded look-ups compiled where numba is in use (cosco.kernels), else the KD-tree's
         self.tree = BoundedTree(self.sample)
         self.measured = shape.size.as_array()
@@ -284,13 +284,13 @@ class _Scorer:
 
     def screened(self, reg, mid):
         """(evidence, the points in the model's frame) as the section registration placed the model, on the
-        ``refine_max_points`` points the refinement would use."""
+        ``matching.refine_max_points`` points the refinement would use."""
         from .acceptance import sample_cloud
 
         m = placement(self.shape.frame, self.cache.frame(mid), reg)
         # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
         in_model = (self.sample - m[:3, 3]) @ m[:3, :3]
-        return self.scored(reg, mid, m, sample_cloud(in_model, self.params.refine_max_points)), in_model
+        return self.scored(reg, mid, m, sample_cloud(in_model, self.params.matching.refine_max_points)), in_model
 
     def refined(self, reg, mid, screen):
         """The screened pose (its transform, the points in the model's frame) sharpened on the points: a turn
@@ -300,27 +300,27 @@ class _Scorer:
 
         e, in_model = screen
         m = e.extra["transform"]
-        c = refine(sample_cloud(in_model, self.params.refine_max_points), self.cache.tree(mid),
-                   self.params.refine_reach, params=self.params)
+        c = refine(sample_cloud(in_model, self.params.matching.refine_max_points), self.cache.tree(mid),
+                   self.params.matching.refine_reach, params=self.params)
         e = self.scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
         e.extra["refined"] = True
         return e
 
 
-def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: CoscoParams):
-    """Score the best ``accept_candidates`` registrations on all of the object's evidence
+def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Settings):
+    """Score the best ``matching.accept_candidates`` registrations on all of the object's evidence
     (:mod:`twinreg.matching.decision`).
 
-    Each candidate is first screened as the section registration placed it, on the ``refine_max_points`` points
-    the refinement would use; only the candidates whose screened score lies within ``decision_refine_sigma``
+    Each candidate is first screened as the section registration placed it, on the ``matching.refine_max_points`` points
+    the refinement would use; only the candidates whose screened score lies within ``matching.refine_sigma``
     noise units of the best one's are refined and scored on every point. Refining lowers a score by about one
     noise unit at most, so a candidate further behind can neither win nor come close enough to change the
     confidence: it keeps its screened score (docs/METHOD.md, "Deciding between candidates")."""
     from .decision import decide
 
     scorer = _Scorer(shape, cache, cloud, noise, spacing, params)
-    reach = params.decision_refine_sigma * noise
-    candidates = regs[:params.accept_candidates]
+    reach = params.matching.refine_sigma * noise
+    candidates = regs[:params.matching.accept_candidates]
     screens = [scorer.screened(reg, mid) for reg, mid in candidates]
     found = [e for e, _ in screens]
 
@@ -362,7 +362,7 @@ def _size_gap_text(gap: np.ndarray) -> str:
 
 
 def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=None, noise=None,
-             obj_pair=None, params: CoscoParams = DEFAULT, spacing=0.0) -> ObjectMatch:
+             obj_pair=None, params: Settings = DEFAULT, spacing=0.0) -> ObjectMatch:
     n_candidates = found.n_window
     if not regs:
         near = cache.size_index().nearest_gap(shape.size.as_array(), spacing, params)
@@ -414,7 +414,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
     match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=rz, tz=reg.tz, du=reg.du, transform=m,
                   heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
                   verdict=decision.best.verdict if decision else None,
-                  confidence=(decision.confidence * (params.decision_outside_factor if mid in found.nearest else 1.0)
+                  confidence=(decision.confidence * (params.matching.outside_factor if mid in found.nearest else 1.0)
                               if decision else None),
                   margin_sigma=decision.margin_sigma if decision else None,
                   ambiguous_with=[cache.row(a).name for a in decision.ambiguous_with] if decision else [],

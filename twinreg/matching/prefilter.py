@@ -3,13 +3,13 @@
 
 A scan measures a car smaller than it is, hardly ever larger: scan lines miss the ends of a bonnet and a boot, the
 lower sides are hidden by neighbours, glass returns nothing. So a model may be longer and wider than the object by
-the paper's tolerance (``size_tol``, 0.2 m) plus ``size_spacing_k`` scan-line spacings of the object, and smaller
+the paper's tolerance (``matching.size_tol``, 0.2 m) plus ``matching.size_spacing_k`` scan-line spacings of the object, and smaller
 by the tolerance only; the height (the roof, which airborne scans always see) keeps the plain tolerance. A user's
-``--tol`` sets ``size_spacing_k`` to 0: the window is then exactly +-tol, as in the paper.
+``--tol`` sets ``matching.size_spacing_k`` to 0: the window is then exactly +-tol, as in the paper.
 
 Inside the window the models are ranked by their descriptor (:func:`cosco.taxonomy.descriptor`: L, W, H and the
 section's top at two stations, stored with each model) against the object's, its L and W first grown by the
-expected shortfall, and only the best ``match_register_k`` are registered. The ``match_nearest_k`` models nearest
+expected shortfall, and only the best ``matching.register_k`` are registered. The ``matching.nearest_k`` models nearest
 to the window (by how far their L, W and H lie outside it, summed) are always tried as well: a scan cut short
 still meets its model, and the margin of a match is measured against them too. A match among them is flagged
 ``outside_tolerance``.
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 from cosco.taxonomy import descriptor
 
 #: scales (m) of the descriptor's parts in the ranking distance: sizes, then the two section tops
@@ -55,23 +55,23 @@ class SizeIndex:
     def __len__(self) -> int:
         return len(self.ids)
 
-    def window(self, size: np.ndarray, spacing: float, params: CoscoParams = DEFAULT) -> tuple:
+    def window(self, size: np.ndarray, spacing: float, params: Settings = DEFAULT) -> tuple:
         """(lo, hi) bounds (m) of a model's L, W, H for an object measured ``size`` with this point spacing."""
         size = np.asarray(size, dtype=np.float64)
-        grow = params.size_spacing_k * spacing
-        lo = size - params.size_tol
-        hi = size + params.size_tol + np.array([grow, grow, 0.0])
+        grow = params.matching.size_spacing_k * spacing
+        lo = size - params.matching.size_tol
+        hi = size + params.matching.size_tol + np.array([grow, grow, 0.0])
         return lo, hi
 
-    def distance(self, obj_desc: np.ndarray, spacing: float, params: CoscoParams = DEFAULT) -> np.ndarray:
+    def distance(self, obj_desc: np.ndarray, spacing: float, params: Settings = DEFAULT) -> np.ndarray:
         """(n,) ranking distance of every model to the object's descriptor (dimensionless)."""
         target = np.asarray(obj_desc, dtype=np.float64).copy()
-        target[:2] += 0.5 * params.size_spacing_k * spacing
+        target[:2] += 0.5 * params.matching.size_spacing_k * spacing
         diff = (self.desc - target) / DESCRIPTOR_SCALE
         diff = np.where(np.isfinite(diff), diff, 0.0)
         return np.sqrt((diff ** 2).sum(1))
 
-    def candidates(self, shape, spacing: float, params: CoscoParams = DEFAULT) -> Candidates:
+    def candidates(self, shape, spacing: float, params: Settings = DEFAULT) -> Candidates:
         """The models to register for one object's :class:`~cosco.sections.ObjectShape`."""
         size = shape.size.as_array()
         lo, hi = self.window(size, spacing, params)
@@ -80,11 +80,11 @@ class SizeIndex:
         in_window = ((self.desc[:, :3] >= lo) & (self.desc[:, :3] <= hi)).all(1)
         inside = np.flatnonzero(in_window)
         dist = self.distance(descriptor(size, shape.sections.longitudinal), spacing, params)
-        order = inside[np.argsort(dist[inside], kind="stable")][:params.match_register_k]
+        order = inside[np.argsort(dist[inside], kind="stable")][:params.matching.register_k]
         # the nearest few outside the window too: a scan cut short (a car half hidden, a bonnet lost) still
         # meets its model, and the margin of a match is measured against them as well
         outside = np.flatnonzero(~in_window)
-        near = outside[np.argsort(self._gap(size, lo, hi)[outside], kind="stable")][:params.match_nearest_k]
+        near = outside[np.argsort(self._gap(size, lo, hi)[outside], kind="stable")][:params.matching.nearest_k]
         return Candidates([int(i) for i in self.ids[order]], len(inside) == 0, len(inside), (lo, hi),
                           [int(i) for i in self.ids[near]])
 
@@ -93,7 +93,7 @@ class SizeIndex:
         s = self.desc[:, :3]
         return np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1)
 
-    def nearest_gap(self, size, spacing: float, params: CoscoParams = DEFAULT) -> tuple[int, np.ndarray] | None:
+    def nearest_gap(self, size, spacing: float, params: Settings = DEFAULT) -> tuple[int, np.ndarray] | None:
         """(model id, its L/W/H minus the object's (m)) of the model nearest to the window, or None."""
         if not len(self.ids):
             return None

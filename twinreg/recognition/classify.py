@@ -14,7 +14,7 @@ import numpy as np
 
 import cosco
 from cosco.levels import symmetry_level
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 from ..errors import SceneReadError, require_probability
 from .kinds import UNKNOWN, References, object_types, recognise_kind
@@ -55,7 +55,7 @@ def object_files(paths) -> list[Path]:
     return files
 
 
-def read_object(path: Path, unit: str = "auto", params: CoscoParams = DEFAULT, warn=None) -> GivenObject:
+def read_object(path: Path, unit: str = "auto", params: Settings = DEFAULT, warn=None) -> GivenObject:
     """One object's file read and described; a degenerate object is refused naming its file; ``warn(line)`` hears
     what the reader dropped."""
     from ..io.points import read_points
@@ -71,7 +71,7 @@ def read_object(path: Path, unit: str = "auto", params: CoscoParams = DEFAULT, w
 
 
 def classify_objects(objects: list[GivenObject], catalogue, min_confidence: float | None = None,
-                     params: CoscoParams = DEFAULT, progress=None) -> list[dict]:
+                     params: Settings = DEFAULT, progress=None) -> list[dict]:
     """Each object's item as ``classify --json`` prints it (docs/CONTRACT.md). ``progress(stage, done, total)``
     as the objects are matched."""
     from cosco.taxonomy import taxonomy_of
@@ -80,11 +80,11 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
 
     from cosco.arrays import point_spacing
 
-    floor = (params.model_min_confidence if min_confidence is None
+    floor = (params.min_confidence if min_confidence is None
              else require_probability("--min-confidence", min_confidence))  # build-twin's floor, one default
     refs = References.of_catalogue(catalogue, params)
     shapes = [o.shape for o in objects]
-    # the threshold at least cluster_spacing_k point spacings, as a twin's
+    # the threshold at least taxonomy.spacing_k point spacings, as a twin's
     labels = (taxonomy_of(shapes, params, spacing=[point_spacing(o.points) for o in objects]).labels
               if len(shapes) > 1 else np.ones(len(shapes), dtype=int))
     kinds = [recognise_kind(o.shape.size.as_array(), o.level.level, refs, params) for o in objects]
@@ -100,7 +100,7 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
             for o, k, t, res in zip(objects, kinds, types, outcomes)]
 
 
-def _item(o: GivenObject, kind, label: int, res, cache, floor: float, params: CoscoParams) -> dict:
+def _item(o: GivenObject, kind, label: int, res, cache, floor: float, params: Settings) -> dict:
     s = o.shape
     match = None
     m = res.match if res is not None else None
@@ -117,7 +117,7 @@ def _item(o: GivenObject, kind, label: int, res, cache, floor: float, params: Co
             "candidates": [] if match is not None or cache is None else near_candidates(s, kind, cache, params)}
 
 
-def near_candidates(shape, kind, cache, params: CoscoParams) -> list[dict]:
+def near_candidates(shape, kind, cache, params: Settings) -> list[dict]:
     """The references nearest an object of its kind (of any kind when it is unknown): name, kind, the sections'
     dissimilarity (m, ``score_m``) and the share of the kind vote each carried (``confidence``)."""
     near = [n for n in kind.near if kind.kind == UNKNOWN or n.kind == kind.kind]
@@ -130,7 +130,7 @@ def near_candidates(shape, kind, cache, params: CoscoParams) -> list[dict]:
 
 
 def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float | None = None,
-                   params: CoscoParams = DEFAULT, progress=None, warn=None) -> list[dict]:
+                   params: Settings = DEFAULT, progress=None, warn=None) -> list[dict]:
     """``classify``: every object file of ``paths`` (a folder stands for its point files) read, then
     :func:`classify_objects`. A file that cannot be read or described does not stop the batch: its item, in its
     place, holds ``error`` (the one line said to ``warn``) and nulls."""

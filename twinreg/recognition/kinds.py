@@ -2,14 +2,14 @@
 of symmetry, the features COSCO measures on every object.
 
 The distance of an object to a reference is the sum over length, width and height of the absolute log ratio
-(``kind_length_weight`` on the length: a fence or a hedge is as long as its segment, not as its kind), plus
-``kind_level_penalty`` when their levels of symmetry differ. The ``kind_k`` nearest references vote, each by
-1 / (distance + ``kind_vote_floor``); the kind is the vote's winner. Its confidence is a logistic function of
+(``kinds.length_weight`` on the length: a fence or a hedge is as long as its segment, not as its kind), plus
+``kinds.level_penalty`` when their levels of symmetry differ. The ``kinds.k`` nearest references vote, each by
+1 / (distance + ``kinds.vote_floor``); the kind is the vote's winner. Its confidence is a logistic function of
 its margin: how much nearer the winner's nearest reference is than the nearest of any other kind (or than
-``kind_unknown_distance``, whichever is nearer), over ``kind_confidence_scale`` (fit on the DALES objects of even
+``kinds.unknown_distance``, whichever is nearer), over ``kinds.confidence_scale`` (fit on the DALES objects of even
 id; on the held-out ones, claimed 0.61 / 0.82 / 0.94 / 0.996 were right 61 / 84 / 91 / 99 %). When the nearest
-reference is farther than ``kind_unknown_distance`` the kind is ``unknown``: nothing in the catalogue is near; a
-reference more than ``kind_max_height_ratio`` times taller or shorter than the object does not vote (a 9 m lamp
+reference is farther than ``kinds.unknown_distance`` the kind is ``unknown``: nothing in the catalogue is near; a
+reference more than ``kinds.max_height_ratio`` times taller or shorter than the object does not vote (a 9 m lamp
 post is no bus shelter, however alike their plans).
 Pure numpy: references in, kinds out.
 """
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 UNKNOWN = "unknown"
 
@@ -40,15 +40,15 @@ class References:
         return len(self.ids)
 
     @classmethod
-    def of_catalogue(cls, catalogue, params: CoscoParams = DEFAULT) -> "References":
+    def of_catalogue(cls, catalogue, params: Settings = DEFAULT) -> "References":
         """The catalogue's references, each mesh model's plan size as a scan sees it (:func:`seen_size`): what
-        stands under ``params.kind_seen_height`` m (a cone's flat base, a wheel's contact) is ground to a scan."""
+        stands under ``params.kinds.seen_height`` m (a cone's flat base, a wheel's contact) is ground to a scan."""
         rows = catalogue.list() if catalogue.exists else []
         refs = cls.of(rows)
         sizes = refs.sizes.copy()
         for k, r in enumerate(rows):
             if (r.source or "mesh") == "mesh":
-                sizes[k, :2] = seen_size(catalogue.geometry(r, with_mesh=False).points, params.kind_seen_height,
+                sizes[k, :2] = seen_size(catalogue.geometry(r, with_mesh=False).points, params.kinds.seen_height,
                                          sizes[k, :2])
         return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels)
 
@@ -86,14 +86,14 @@ class KindResult:
     margin: float = 0.0
 
 
-def distances(size, level: str, refs: References, params: CoscoParams = DEFAULT) -> np.ndarray:
+def distances(size, level: str, refs: References, params: Settings = DEFAULT) -> np.ndarray:
     """(n,) the distance of an object (``size`` L, W, H metres, its ``level``) to every reference. The plan sizes
     are compared longer to longer (a model's length is along its own x axis, which may be its shorter side: a bus
     shelter drawn facing +x)."""
-    floor = params.kind_min_size
+    floor = params.kinds.min_size
     ratio = np.abs(np.log(np.maximum(_plan_sorted(size), floor) / np.maximum(_plan_sorted(refs.sizes), floor)))
-    d = params.kind_length_weight * ratio[:, 0] + ratio[:, 1] + ratio[:, 2]
-    return d + params.kind_level_penalty * (refs.levels != level)
+    d = params.kinds.length_weight * ratio[:, 0] + ratio[:, 1] + ratio[:, 2]
+    return d + params.kinds.level_penalty * (refs.levels != level)
 
 
 def seen_size(points: np.ndarray, above: float, fallback) -> np.ndarray:
@@ -126,7 +126,7 @@ def _plan_sorted(sizes) -> np.ndarray:
     return s
 
 
-def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEFAULT) -> KindResult:
+def recognise_kind(size, level: str, refs: References, params: Settings = DEFAULT) -> KindResult:
     """The kind of one object (see the module's text).
 
     >>> refs = References(np.arange(4), list("abcd"), np.array(["car", "car", "pole", "pole"], dtype=object),
@@ -143,18 +143,18 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
     if len(refs) == 0:
         return KindResult(UNKNOWN, 0.0, {})
     d = distances(size, level, refs, params)
-    height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kind_min_size)
-                           / np.maximum(refs.sizes[:, 2], params.kind_min_size)))
-    d = np.where(height > np.log(params.kind_max_height_ratio), np.inf, d)
-    order = np.argsort(d, kind="stable")[:params.kind_k]
+    height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kinds.min_size)
+                           / np.maximum(refs.sizes[:, 2], params.kinds.min_size)))
+    d = np.where(height > np.log(params.kinds.max_height_ratio), np.inf, d)
+    order = np.argsort(d, kind="stable")[:params.kinds.k]
     order = order[np.isfinite(d[order])]
     if len(order) == 0:
         return KindResult(UNKNOWN, 0.0, {})
-    weights = 1.0 / (d[order] + params.kind_vote_floor)
+    weights = 1.0 / (d[order] + params.kinds.vote_floor)
     shares = weights / weights.sum()
     near = tuple(Near(int(refs.ids[j]), str(refs.names[j]), str(refs.kinds[j]), float(d[j]), float(w))
                  for j, w in zip(order, shares))
-    if d[order[0]] > params.kind_unknown_distance:
+    if d[order[0]] > params.kinds.unknown_distance:
         return KindResult(UNKNOWN, 0.0, {}, near)
     votes: dict = {}
     for n in near:
@@ -163,8 +163,8 @@ def recognise_kind(size, level: str, refs: References, params: CoscoParams = DEF
     kind = next(iter(votes))
     mine = refs.kinds == kind
     others = d[~mine].min() if (~mine).any() else np.inf
-    margin = float(min(others, params.kind_unknown_distance) - d[mine].min())
-    confidence = float(1.0 / (1.0 + np.exp(-margin / params.kind_confidence_scale)))
+    margin = float(min(others, params.kinds.unknown_distance) - d[mine].min())
+    confidence = float(1.0 / (1.0 + np.exp(-margin / params.kinds.confidence_scale)))
     return KindResult(kind, confidence, votes, near, margin)
 
 

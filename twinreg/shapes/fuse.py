@@ -15,7 +15,7 @@ import numpy as np
 
 import cosco
 from cosco.frames import yaw_pose
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class FusedShape:
     source: str = "fused"
 
 
-def member_transforms(shapes: list, params: CoscoParams = DEFAULT, ref: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def member_transforms(shapes: list, params: Settings = DEFAULT, ref: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(k, 4, 4) each member's object frame into the reference member's, and (k,) the registrations' RMSE (m):
     the paper's section registration (turns by quarter circles, a shift along the heading and in height)."""
     pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
@@ -209,7 +209,7 @@ def decimated(vertices: np.ndarray, faces: np.ndarray, target: int):
     return np.asarray(m.vertex_matrix(), dtype=np.float64), np.asarray(m.face_matrix(), dtype=np.int64)
 
 
-def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFAULT, cell: float | None = None,
+def fuse_type(clouds: list, shapes: list, level: str, params: Settings = DEFAULT, cell: float | None = None,
               faces: int = 2000, seen_m: float | None = None, hang: float | None = None) -> FusedShape:
     """The fused shape of one type: its members' points ``clouds`` (each (n, 3), scene frame) and shapes
     (:class:`cosco.ObjectShape`), ``level`` the type's level of symmetry. The reference member is the one with
@@ -217,7 +217,7 @@ def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFA
     gathered and completed by the symmetry; the solid is built on a grid of ``cell`` m (default: 1.5 times the
     gathered points' spacing, 0.1-0.3 m, and no more than a tenth of the object's width) and decimated to
     ``faces`` triangles; with ``hang``, columns whose points all stand higher hang (:func:`height_solid`). Every
-    member is registered (its pose), the shape gathered from at most ``params.fuse_max_members`` of them. A
+    member is registered (its pose), the shape gathered from at most ``params.fusion.max_members`` of them. A
     rotational type's members are not registered; those of a rotational type and of one
     with two mirror planes are centred each on the middle of its points' plan extent (where the planes cross)."""
     from scipy.spatial import cKDTree
@@ -236,9 +236,9 @@ def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFA
             turned = local[:, :2] @ to_ref[k][:2, :2].T
             to_ref[k, :2, 3] = -(turned.min(0) + turned.max(0)) / 2
             to_ref[k, 2, 3] = 0.0
-    # the shape from the members with most points (``params.fuse_max_members``): beyond ten members the curve of
+    # the shape from the members with most points (``params.fusion.max_members``): beyond ten members the curve of
     # docs/PERFORMANCE.md gains nothing, and a city's type of thousands would gather millions of points
-    used = sorted(order[:max(params.fuse_max_members, 1)])
+    used = sorted(order[:max(params.fusion.max_members, 1)])
     gathered = [locals_[k] @ to_ref[k][:3, :3].T + to_ref[k][:3, 3] for k in used]
     allp = np.vstack(gathered)
     allp = allp[allp[:, 2] > 0.0]
@@ -280,8 +280,8 @@ def fuse_type(clouds: list, shapes: list, level: str, params: CoscoParams = DEFA
 
 
 def generic_solid(shape, cell: float = 0.2, faces: int = 1000):
-    """The kind's generic template for a vehicle too sparsely seen to fuse (:data:`~cosco.params.CoscoParams`
-    ``fuse_min_points``): a body lofted from the object's own sections, the height over each point of its footprint
+    """The kind's generic template for a vehicle too sparsely seen to fuse (:class:`~twinreg.settings.Settings`
+    ``fusion.min_points``): a body lofted from the object's own sections, the height over each point of its footprint
     the lower of its longitudinal section's top there and its transverse section's (its frame: u along the heading,
     v across, the ground at 0). Returns (vertices, faces) in the object's frame, or None for an object too thin
     to loft (its box stays)."""

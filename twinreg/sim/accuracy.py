@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosco.params import DEFAULT, CoscoParams
+from twinreg.settings import DEFAULT, Settings
 
 #: ground density (pts/m^2) of :data:`twinreg.sim.scan.DEFAULT_PASSES` (counted on a flat ground, 30 x 30 m)
 DEFAULT_DENSITY = 208.0
@@ -74,7 +74,7 @@ class CarOutcome:
         return self.got is not None and self.got_class == self.truth_class
 
 
-def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params: CoscoParams = DEFAULT,
+def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params: Settings = DEFAULT,
                   noise: float = 0.02) -> tuple[list[CarOutcome], dict]:
     """Simulate, detect and match one car park of ``n_cars`` cars of the catalogue's models at ``density``;
     returns each car's outcome and the timings (s)."""

@@ -8,22 +8,36 @@ import dataclasses
 
 import pytest
 
-from cosco.params import DEFAULT, CoscoParams
 from twinreg.city import engine
 from twinreg.city.cells import process_cell
 from twinreg.city.resume import cell_key, cell_params
-
-NAMES = {f.name for f in dataclasses.fields(CoscoParams)}
-
+from twinreg.settings import DEFAULT
 
 def _recording(params, seen: set):
-    class Recording(CoscoParams):
+    """``params`` whose groups record each value read, as ``group.name``, in ``seen`` (and the run's own values by
+    name)."""
+    def recorder(group_name, group):
+        names = {f.name for f in dataclasses.fields(group)}
+
+        class Recording(type(group)):
+            def __getattribute__(self, name):
+                if name in names:
+                    seen.add(f"{group_name}.{name}")
+                return object.__getattribute__(self, name)
+
+        return Recording(**{n: getattr(group, n) for n in names})
+
+    groups = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)}
+    wrapped = {n: recorder(n, g) if dataclasses.is_dataclass(g) else g for n, g in groups.items()}
+    own = {n for n, g in groups.items() if not dataclasses.is_dataclass(g)}
+
+    class RecordingSettings(type(params)):
         def __getattribute__(self, name):
-            if name in NAMES:
+            if name in own:
                 seen.add(name)
             return object.__getattribute__(self, name)
 
-    return Recording(**{f.name: getattr(params, f.name) for f in dataclasses.fields(params)})
+    return RecordingSettings(**wrapped)
 
 
 @pytest.fixture()
@@ -60,13 +74,13 @@ def test_cells_read_only_what_their_key_hashes_and_a_new_floor_reuses_them(tmp_p
                           density=60.0, tile=40.0, seed=5, crs="EPSG:28992")
     seen, ran = cells_here
     out = tmp_path / "out"
-    street = dataclasses.replace(DEFAULT, seg_targets="all")  # the street's segmentation: every object, not cars
+    street = DEFAULT.with_(segment={"targets": "all"})  # the street's segmentation: every object, not cars
     first = build_city_twin([tmp_path / "street"], cat, None, out, workers=1, params=street)
     assert ran and first["objects"]
     assert seen <= set(cell_params(DEFAULT)), sorted(seen - set(cell_params(DEFAULT)))
     n_cells = len(ran)
     ran.clear()
-    other = dataclasses.replace(street, size_tol=0.35, kind_k=3)
+    other = street.with_(matching={"size_tol": 0.35}, kinds={"k": 3})
     again = build_city_twin([tmp_path / "street"], cat, None, out, workers=1, params=other, min_confidence=0.9)
     assert ran == [] and len(again["objects"]) == len(first["objects"]) and n_cells >= 1  # every cell reused
     assert tiles
@@ -77,5 +91,5 @@ def test_a_segmentation_change_changes_the_key_a_floor_does_not():
 
     grid = Grid(50.0, 5.0)
     key = lambda p: cell_key("c0_0", [], grid, p, "1")  # noqa: E731
-    assert key(DEFAULT) == key(dataclasses.replace(DEFAULT, model_min_confidence=0.9, size_tol=0.4))
-    assert key(DEFAULT) != key(dataclasses.replace(DEFAULT, seg_gap=DEFAULT.seg_gap * 2))
+    assert key(DEFAULT) == key(DEFAULT.with_(min_confidence=0.9, matching={"size_tol": 0.4}))
+    assert key(DEFAULT) != key(DEFAULT.with_(segment={"gap": DEFAULT.segment.gap * 2}))

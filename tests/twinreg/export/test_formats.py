@@ -6,8 +6,6 @@ surround each car's position."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +13,6 @@ from typer.testing import CliRunner
 
 from tests.twinreg.helpers import (
     DUBLIN,
-    ROOT,
     cityjson_schema_valid,
     cjio_read,
     node_script as _node,

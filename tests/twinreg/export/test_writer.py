@@ -10,7 +10,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 from tests.twinreg.helpers import toy_shapes
 from twinreg.export import formats
 from twinreg.export.formats import TwinFiles, write_twin

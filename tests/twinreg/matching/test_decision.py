@@ -4,7 +4,7 @@ floats is not acceptable, the confidence falls with the margin and with a poor f
 import numpy as np
 from scipy.spatial import cKDTree
 
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 from twinreg.matching.acceptance import verdict
 from twinreg.matching.decision import Evidence, decide, evidence, fit_factor, top_surface
 

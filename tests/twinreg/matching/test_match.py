@@ -3,7 +3,7 @@ fewer models than its leader, and without clouds the lowest section RMSE wins un
 
 import numpy as np
 
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 from tests.conftest import catalogue_models
 
 
@@ -39,7 +39,7 @@ def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_
 
 
 def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, monkeypatch):
-    """Candidates screened far behind the best (more than decision_refine_sigma noise units) are not refined: fewer
+    """Candidates screened far behind the best (more than matching.refine_sigma noise units) are not refined: fewer
     refinements, and the decision of refining every candidate (the same models, poses and ambiguity; the
     confidences within 0.002)."""
     import twinreg.matching.refine as refine_module
@@ -69,7 +69,7 @@ def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, m
 
     monkeypatch.setattr(refine_module, "refine", counted)
     all_refined, _ = match_objects(shapes, parametric_catalogue, evidence=Evidence(clouds, noise),
-                                   params=DEFAULT.with_(decision_refine_sigma=1e9))
+                                   params=DEFAULT.with_(matching={"refine_sigma": 1e9}))
     n_all, calls[0] = calls[0], 0
     screened, _ = match_objects(shapes, parametric_catalogue, evidence=Evidence(clouds, noise))
     assert calls[0] < n_all

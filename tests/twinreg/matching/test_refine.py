@@ -3,7 +3,7 @@
 import numpy as np
 from scipy.spatial import cKDTree
 
-from cosco.params import DEFAULT
+from twinreg.settings import DEFAULT
 from twinreg.matching.refine import refine
 
 
@@ -25,5 +25,5 @@ def test_a_small_turn_and_shift_is_undone():
 def test_a_correction_beyond_the_bounds_is_refused():
     rng = np.random.default_rng(2)
     model = rng.uniform([-2, -1, 0], [2, 1, 1.5], (3000, 3))
-    obj = _turned(model, DEFAULT.refine_max_turn * 3, [0.0, 0.0, 0.0])
+    obj = _turned(model, DEFAULT.matching.refine_max_turn * 3, [0.0, 0.0, 0.0])
     assert np.allclose(refine(obj, cKDTree(model), reach=2.0), np.eye(4))

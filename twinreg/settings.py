@@ -1,0 +1,143 @@
+"""A twinreg run's settings: the method's groups (:class:`cosco.params.CoscoParams`) and twinreg's own, one group a
+package (``matching``, ``kinds``, ``fusion``, ``change``), with the run's floor. One object is passed down whole;
+each step reads its group (``params.matching.size_tol``); a city cell's key hashes only the groups a cell reads
+(:func:`twinreg.city.resume.cell_params`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from cosco.params import CoscoParams, with_groups
+
+
+@dataclass(frozen=True)
+class MatchingParams:
+    """Matching an object to the catalogue's models (paper 4.3; twinreg/matching/).
+
+    size_tol : size prefilter tolerance (m) on each of L, W, H (paper: 0.2 m); the floor of the window.
+    size_spacing_k : a model may be longer and wider than the object by ``size_tol`` plus this many of the object's
+        point spacings (a sparse scan measures its car short and narrow); 0 when ``--tol`` is given.
+    register_k : at most this many candidates of the window, the nearest by descriptor, are registered.
+    nearest_k : when no model is inside the window, this many nearest by size are still tried.
+    share_margin : an object of a cluster first tries the models its cluster's first object liked best; it tries all
+        of its candidates when the best of those fits it worse than that by more than this RMSE (m).
+    cluster_share : a member registers first to its leader's best ``cluster_share`` models and its own nearest
+        ``cluster_share`` by descriptor (0: every candidate, as a leader does).
+
+    Accepting (acceptance.py): a point is explained by the placed model when it lies within ``accept_sigmas * noise
+    + accept_model_tol + accept_spacing_k * spacing`` (m) of its surface; the match is accepted when at most
+    ``accept_max_outliers`` of the points are not explained and at most ``accept_max_unseen`` of the model's top
+    surface has no point near it. Objects of more than ``accept_max_points`` points are judged on that many, at a
+    regular stride of their sorted points. A model whose lowest point lies more than ``accept_sink_sigmas * noise +
+    accept_sink_tol`` below the object's ground, or more than ``accept_max_float`` above it, is refused.
+
+    Deciding (decision.py): the best ``accept_candidates`` models by section RMSE are scored (weights
+    ``w_sections``, ``w_size``); candidates within ``ambiguous_sigma`` noise units of the winner are ambiguous with
+    it; ``confidence_sigma`` scales the margin into a 0-1 confidence, times ``outside_factor`` for a model outside
+    the size window; the fit factor is 1 while every acceptance measure uses at most half its limit, 0.5 at
+    ``poor_fit`` of a limit and 0.25 at the limit.
+
+    Refining (refine.py): each candidate's pose is refined on at most ``refine_max_points`` points (pairs within
+    ``refine_reach`` m), turning at most ``refine_max_turn`` rad and moving at most ``refine_max_shift`` m, unless
+    its score lies more than ``refine_sigma`` noise units behind the best candidate's (it cannot win then).
+    """
+
+    size_tol: float = 0.20
+    size_spacing_k: float = 1.5
+    register_k: int = 6
+    nearest_k: int = 2
+    share_margin: float = 0.01
+    cluster_share: int = 4
+    accept_sigmas: float = 3.0
+    accept_model_tol: float = 0.04
+    accept_spacing_k: float = 0.20
+    accept_max_outliers: float = 0.10
+    accept_candidates: int = 4
+    accept_max_unseen: float = 0.5
+    accept_max_points: int = 1500
+    accept_sink_sigmas: float = 2.0
+    accept_sink_tol: float = 0.03
+    accept_max_float: float = 0.25
+    w_sections: float = 0.5
+    w_size: float = 0.5
+    confidence_sigma: float = 1.0
+    ambiguous_sigma: float = 0.3
+    outside_factor: float = 0.5
+    poor_fit: float = 0.75
+    refine_reach: float = 0.3
+    refine_sigma: float = 6.0
+    refine_max_points: int = 500
+    refine_max_turn: float = math.radians(8.0)
+    refine_max_shift: float = 0.4
+
+
+@dataclass(frozen=True)
+class KindParams:
+    """Kinds (twinreg/recognition/kinds.py): an object's distance to a reference sums the absolute log ratios of
+    their sizes (each at least ``min_size`` m; the length weighted by ``length_weight``) and ``level_penalty`` when
+    their levels of symmetry differ; the ``k`` nearest vote by 1 / (distance + ``vote_floor``); farther than
+    ``unknown_distance``, or more than ``max_height_ratio`` times taller or shorter than every reference, the kind
+    is unknown; the kind's confidence is the logistic of its margin over the nearest other kind (or the unknown
+    distance) in ``confidence_scale``. A mesh model's plan size is its points' above ``seen_height`` m (what a
+    scan's ground filter leaves). Tuned on the even-numbered DALES objects (docs/PERFORMANCE.md)."""
+
+    min_size: float = 0.1
+    length_weight: float = 1.0
+    level_penalty: float = 0.6
+    k: int = 2
+    vote_floor: float = 0.05
+    unknown_distance: float = 3.0
+    max_height_ratio: float = 2.5
+    confidence_scale: float = 0.28
+    seen_height: float = 0.2
+
+
+@dataclass(frozen=True)
+class FusionParams:
+    """Fused shapes (twinreg/shapes/): a type whose members have no model gets one when they hold ``min_points``
+    points together, gathered from its ``max_members`` members with most points; a fused shape's columns whose
+    points all stand higher than ``hang_height`` hang from their lowest point (not vehicles'). An object with no
+    model ``pole_ratio`` times taller than its plan is wide is typed by kind and size alone (a thin pole's sections
+    do not group copies of one lamp post)."""
+
+    min_points: int = 60
+    hang_height: float = 2.0
+    max_members: int = 40
+    pole_ratio: float = 3.0
+
+
+@dataclass(frozen=True)
+class ChangeParams:
+    """The twin over time (twinreg/change/): a match at least ``sure`` confident counts as evidence of which vehicle
+    it is (pairs.py); a piece of one survey's object lies inside the other's when ``piece_inside`` of it is within
+    that object's footprint grown by ``piece_grow`` m (fragments.py)."""
+
+    sure: float = 0.9
+    piece_inside: float = 0.6
+    piece_grow: float = 0.3
+
+
+@dataclass(frozen=True)
+class Settings(CoscoParams):
+    """The method's groups and twinreg's, with the run's own values: ``min_confidence``, the floor under which a
+    model is not claimed (``--min-confidence``, chosen on the calibration of docs/PERFORMANCE.md, "Kinds"), and
+    ``jit_min_objects``, the scene size from which the compiled kernels pay for numba's import (a city: always)."""
+
+    matching: MatchingParams = MatchingParams()
+    kinds: KindParams = KindParams()
+    fusion: FusionParams = FusionParams()
+    change: ChangeParams = ChangeParams()
+    min_confidence: float = 0.3
+    jit_min_objects: int = 100
+
+    def with_(self, **changes):
+        """A copy with some values changed (:func:`cosco.params.with_groups`).
+
+        >>> DEFAULT.with_(matching={"size_tol": 0.35}, min_confidence=0.5).matching.size_tol
+        0.35
+        """
+        return with_groups(self, changes)
+
+
+DEFAULT = Settings()
