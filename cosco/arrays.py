@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kernels import fast, kernel
+
 
 def as_points(points, dim: int = 3, min_points: int = 1) -> np.ndarray:
     """Coerce to a finite ``(n, dim)`` float64 array or raise ``ValueError`` naming the shape.
@@ -129,3 +131,54 @@ def n_cells(points: np.ndarray, cell: float) -> int:
     3
     """
     return len(np.unique(cell_keys(np.floor(np.asarray(points)[:, :2] / cell).astype(np.int64))))
+
+
+def box_rows(x: np.ndarray, y: np.ndarray, boxes: np.ndarray) -> list[np.ndarray]:
+    """The rows of the points (``x``, ``y``) inside each closed box ``boxes[k]`` = (x0, y0, x1, y1), in order, a
+    box at a time (compiled: every box in two passes over the points).
+
+    >>> [r.tolist() for r in box_rows(np.array([0.0, 1.0, 2.0]), np.zeros(3), np.array([[0.0, 0.0, 1.0, 0.0]]))]
+    [[0, 1]]
+    """
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    kern = fast(_box_rows_fast)
+    if kern is not None:
+        rows, starts = kern(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(y, dtype=np.float64),
+                            boxes)
+        return [rows[starts[k]:starts[k + 1]] for k in range(len(boxes))]
+    out = []
+    for x0, y0, x1, y1 in boxes:
+        inside = x >= x0
+        inside &= x <= x1
+        inside &= y >= y0
+        inside &= y <= y1
+        out.append(np.flatnonzero(inside))
+    return out
+
+
+def _boxes_example(rng) -> tuple:
+    xy = rng.uniform(0, 10, (2000, 2))
+    return xy[:, 0].copy(), xy[:, 1].copy(), np.array([[0.0, 0.0, 5.0, 5.0], [4.0, 2.0, 10.0, 6.0], [20, 20, 21, 21]])
+
+
+@kernel(entry="box_rows", example="_boxes_example", helper=True)
+def _box_rows_fast(x, y, boxes):
+    """The rows of the points (``x``, ``y``) inside each closed box ``boxes[k]`` = (x0, y0, x1, y1), in order:
+    box k's are ``rows[starts[k]:starts[k + 1]]`` (two passes over the points for every box)."""
+    n, m = x.shape[0], boxes.shape[0]
+    starts = np.zeros(m + 1, dtype=np.int64)
+    for rnd in range(2):
+        if rnd == 1:
+            for k in range(m):
+                starts[k + 1] += starts[k]
+            rows = np.empty(starts[m], dtype=np.int64)
+            fill = starts[:m].copy()
+        for p in range(n):
+            for k in range(m):
+                if x[p] >= boxes[k, 0] and x[p] <= boxes[k, 2] and y[p] >= boxes[k, 1] and y[p] <= boxes[k, 3]:
+                    if rnd == 0:
+                        starts[k + 1] += 1
+                    else:
+                        rows[fill[k]] = p
+                        fill[k] += 1
+    return rows, starts

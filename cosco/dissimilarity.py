@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .kernels import fast, in_use, kernel
+from .nearest import BoundedTree
 from .params import DEFAULT, CoscoParams
 from .sections import Sections
 
@@ -113,11 +115,9 @@ class SectionPair:
     def capped(self, key: str, points: np.ndarray, cap: float) -> np.ndarray:
         """(n,) distances of (n, 2) ``points`` to the fine set ``key`` ("lon" or "tra"), each at most ``cap`` (m):
         a search bounded at ``cap`` (nothing farther counts), on a compiled grid where numba is in use
-        (:class:`cosco.kernels.BoundedTree`), else the KD-tree's; the same values as ``min(nearest, cap)``."""
-        from .kernels import BoundedTree, jit
-
+        (:class:`cosco.nearest.BoundedTree`), else the KD-tree's; the same values as ``min(nearest, cap)``."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-        if jit() is None:
+        if not in_use():
             d, _ = self.trees[key].query(pts, distance_upper_bound=cap)
         else:
             if key not in self._bounded:
@@ -177,9 +177,7 @@ def _sq_sums(a: SectionPair, b: SectionPair, r: int, du: np.ndarray, tz: np.ndar
             if f.cap is not None and cap > f.cap:
                 raise ValueError(f"sections prepared for distances up to {f.cap} m, scored up to {cap} m: prepare "
                                  "them with the same parameters")
-        from .kernels import section_sums
-
-        got = section_sums(a, b, r, du, tz, cap, one_way, n_du)
+        got = _section_sums_compiled(a, b, r, du, tz, cap, one_way, n_du)
         if got is not None:  # compiled: every move in one call, the same sums as below
             return got
     total = np.zeros(len(tz))
@@ -201,6 +199,110 @@ def _capped_square_sums(d: np.ndarray, cap: float) -> np.ndarray:
     """Row sums of the squares of (s, n) distances, each capped at ``cap`` (float64)."""
     d = np.minimum(d, cap).astype(np.float64)
     return np.multiply(d, d, out=d).sum(1)
+
+
+def _section_sums_compiled(a: SectionPair, b: SectionPair, r: int, du, tz, cap: float, one_way: bool, n_du: int):
+    """:func:`_sq_sums` on the distance fields, compiled (every look-up of one rotation in one call, no (candidates
+    x probes) index arrays), or None where the kernels are not in use or the fields' cells differ."""
+    kern = fast(_section_sums_fast)
+    fields = [a.fields["lon"], a.fields["tra"], b.fields["lon"], b.fields["tra"]]
+    cell = fields[0].cell
+    if kern is None or any(f.cell != cell for f in fields):  # (the caps are checked by the caller, _sq_sums)
+        return None
+    return kern(a.probes["lon"], a.probes["tra"], b.probes["lon"], b.probes["tra"], *[f.values for f in fields],
+                *[f.origin for f in fields], *[np.asarray(f.start, dtype=np.int64) for f in fields], float(cell),
+                int(r), np.ascontiguousarray(du, dtype=np.float64), np.ascontiguousarray(tz, dtype=np.float64),
+                float(np.float32(cap)), bool(one_way), int(n_du))
+
+
+def _sums_example(rng) -> tuple:
+    """Two objects' sections and a grid of moves (the registry's example for :func:`_sq_sums`)."""
+    def pair(length):
+        u = rng.uniform(-length / 2, length / 2, 240)
+        lon = np.column_stack([u, 1.4 - 0.2 * (u / length) ** 2 + rng.normal(0, 0.01, 240)])
+        tra = np.column_stack([rng.uniform(-0.9, 0.9, 120), 1.4 + rng.normal(0, 0.01, 120)])
+        return SectionPair(Sections(lon[::3], tra[::3], 0.1, longitudinal_fine=lon, transverse_fine=tra))
+
+    tz, du = np.meshgrid(_grid(0.03, 0.4, 0.04), _grid(-0.02, 0.2, 0.1), indexing="ij")
+    return pair(4.2), pair(4.6), 1, du.ravel(), tz.ravel(), 0.1, False, False, tz.shape[1]
+
+
+@kernel(helper=True)
+def _move_sums(total, values, origin, cell, start, probes, scale, du_coef, tz_sign, du, tz, cap32, free, n_du):
+    """One look-up of :func:`section_sums`: the probes (their u scaled by ``scale``) at each candidate's shift
+    (``du_coef`` du, ``tz_sign`` tz) on one field, the capped squares summed and added to ``total``; a move that
+    ``free``-ly ignores du on a tz-by-du grid (``n_du`` > 1) is summed once per tz."""
+    nx, ny = values.shape
+    n = probes.shape[0]
+    gi = np.empty(n, dtype=np.int64)
+    gj = np.empty(n, dtype=np.int64)
+    for p in range(n):
+        gi[p] = np.int64(np.rint((probes[p, 0] * scale - origin[0]) / cell)) - start[0]
+        gj[p] = np.int64(np.rint((probes[p, 1] - origin[1]) / cell)) - start[1]
+    s = tz.shape[0]
+    last = 0.0
+    for k in range(s):
+        if free and n_du > 1 and k % n_du != 0:
+            total[k] += last
+            continue
+        oi = np.int64(np.rint(du_coef * du[k] / cell)) if not free else np.int64(0)
+        oj = np.int64(np.rint(tz_sign * tz[k] / cell))
+        acc = 0.0
+        for p in range(n):
+            i = oi + gi[p]
+            if i < 0:
+                i = 0
+            elif i > nx - 1:
+                i = nx - 1
+            j = oj + gj[p]
+            if j < 0:
+                j = 0
+            elif j > ny - 1:
+                j = ny - 1
+            v = values[i, j]
+            if v > cap32:
+                v = cap32
+            d = np.float64(v)
+            acc += d * d
+        last = acc
+        total[k] += acc
+
+
+@kernel(entry="_sq_sums", example="_sums_example", tolerance=1e-12)
+def _section_sums_fast(a_lon, a_tra, b_lon, b_tra, fa_lon, fa_tra, fb_lon, fb_tra, oa_lon, oa_tra, ob_lon, ob_tra,
+                 sa_lon, sa_tra, sb_lon, sb_tra, cell, r, du, tz, cap, one_way, n_du):
+    """:func:`cosco.dissimilarity._sq_sums` on the distance fields, every move in one call: A's and B's probes
+    (``a_lon``...), their fields' values (``fa_lon``...), origins (``oa_lon``...) and starts (``sa_lon``...), on
+    one ``cell``; rotation ``r`` (0-3); the candidates (du, tz); the moves in _moves's order."""
+    cr = (1.0, 0.0, -1.0, 0.0)[r]
+    sr = (0.0, 1.0, 0.0, -1.0)[r]
+    total = np.zeros(tz.shape[0])
+    cap32 = np.float32(cap)
+    for direction in range(2):
+        if one_way and direction == 0:
+            continue
+        inverse = direction == 1
+        if not inverse:  # B's probes into A's frame: A's fields
+            lon, tra = b_lon, b_tra
+            f_lon, f_tra, o_lon, o_tra, s_lon, s_tra = fa_lon, fa_tra, oa_lon, oa_tra, sa_lon, sa_tra
+        else:
+            lon, tra = a_lon, a_tra
+            f_lon, f_tra, o_lon, o_tra, s_lon, s_tra = fb_lon, fb_tra, ob_lon, ob_tra, sb_lon, sb_tra
+        if not inverse:
+            if sr == 0.0:
+                _move_sums(total, f_lon, o_lon, cell, s_lon, lon, cr, 1.0, 1.0, du, tz, cap32, False, n_du)
+                _move_sums(total, f_tra, o_tra, cell, s_tra, tra, cr, 0.0, 1.0, du, tz, cap32, True, n_du)
+            else:
+                _move_sums(total, f_tra, o_tra, cell, s_tra, lon, sr, 0.0, 1.0, du, tz, cap32, True, n_du)
+                _move_sums(total, f_lon, o_lon, cell, s_lon, tra, -sr, 1.0, 1.0, du, tz, cap32, False, n_du)
+        else:
+            if sr == 0.0:
+                _move_sums(total, f_lon, o_lon, cell, s_lon, lon, cr, -cr, -1.0, du, tz, cap32, False, n_du)
+                _move_sums(total, f_tra, o_tra, cell, s_tra, tra, cr, 0.0, -1.0, du, tz, cap32, True, n_du)
+            else:
+                _move_sums(total, f_tra, o_tra, cell, s_tra, lon, -sr, sr, -1.0, du, tz, cap32, False, n_du)
+                _move_sums(total, f_lon, o_lon, cell, s_lon, tra, sr, 0.0, -1.0, du, tz, cap32, True, n_du)
+    return total
 
 
 def _field_sums(f: DistanceField, base: np.ndarray, shifts: np.ndarray, cap: float) -> np.ndarray:

@@ -52,8 +52,8 @@ class Level:
 
 def _sharer(pts: np.ndarray, tree: cKDTree, tol: float):
     """share(moved): the share of the moved (n, 3) points within ``tol`` of one of ``pts`` (``tree``'s), compiled
-    where numba is in use (:class:`cosco.kernels.NearIndex`), else the KD-tree's."""
-    from .kernels import NearIndex, near_share_numpy
+    where numba is in use (:class:`cosco.nearest.NearIndex`), else the KD-tree's."""
+    from .nearest import NearIndex, near_share_numpy
 
     index = NearIndex.of(pts, tol)
     if index is not None:

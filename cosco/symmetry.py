@@ -76,7 +76,7 @@ class _Objective:
 
         self.pts = pts
         self.side_share = side_share
-        from .kernels import MirrorIndex
+        from .nearest import MirrorIndex
 
         self.tree = cKDTree(pts) if tree is None else tree
         self.tol = tol
@@ -86,7 +86,7 @@ class _Objective:
     def distances(self, phi: float, rho: float) -> np.ndarray:
         if self.index is not None:
             return self.index.distances(phi, rho)
-        from .kernels import mirror_distances_numpy
+        from .nearest import mirror_distances_numpy
 
         return mirror_distances_numpy(self.tree, self.pts, phi, rho, 3 * self.tol)
 
@@ -131,8 +131,8 @@ def _start_angles(xy: np.ndarray, params: CoscoParams, rect=None) -> np.ndarray:
 def _refine_pairs(pts: np.ndarray, tree: cKDTree, phi: float, rho: float, tol: float, steps: int, index=None):
     """Closed-form refinement: fit the plane through midpoints of mirror pairs (total least squares), on the
     voxel centroids of the reference set (density-equalised, and a third of the points of a dense scan).
-    ``index``: the tree's points' :class:`~cosco.kernels.MirrorIndex` (compiled look-ups), None for the tree's."""
-    from .kernels import mirror_nearest_numpy
+    ``index``: the tree's points' :class:`~cosco.nearest.MirrorIndex` (compiled look-ups), None for the tree's."""
+    from .nearest import mirror_nearest_numpy
 
     for _ in range(steps):
         d, idx = (index.nearest(pts, phi, rho, tol) if index is not None

@@ -158,7 +158,9 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     if len(targets) >= params.jit_min_objects:  # the compiled kernels pay for numba's import (cosco.kernels)
         from cosco.kernels import enable
 
-        timing["kernels"] = enable()
+        from . import KERNEL_MODULES
+
+        timing["kernels"] = enable(*KERNEL_MODULES)
     _say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes = describe_detected(det, params)

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..arrays import as_points, column_max, column_min, n_cells
 from ..footprint import min_area_rectangle
+from ..kernels import fast, kernel
 from ..params import DEFAULT, CoscoParams
 from ..sorting import group_by_key
 
@@ -116,12 +117,10 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
         # the usual case: a small grid of coarse voxels, counted and labelled densely in O(n)
         from scipy import ndimage
 
-        from ..kernels import jit
-
-        mod = jit()
-        if mod is not None:  # compiled (cosco.kernels): the same voxels, one pass, no (n,) index kept
+        counts_fast, chosen_fast = fast(_voxel_counts_fast), fast(_in_voxels_fast)
+        if counts_fast is not None:  # compiled: the same voxels, one pass, no (n,) index kept
             pts = np.ascontiguousarray(pts)
-            counts = mod.voxel_counts(pts, lo, float(v), dims)
+            counts = counts_fast(pts, lo, float(v), dims)
         else:
             flat = ((pts[:, 0] - lo[0]) / v).astype(np.int64)  # the C-order index of each point's voxel
             for c in (1, 2):
@@ -134,12 +133,44 @@ def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6
         sizes[0] = 0
         if np.count_nonzero(sizes) < 2:
             return np.zeros(len(pts), dtype=bool)
-        if mod is not None:
-            return mod.in_voxels(pts, lo, float(v), dims, sizes[labels] <= params.segment.outlier_points)
+        if chosen_fast is not None:
+            return chosen_fast(pts, lo, float(v), dims, sizes[labels] <= params.segment.outlier_points)
         comp = labels[flat]
     if np.count_nonzero(sizes) < 2:
         return np.zeros(len(pts), dtype=bool)
     return sizes[comp] <= params.segment.outlier_points
+
+
+def _far_example(rng) -> tuple:
+    """A scan with a stray group (the registry's example for :func:`far_outliers`)."""
+    return np.vstack([rng.uniform(0, 40, (3000, 3)), rng.normal([200.0, 0.0, 5.0], 0.1, (3, 3))]),
+
+
+@kernel(helper=True)
+def _voxel(pts, p, lo, v, dims):
+    """The C-order index of point ``p``'s voxel on a grid of ``dims`` voxels of ``v`` m at ``lo`` (truncation
+    is floor: the offsets are non-negative)."""
+    flat = np.int64((pts[p, 0] - lo[0]) / v)
+    flat = flat * dims[1] + np.int64((pts[p, 1] - lo[1]) / v)
+    return flat * dims[2] + np.int64((pts[p, 2] - lo[2]) / v)
+
+
+@kernel(entry="far_outliers", example="_far_example")
+def _voxel_counts_fast(pts, lo, v, dims):
+    """Points in each voxel of a dense grid (:func:`cosco.segment.far_outliers`'s bincount, one pass)."""
+    counts = np.zeros(dims[0] * dims[1] * dims[2], dtype=np.int64)
+    for p in range(pts.shape[0]):
+        counts[_voxel(pts, p, lo, v, dims)] += 1
+    return counts
+
+
+@kernel(entry="far_outliers", example="_far_example")
+def _in_voxels_fast(pts, lo, v, dims, chosen):
+    """(n,) bool: whether each point's voxel is ``chosen`` (a flat bool per voxel)."""
+    out = np.empty(pts.shape[0], dtype=np.bool_)
+    for p in range(pts.shape[0]):
+        out[p] = chosen[_voxel(pts, p, lo, v, dims)]
+    return out
 
 
 def members(comp: np.ndarray, min_count: int = 1) -> tuple[np.ndarray, np.ndarray, dict]:

@@ -1,19 +1,104 @@
-"""The compiled kernels (cosco/_jit.py, numba) give their numpy references' answers (cosco/kernels.py)."""
+"""The compiled kernels give their numpy references' answers: one test a registered kernel (its entry run both
+ways on its example, :mod:`cosco.kernels`), and tests of the harder cases each kernel meets (many seeds, edges,
+duplicates, huge extents). The kernels are enabled by a fixture, per test: the rest of the suite, in this process,
+keeps the numpy path unless it asks for the compiled one (tests/conftest.py, ``kernel_path``)."""
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
 import os
+import pkgutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+import cosco
 from cosco import kernels
+from cosco.nearest import BoundedTree, MirrorIndex, NearIndex, mirror_distances_numpy, mirror_nearest_numpy
+from cosco.nearest import near_share_numpy
+from twinreg import KERNEL_MODULES
 
-kernels.enable()
-pytestmark = pytest.mark.skipif(kernels.jit() is None, reason="numba is not installed")
+ROOT = Path(__file__).resolve().parents[2]
+for _m in [m.name for m in pkgutil.walk_packages(cosco.__path__, "cosco.")] + list(KERNEL_MODULES):
+    importlib.import_module(_m)
+REGISTERED = {k.name: k for k in kernels.kernels()}
+
+
+@pytest.fixture(scope="module")
+def enabled_state():
+    """The kernels enabled and warmed once for this module (a state of their own, not the process's)."""
+    saved = kernels._STATE
+    kernels._STATE = {}
+    try:
+        kernels.enable()
+        state = kernels._STATE
+    finally:
+        kernels._STATE = saved
+    if state.get("numba") is None or os.environ.get("TWINREG_NO_NUMBA"):
+        pytest.skip("numba is not installed or TWINREG_NO_NUMBA is set")
+    return state
+
+
+@pytest.fixture(autouse=True)
+def compiled(enabled_state, monkeypatch):
+    """Each test here runs with the compiled kernels in use; the state is put back afterwards."""
+    monkeypatch.setattr(kernels, "_STATE", enabled_state)
+    monkeypatch.delenv("TWINREG_NO_NUMBA", raising=False)
+    assert kernels.in_use()
+    return enabled_state
+
+
+def _same(got, want, tol: float, where: str = "") -> None:
+    if isinstance(want, (tuple, list)):
+        assert len(got) == len(want), where
+        for k, (g, w) in enumerate(zip(got, want)):
+            _same(g, w, tol, f"{where}[{k}]")
+    elif dataclasses.is_dataclass(want):
+        for f in dataclasses.fields(want):
+            _same(getattr(got, f.name), getattr(want, f.name), tol, f"{where}.{f.name}")
+    elif isinstance(want, (np.ndarray, float, np.floating)) or np.isscalar(want):
+        g, w = np.asarray(got), np.asarray(want)
+        assert g.shape == w.shape and g.dtype.kind == w.dtype.kind, where
+        if tol == 0 or w.dtype.kind not in "fc":
+            assert np.array_equal(g, w, equal_nan=w.dtype.kind in "fc"), where
+        else:
+            assert np.array_equal(np.isfinite(g), np.isfinite(w)), where
+            assert np.allclose(g[np.isfinite(g)], w[np.isfinite(w)], rtol=0, atol=tol), where
+    else:
+        assert got == want, where
+
+
+def test_every_kernel_is_registered_with_an_entry_and_warmed_by_enable():
+    """Every module holding a kernel is one :func:`cosco.kernels.enable` imports (cosco's own, and twinreg's
+    KERNEL_MODULES), and every registered kernel has an entry and an example."""
+    written = set()
+    for path in [*ROOT.joinpath("cosco").rglob("*.py"), *ROOT.joinpath("twinreg").rglob("*.py")]:
+        if "@kernel(" in path.read_text(encoding="utf-8"):
+            written.add(".".join(path.relative_to(ROOT).with_suffix("").parts))
+    twinreg_modules = {m for m in written if m.startswith("twinreg.")}
+    assert twinreg_modules == set(KERNEL_MODULES)
+    assert {k.fn.__module__ for k in REGISTERED.values()} == written
+    assert len(REGISTERED) >= 18  # (and nine helpers)
+
+
+@pytest.mark.parametrize("name", sorted(REGISTERED))
+def test_each_kernel_gives_its_references_answer(name, compiled):
+    """A registered kernel's entry on its example, with the numpy references and then compiled (the kernel itself
+    compiled anew, so that the test sees it run): the same answer, to the bit or the kernel's stated tolerance."""
+    k = REGISTERED[name]
+    entry, example = k.entry_and_example()
+    args = example(np.random.default_rng(11))
+    with kernels.reference_only():
+        want = entry(*args)
+    compiled.pop("compiled", None)
+    got = entry(*args)
+    assert k.fn in compiled["compiled"] and compiled["compiled"][k.fn].signatures, f"{name} did not run"
+    _same(got, want, k.tolerance, name)
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -26,15 +111,15 @@ def test_mirror_distances_agree_with_the_kd_tree(seed):
     targets = pts if seed % 2 else np.r_[pts, rng.normal(0, 1, (n // 2, 3))]  # the tree may hold other points
     tree = cKDTree(targets)
     bound = float(rng.uniform(0.03, 0.3))
-    index = kernels.MirrorIndex.of(pts, bound, targets=tree.data)
+    index = MirrorIndex.of(pts, bound, targets=tree.data)
     assert index is not None
     for phi, rho in rng.uniform([-np.pi, -0.5], [np.pi, 0.5], (12, 2)):
-        want = kernels.mirror_distances_numpy(tree, pts, phi, rho, bound)
+        want = mirror_distances_numpy(tree, pts, phi, rho, bound)
         got = index.distances(phi, rho)
         assert np.allclose(got, want, rtol=0, atol=1e-12)
         assert (got <= bound).all()
         near = bound * 0.6
-        want_d, want_i = kernels.mirror_nearest_numpy(tree, pts, phi, rho, near)
+        want_d, want_i = mirror_nearest_numpy(tree, pts, phi, rho, near)
         got_d, got_i = index.nearest(pts, phi, rho, near)
         assert np.array_equal(np.isfinite(got_d), np.isfinite(want_d))
         assert np.allclose(got_d[np.isfinite(got_d)], want_d[np.isfinite(want_d)], rtol=0, atol=1e-12)
@@ -44,7 +129,7 @@ def test_mirror_distances_agree_with_the_kd_tree(seed):
 def test_a_huge_plan_keeps_the_kd_tree():
     """An object whose plan grid would hold too many columns gets no index (the caller's KD-tree answers)."""
     pts = np.array([[0.0, 0.0, 0.0], [5000.0, 5000.0, 0.0]])
-    assert kernels.MirrorIndex.of(pts, 0.05) is None
+    assert MirrorIndex.of(pts, 0.05) is None
 
 
 def test_the_cache_is_the_users_and_the_references_answer_without_numba(tmp_path):
@@ -59,23 +144,23 @@ def test_the_cache_is_the_users_and_the_references_answer_without_numba(tmp_path
     assert any((tmp_path / "twinreg" / "numba").rglob("*.nbi"))
     code = ("import sys, numpy as np, cosco.kernels as k; from cosco.symmetry import detect_symmetry; "
             "s = detect_symmetry(np.random.default_rng(0).uniform([-2, -0.8, 0], [2, 0.8, 1.4], (500, 3))); "
-            "print(k.jit(), s.found, 'numba' in sys.modules)")
+            "print(k.in_use(), s.found, 'numba' in sys.modules)")
     locked = tmp_path / "locked"
     locked.write_text("a file where the cache folder would go")
-    out = subprocess.run([sys.executable, "-c", "import cosco.kernels as k; k.enable(); print(k.jit() is not None)"],
+    out = subprocess.run([sys.executable, "-c", "import cosco.kernels as k; k.enable(); print(k.in_use())"],
                          env={**env, "XDG_CACHE_HOME": str(locked)}, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "True"  # an unwritable cache folder: compiled for the process alone
     for extra in ({"TWINREG_NO_NUMBA": "1", "TWINREG_JIT": "1"}, {}):
         out = subprocess.run([sys.executable, "-c", code], env={**env, **extra}, capture_output=True, text=True,
                              check=True)
-        assert out.stdout.strip() == "None True False"
+        assert out.stdout.strip() == "False True False"
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_section_sums_agree_with_the_numpy_moves(seed, monkeypatch):
+def test_section_sums_agree_with_the_numpy_moves(seed):
     """A registration's every candidate on the distance fields, every rotation, both ways and one way, on a tz by
     du grid and candidate by candidate: the compiled single call gives the numpy loop's sums (to 1e-12)."""
-    from cosco.dissimilarity import SectionPair, _grid, _sq_sums
+    from cosco.dissimilarity import SectionPair, _grid, _section_sums_compiled, _sq_sums
     from cosco.sections import Sections
 
     rng = np.random.default_rng(seed)
@@ -92,10 +177,9 @@ def test_section_sums_agree_with_the_numpy_moves(seed, monkeypatch):
     for r in range(4):
         for one_way in (False, True):
             for n_du, du, tz in ((len(dus), D.ravel(), T.ravel()), (1, rng.normal(0, 0.2, 7), rng.normal(0, 0.2, 7))):
-                got = kernels.section_sums(a, b, r, du, tz, 0.1, one_way, n_du)
-                with monkeypatch.context() as m:
-                    m.setattr(kernels, "jit", lambda: None)
-                    assert kernels.section_sums(a, b, r, du, tz, 0.1, one_way, n_du) is None
+                got = _section_sums_compiled(a, b, r, du, tz, 0.1, one_way, n_du)
+                with kernels.reference_only():
+                    assert _section_sums_compiled(a, b, r, du, tz, 0.1, one_way, n_du) is None
                     want = _sq_sums(a, b, r, du, tz, 0.1, one_way=one_way, n_du=n_du)
                 assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
 
@@ -148,12 +232,8 @@ def test_ground_heights_are_the_references_bit_for_bit(seed):
     params = DEFAULT.with_(ground={"block": 64, "halo": 16})
     ground = estimate_ground(pts, params)
     assert len(ground.keys) > 4
-    mod = kernels.jit()
-    kernels._STATE["jit"] = None
-    try:  # the surface itself (blocks, windows, lowest points, the points near the first surface): bit for bit
+    with kernels.reference_only():  # the surface itself (blocks, windows, lowest points, the points near the first surface): bit for bit
         want = estimate_ground(pts, params)
-    finally:
-        kernels._STATE["jit"] = mod
     assert np.array_equal(ground.keys, want.keys) and np.array_equal(ground.tiles, want.tiles)
     query = np.r_[pts, np.c_[rng.uniform(-50, 750, (5000, 2)), rng.normal(0, 1, 5000)]]
     got = ground.height(query)
@@ -163,12 +243,8 @@ def test_ground_heights_are_the_references_bit_for_bit(seed):
     surface = query[east, 2] - got[east]
     assert np.abs(surface - (0.02 * np.clip(query[east, 0], 0, 700) + np.sin(700 / 30))).max() < 0.5
     grid = _Grid(origin=np.array([10.0, 20.0]), cell=0.5, z=rng.normal(0, 1, (300, 200)))
-    mod = kernels.jit()
-    kernels._STATE["jit"] = None
-    try:
+    with kernels.reference_only():
         want = grid.height(query)
-    finally:
-        kernels._STATE["jit"] = mod
     assert np.array_equal(grid.height(query), want)
 
 
@@ -182,13 +258,9 @@ def test_far_outliers_are_the_references():
     scan = np.c_[rng.uniform(0, 300, (200_000, 2)), rng.normal(0, 0.3, 200_000)]
     stray = np.array([[150.0, 150.0, 80.0], [150.5, 150.0, 80.2], [20.0, 290.0, -40.0], [299.0, 1.0, 60.0]])
     pts = np.r_[scan, stray, rng.uniform(0, 300, (30, 3)) + [0, 0, 100]]
-    mod = kernels.jit()
-    kernels._STATE["jit"] = None
-    try:
+    with kernels.reference_only():
         want = far_outliers(pts, DEFAULT)
         alone = far_outliers(scan, DEFAULT)
-    finally:
-        kernels._STATE["jit"] = mod
     got = far_outliers(pts, DEFAULT)
     assert np.array_equal(got, want) and got[len(scan):len(scan) + 4].all()
     assert not far_outliers(scan, DEFAULT).any() and not alone.any()
@@ -204,14 +276,14 @@ def test_near_shares_agree_with_the_kd_tree(seed):
     pts = rng.normal(0, 1, (int(rng.integers(50, 3000)), 3)) * [2.0, 0.8, 0.5]
     tree = cKDTree(pts)
     tol = float(rng.uniform(0.02, 0.3))
-    index = kernels.NearIndex.of(pts, tol)
+    index = NearIndex.of(pts, tol)
     assert index is not None
     centre = pts[:, :2].mean(0)
     for a in rng.uniform(0, np.pi, 6):
         for moved in (np.c_[_turned(pts[:, :2], centre, a), pts[:, 2]], np.c_[_mirrored(pts[:, :2], centre, a),
                                                                               pts[:, 2]]):
-            assert index.share(moved) == kernels.near_share_numpy(tree, moved, tol)
-    assert kernels.NearIndex.of(np.array([[0.0, 0.0, 0.0], [9000.0, 9000.0, 0.0]]), 0.01) is None
+            assert index.share(moved) == near_share_numpy(tree, moved, tol)
+    assert NearIndex.of(np.array([[0.0, 0.0, 0.0], [9000.0, 9000.0, 0.0]]), 0.01) is None
 
 
 def test_scan_tiles_order_and_colours_are_the_references():
@@ -226,12 +298,8 @@ def test_scan_tiles_order_and_colours_are_the_references():
     lo, side = enu.min(0), float(np.ptp(enu[:, :2], axis=0).max()) * (1 + 1e-9)
     hag, ground = rng.normal(1, 2, len(enu)), rng.random(len(enu)) < 0.4
     got = (_tile_order(enu, lo, side, level, depth), scan_colours(hag, ground))
-    mod = kernels.jit()
-    kernels._STATE["jit"] = None
-    try:
+    with kernels.reference_only():
         want = (_tile_order(enu, lo, side, level, depth), scan_colours(hag, ground))
-    finally:
-        kernels._STATE["jit"] = mod
     assert depth >= 2 and got[0][1] == want[0][1]
     assert all(np.array_equal(a, b) for a, b in zip(got[0][0], want[0][0]))
     assert np.array_equal(got[1], want[1])
@@ -240,15 +308,18 @@ def test_scan_tiles_order_and_colours_are_the_references():
 def test_box_rows_are_the_bounds_tests():
     """A tile's points cut into the read squares of the cells they feed (closed boxes, points on their edges
     included): the compiled rows are the vectorised bounds tests' rows."""
+    from cosco.arrays import box_rows
     from twinreg.city.grid import in_box
 
     rng = np.random.default_rng(4)
     x, y = np.round(rng.uniform(0, 100, 50_000), 1), np.round(rng.uniform(0, 100, 50_000), 1)
     boxes = np.array([[0.0, 0.0, 42.0, 42.0], [30.0, 30.0, 72.0, 72.0], [60.0, -10.0, 110.0, 40.0]])
-    rows, starts = kernels.jit().box_rows(x, y, boxes)
+    got = box_rows(x, y, boxes)
+    with kernels.reference_only():
+        reference = box_rows(x, y, boxes)
     for k, b in enumerate(boxes):
         want = np.flatnonzero(in_box(np.c_[x, y], b[:2], b[2:]))
-        assert np.array_equal(rows[starts[k]:starts[k + 1]], want) and len(want)
+        assert np.array_equal(got[k], want) and np.array_equal(reference[k], want) and len(want)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -259,7 +330,7 @@ def test_bounded_tree_answers_as_the_kd_tree(seed):
     pts = rng.normal(0, 1, (int(rng.integers(20, 1500)), 3)) * [2.0, 0.9, 0.6]
     query = rng.normal(0, 1, (800, 3)) * [2.2, 1.0, 0.7]
     tree = cKDTree(pts)
-    bounded = kernels.BoundedTree(pts)
+    bounded = BoundedTree(pts)
     for bound in (0.3, 0.2, 0.5):  # the grid is built for the first bound
         got_d, got_i = bounded.query(query, k=1, distance_upper_bound=bound)
         want_d, want_i = tree.query(query, k=1, distance_upper_bound=bound)
@@ -278,12 +349,8 @@ def test_grid_solid_is_the_references(hang):
     p = np.c_[rng.uniform(0, 4.5, n), rng.uniform(0, 1.8, n), np.abs(rng.normal(1.2, 0.3, n))]
     p = np.r_[p, np.c_[rng.uniform(1, 2, 800), rng.uniform(0, 0.5, 800), rng.uniform(5, 6, 800)]]
     got = height_solid(p, cell=0.1, hang=hang)
-    mod = kernels.jit()
-    kernels._STATE["jit"] = None
-    try:
+    with kernels.reference_only():
         want = height_solid(p, cell=0.1, hang=hang)
-    finally:
-        kernels._STATE["jit"] = mod
     assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1]) and len(got[1]) > 1000
 
 
@@ -312,7 +379,6 @@ def test_capped_section_distances_are_the_kd_trees(seed, monkeypatch):
         assert np.allclose(got, want, rtol=0, atol=1e-12) and (got <= DEFAULT.registration.dist_cap).all()
     reg = polished(a, b, register_sections(a, b, DEFAULT), DEFAULT)
     monkeypatch.setenv("TWINREG_NO_NUMBA", "1")
-    monkeypatch.setattr(kernels, "_STATE", {})
-    assert kernels.jit() is None
+    assert not kernels.in_use()
     ra, rb = SectionPair(sa, DEFAULT), SectionPair(sb, DEFAULT)
     assert polished(ra, rb, register_sections(ra, rb, DEFAULT), DEFAULT) == reg

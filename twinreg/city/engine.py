@@ -103,10 +103,12 @@ class Engine:
 
         from cosco import kernels
 
+        from .. import KERNEL_MODULES
+
         t = time.perf_counter()
-        kernels.enable()
+        kernels.enable(*KERNEL_MODULES)
         self.kernels_s = time.perf_counter() - t
-        if kernels.jit() is None:
+        if not kernels.in_use():
             return {}
         return {"TWINREG_JIT": "1", "NUMBA_CACHE_DIR": str(kernels.trusted_cache_dir())}
 

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cosco.arrays import box_rows
+
 from ..errors import CityError, SceneReadError
 from .grid import Grid, in_box
 
@@ -315,20 +317,12 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     cells = grid.cells_over(np.asarray(source.lo[:2]) - grid.reach, np.asarray(source.hi[:2]) + grid.reach)
     scaling = None
     try:
-        from cosco.kernels import jit
-
-        mod = jit()
         boxes = np.array([[*c.read_lo, *c.read_hi] for c in cells], dtype=np.float64).reshape(-1, 4)
         for x, y, ints, scales, offsets in _raw_chunks(source):
             if scaling is None:  # one header: the same for every chunk
                 scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
                            "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
-            if mod is not None:  # compiled (cosco.kernels): every cell's rows in two passes
-                rows, starts = mod.box_rows(x, y, boxes)
-                found = [rows[starts[k]:starts[k + 1]] for k in range(len(cells))]
-            else:  # a few cells per tile: one vectorised bounds test each, no sort
-                xy = np.column_stack([x, y])
-                found = (np.flatnonzero(in_box(xy, c.read_lo, c.read_hi)) for c in cells)
+            found = box_rows(x, y, boxes)  # each cell's rows, in order (compiled: every cell in two passes)
             for c, inside in zip(cells, found):
                 if not len(inside):
                     continue

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from cosco.arrays import column_max, column_min
+from cosco.kernels import fast, kernel
 
 from .gltf import Glb
 
@@ -52,13 +53,11 @@ def _tile_order(enu: np.ndarray, lo: np.ndarray, side: float, level: np.ndarray,
     """Each tile's rows (ascending) and its (level, i, j), tiles by level then i then j: one stable sort of a key
     made of the level and the tile's indices, which at level d are the deepest level's indices shifted right by
     ``depth - d`` bits (``floor(x / (size * 2^k)) == floor(x / size) >> k``: the sizes differ by powers of two)."""
-    from cosco.kernels import jit
-
     n_cells = 2 ** depth
     size = side / n_cells
-    mod = jit() if (depth + 1) << (2 * depth) <= 1 << 22 else None
-    if mod is not None:  # compiled (cosco.kernels): the same keys, ordered by counting
-        order, key = mod.tile_keys(np.ascontiguousarray(enu, dtype=np.float64), np.asarray(lo, dtype=np.float64),
+    kern = fast(_tile_keys_fast) if (depth + 1) << (2 * depth) <= 1 << 22 else None
+    if kern is not None:  # compiled: the same keys, ordered by counting
+        order, key = kern(np.ascontiguousarray(enu, dtype=np.float64), np.asarray(lo, dtype=np.float64),
                                    float(size), np.ascontiguousarray(level, dtype=np.int64), int(depth),
                                    int((depth + 1) << (2 * depth)))
         return _tiles_of(order, key[order], depth)
@@ -69,6 +68,39 @@ def _tile_order(enu: np.ndarray, lo: np.ndarray, side: float, level: np.ndarray,
     # a key of up to 16 bits sorts by radix (linear time)
     order = np.argsort(key.astype(np.uint16) if (depth + 1) << (2 * depth) <= 1 << 16 else key, kind="stable")
     return _tiles_of(order, key[order], depth)
+
+
+def _tiles_example(rng) -> tuple:
+    """Points of three levels over a square (the registry's example for :func:`_tile_order`)."""
+    enu = rng.uniform(0, 100, (5000, 3))
+    return enu, np.zeros(3), 100.0, rng.integers(0, 4, 5000), 3
+
+
+@kernel(entry="_tile_order", example="_tiles_example")
+def _tile_keys_fast(enu, lo, size, level, depth, n_keys):
+    """The scan tiles' order (:func:`_tile_order`): each point's key (its level, then
+    its tile's indices at that level) and the stable order by key, by counting (keys below ``n_keys``)."""
+    n = enu.shape[0]
+    n_cells = np.int64(1) << depth
+    key = np.empty(n, dtype=np.int64)
+    counts = np.zeros(n_keys + 1, dtype=np.int64)
+    for p in range(n):
+        i = np.int64(np.floor((enu[p, 0] - lo[0]) / size))
+        j = np.int64(np.floor((enu[p, 1] - lo[1]) / size))
+        i = min(max(i, 0), n_cells - 1)
+        j = min(max(j, 0), n_cells - 1)
+        d = np.int64(level[p])
+        shift = depth - d
+        k = (d << (2 * depth)) | ((i >> shift) << depth) | (j >> shift)
+        key[p] = k
+        counts[k + 1] += 1
+    for k in range(n_keys):
+        counts[k + 1] += counts[k]
+    order = np.empty(n, dtype=np.int64)
+    for p in range(n):
+        order[counts[key[p]]] = p
+        counts[key[p]] += 1
+    return order, key
 
 
 def _tiles_of(order: np.ndarray, key: np.ndarray, depth: int):

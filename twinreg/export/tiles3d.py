@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cosco.kernels import fast, kernel
+
 from ..geo.earth import EnuFrame, enu_angles
 from .gltf import Glb
 from .objects import box_mesh
@@ -114,18 +116,33 @@ def instances_glb(instances: list[Instance], positions: np.ndarray, angles: np.n
 
 def scan_colours(hag: np.ndarray, is_ground: np.ndarray) -> np.ndarray:
     """(n, 3) uint8: ground grey, the rest from blue (low) to yellow (4 m and more) by height above ground."""
-    from cosco.kernels import jit
-
-    mod = jit()
-    if mod is not None:  # compiled (cosco.kernels): the same bytes, no (n,) floats
-        return mod.scan_colours(np.ascontiguousarray(hag, dtype=np.float64), np.ascontiguousarray(is_ground,
-                                                                                               dtype=bool))
+    kern = fast(_scan_colours_fast)
+    if kern is not None:  # compiled: the same bytes, no (n,) floats
+        return kern(np.ascontiguousarray(hag, dtype=np.float64), np.ascontiguousarray(is_ground, dtype=bool))
     t = np.clip(np.asarray(hag, dtype=np.float64) / 4.0, 0.0, 1.0)
     low = 1 - t
     rgb = np.empty((len(t), 3), dtype=np.uint8)
     ground = np.asarray(is_ground, dtype=bool)
     for c, (a, b) in enumerate(((40, 250), (90, 210), (200, 40))):  # a channel at a time (no (n, 3) floats)
         rgb[:, c] = np.where(ground, 150.0, low * a + t * b)
+    return rgb
+
+
+def _colours_example(rng) -> tuple:
+    hag = rng.uniform(-1, 6, 3000)
+    return hag, hag < 0.1
+
+
+@kernel(entry="scan_colours", example="_colours_example")
+def _scan_colours_fast(hag, ground):
+    """:func:`scan_colours`: ground grey, the rest blue to yellow by height (0-4 m)."""
+    n = hag.shape[0]
+    rgb = np.empty((n, 3), dtype=np.uint8)
+    ends = ((40.0, 250.0), (90.0, 210.0), (200.0, 40.0))
+    for p in range(n):
+        t = min(max(hag[p] / 4.0, 0.0), 1.0)
+        for c in range(3):
+            rgb[p, c] = np.uint8(150.0 if ground[p] else (1 - t) * ends[c][0] + t * ends[c][1])
     return rgb
 
 

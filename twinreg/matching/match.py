@@ -258,7 +258,7 @@ class _Scorer:
     cell) and their KD-tree, the object's measured size, the scan's noise and spacing."""
 
     def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: Settings):
-        from cosco.kernels import BoundedTree
+        from cosco.nearest import BoundedTree
 
         from .acceptance import sample_cloud
 

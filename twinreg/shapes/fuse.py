@@ -15,6 +15,7 @@ import numpy as np
 
 import cosco
 from cosco.frames import yaw_pose
+from cosco.kernels import fast, kernel
 from twinreg.settings import DEFAULT, Settings
 
 
@@ -122,16 +123,13 @@ def _grid_solid(grid: np.ndarray, occ: np.ndarray, lo: np.ndarray, cell: float, 
     to its top, and side walls where a column stands out of its neighbour's span (or the footprint's edge), each
     wall split at every height its two corners carry so that the walls, tops and floors share their edges (no
     T-junction)."""
-    from cosco.kernels import jit
-
     nx, ny = occ.shape
     h = np.where(occ, grid, 0.0)
     b = np.zeros_like(h) if bottom is None else np.where(occ, bottom, 0.0)
-    mod = jit()
-    if mod is not None:  # compiled (cosco.kernels): the same vertices and faces, in the same order
-        return mod.grid_solid(np.ascontiguousarray(h, dtype=np.float64), np.ascontiguousarray(b, dtype=np.float64),
-                              np.ascontiguousarray(occ, dtype=bool), np.asarray(lo, dtype=np.float64)[:2].copy(),
-                              float(cell))
+    kern = fast(_grid_solid_fast)
+    if kern is not None:  # compiled: the same vertices and faces, in the same order
+        return kern(np.ascontiguousarray(h, dtype=np.float64), np.ascontiguousarray(b, dtype=np.float64),
+                    np.ascontiguousarray(occ, dtype=bool), np.asarray(lo, dtype=np.float64)[:2].copy(), float(cell))
     # each corner's heights: the bottoms and tops of the columns around it
     zs: dict = {}
     for i, j in zip(*np.nonzero(occ)):
@@ -179,6 +177,135 @@ def _grid_solid(grid: np.ndarray, occ: np.ndarray, lo: np.ndarray, cell: float, 
             if nz0 > z0:
                 wall(e0, e1, z0, nz0)
     return np.array(vlist, dtype=np.float64).reshape(-1, 3), np.array(faces, dtype=np.int64).reshape(-1, 3)
+
+
+def _solid_example(rng) -> tuple:
+    """Columns of mixed heights, some hanging (the registry's example for :func:`_grid_solid`)."""
+    occ = rng.random((9, 7)) < 0.7
+    grid = rng.uniform(0.5, 2.0, occ.shape)
+    bottom = np.where(rng.random(occ.shape) < 0.3, rng.uniform(0.1, 0.4, occ.shape), 0.0)
+    return grid, occ, np.array([1.0, -2.0, 0.0]), 0.1, bottom
+
+
+@kernel(helper=True)
+def _corner_vid(c0, c1, z, ids, zv, nz, vout, nv, lo, cell):
+    """The vertex at corner (c0, c1) and height z: its id, created (in order of first use) when new."""
+    for k in range(nz[c0, c1]):
+        if zv[c0, c1, k] == z:
+            if ids[c0, c1, k] < 0:
+                ids[c0, c1, k] = nv[0]
+                vout[nv[0], 0] = lo[0] + c0 * cell
+                vout[nv[0], 1] = lo[1] + c1 * cell
+                vout[nv[0], 2] = z
+                nv[0] += 1
+            return ids[c0, c1, k]
+    return -1
+
+
+@kernel(helper=True)
+def _corner_span(zv, nz, c0, c1, z0, z1):
+    """The heights at corner (c0, c1) within [z0, z1], sorted."""
+    out = np.empty(nz[c0, c1])
+    m = 0
+    for k in range(nz[c0, c1]):
+        v = zv[c0, c1, k]
+        if z0 <= v and v <= z1:
+            out[m] = v
+            m += 1
+    return np.sort(out[:m])
+
+
+@kernel(helper=True)
+def _wall(e, z0, z1, ids, zv, nz, vout, nv, fout, nf, lo, cell):
+    left = _corner_span(zv, nz, e[0], e[1], z0, z1)
+    right = _corner_span(zv, nz, e[2], e[3], z0, z1)
+    li = 0
+    ri = 0
+    while li < len(left) - 1 or ri < len(right) - 1:
+        if ri < len(right) - 1 and (li == len(left) - 1 or right[ri + 1] <= left[li + 1]):
+            tri = (_corner_vid(e[0], e[1], left[li], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[2], e[3], right[ri], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[2], e[3], right[ri + 1], ids, zv, nz, vout, nv, lo, cell))
+            ri += 1
+        else:
+            tri = (_corner_vid(e[0], e[1], left[li], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[2], e[3], right[ri], ids, zv, nz, vout, nv, lo, cell),
+                   _corner_vid(e[0], e[1], left[li + 1], ids, zv, nz, vout, nv, lo, cell))
+            li += 1
+        fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = tri
+        nf[0] += 1
+
+
+@kernel(entry="_grid_solid", example="_solid_example")
+def _grid_solid_fast(h, b, occ, lo, cell):
+    """:func:`twinreg.shapes.fuse._grid_solid` (tops ``h``, bottoms ``b``, the occupied cells ``occ``): the same
+    vertices and faces in the same order."""
+    nx, ny = occ.shape
+    zv = np.empty((nx + 1, ny + 1, 8))
+    nz = np.zeros((nx + 1, ny + 1), dtype=np.int64)
+    ids = np.full((nx + 1, ny + 1, 8), -1, dtype=np.int64)
+    n_occ = 0
+    for i in range(nx):
+        for j in range(ny):
+            if not occ[i, j]:
+                continue
+            n_occ += 1
+            for c0, c1 in ((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)):
+                for z in (b[i, j], h[i, j]):
+                    seen = False
+                    for k in range(nz[c0, c1]):
+                        if zv[c0, c1, k] == z:
+                            seen = True
+                    if not seen:
+                        zv[c0, c1, nz[c0, c1]] = z
+                        nz[c0, c1] += 1
+    vout = np.empty(((nx + 1) * (ny + 1) * 8, 3))
+    fout = np.empty((n_occ * 124, 3), dtype=np.int64)
+    nv = np.zeros(1, dtype=np.int64)
+    nf = np.zeros(1, dtype=np.int64)
+    e = np.empty(4, dtype=np.int64)
+    for i in range(nx):
+        for j in range(ny):
+            if not occ[i, j]:
+                continue
+            z, z0 = h[i, j], b[i, j]
+            va = _corner_vid(i, j, z, ids, zv, nz, vout, nv, lo, cell)
+            vb = _corner_vid(i + 1, j, z, ids, zv, nz, vout, nv, lo, cell)
+            vc = _corner_vid(i + 1, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = va, vb, vc
+            vd = _corner_vid(i, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = va, vc, vd
+            nf[0] += 2
+            wa = _corner_vid(i, j, z0, ids, zv, nz, vout, nv, lo, cell)
+            wc = _corner_vid(i + 1, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
+            wb = _corner_vid(i + 1, j, z0, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = wa, wc, wb
+            wd = _corner_vid(i, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
+            fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = wa, wd, wc
+            nf[0] += 2
+            for side in range(4):
+                if side == 0:
+                    di, dj, e[0], e[1], e[2], e[3] = 1, 0, i + 1, j, i + 1, j + 1
+                elif side == 1:
+                    di, dj, e[0], e[1], e[2], e[3] = -1, 0, i, j + 1, i, j
+                elif side == 2:
+                    di, dj, e[0], e[1], e[2], e[3] = 0, 1, i + 1, j + 1, i, j + 1
+                else:
+                    di, dj, e[0], e[1], e[2], e[3] = 0, -1, i, j, i + 1, j
+                ni, nj = i + di, j + dj
+                if 0 <= ni < nx and 0 <= nj < ny and occ[ni, nj]:
+                    nz0, nzt = b[ni, nj], h[ni, nj]
+                else:
+                    nz0 = z + 1.0
+                    nzt = z + 1.0
+                if nz0 >= z or nzt <= z0:
+                    _wall(e, z0, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+                    continue
+                if nzt < z:
+                    _wall(e, nzt, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+                if nz0 > z0:
+                    _wall(e, z0, nz0, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+    return vout[:nv[0]].copy(), fout[:nf[0]].copy()
 
 
 def surface_points(vertices: np.ndarray, faces: np.ndarray, n: int, rng=None) -> np.ndarray:
