@@ -115,12 +115,7 @@ def _plan_hull(xy):
     n = xy.shape[0]
     if n < 3:
         return np.zeros((0, 2))
-    a, b = 0, 0
-    for p in range(1, n):
-        if xy[p, 0] < xy[a, 0] or (xy[p, 0] == xy[a, 0] and xy[p, 1] < xy[a, 1]):
-            a = p
-        if xy[p, 0] > xy[b, 0] or (xy[p, 0] == xy[b, 0] and xy[p, 1] > xy[b, 1]):
-            b = p
+    a, b = _extremes(xy)
     if a == b:
         return np.zeros((0, 2))
     nxt = np.full(n, -1, dtype=np.int64)  # the hull as a linked list, counter-clockwise
@@ -146,29 +141,62 @@ def _plan_hull(xy):
         p, q, start, end = tasks[top, 0], tasks[top, 1], tasks[top, 2], tasks[top, 3]
         if end <= start:
             continue
-        far, best = -1, 0.0
-        for k in range(start, end):
-            d = -_cross(xy[p], xy[q], xy[buf[k]])
-            if d > best:
-                best, far = d, buf[k]
+        far = _farthest(xy, buf, p, q, start, end)
         if far < 0:
             continue
         nxt[p], nxt[far] = far, q
-        k1 = start
-        k2 = 0
-        for k in range(start, end):
-            r = buf[k]
-            if _cross(xy[p], xy[far], xy[r]) < 0.0:
-                buf[k1] = r
-                k1 += 1
-            elif _cross(xy[far], xy[q], xy[r]) < 0.0:
-                spare[k2] = r
-                k2 += 1
-        for k in range(k2):
-            buf[k1 + k] = spare[k]
+        k1, k2 = _split(xy, buf, spare, p, far, q, start, end)
         tasks[top, 0], tasks[top, 1], tasks[top, 2], tasks[top, 3] = p, far, start, k1
         tasks[top + 1, 0], tasks[top + 1, 1], tasks[top + 1, 2], tasks[top + 1, 3] = far, q, k1, k1 + k2
         top += 2
+    return _walk(xy, nxt, a)
+
+
+@kernel(helper=True)
+def _extremes(xy):
+    """The rows of the leftmost (lowest among them) and the rightmost (highest among them) points."""
+    a, b = 0, 0
+    for p in range(1, xy.shape[0]):
+        if xy[p, 0] < xy[a, 0] or (xy[p, 0] == xy[a, 0] and xy[p, 1] < xy[a, 1]):
+            a = p
+        if xy[p, 0] > xy[b, 0] or (xy[p, 0] == xy[b, 0] and xy[p, 1] > xy[b, 1]):
+            b = p
+    return a, b
+
+
+@kernel(helper=True)
+def _farthest(xy, buf, p, q, start, end):
+    """Of the points ``buf[start:end]`` (right of the edge p -> q), the farthest from it (-1 when none is off it)."""
+    far, best = -1, 0.0
+    for k in range(start, end):
+        d = -_cross(xy[p], xy[q], xy[buf[k]])
+        if d > best:
+            best, far = d, buf[k]
+    return far
+
+
+@kernel(helper=True)
+def _split(xy, buf, spare, p, far, q, start, end):
+    """``buf[start:end]`` kept in place as the points right of p -> far, then those right of far -> q (the rest,
+    inside the triangle, dropped): the two counts."""
+    k1 = start
+    k2 = 0
+    for k in range(start, end):
+        r = buf[k]
+        if _cross(xy[p], xy[far], xy[r]) < 0.0:
+            buf[k1] = r
+            k1 += 1
+        elif _cross(xy[far], xy[q], xy[r]) < 0.0:
+            spare[k2] = r
+            k2 += 1
+    for k in range(k2):
+        buf[k1 + k] = spare[k]
+    return k1, k2
+
+
+@kernel(helper=True)
+def _walk(xy, nxt, a):
+    """The hull's corners, following the linked list ``nxt`` from ``a``."""
     h = 1
     k = nxt[a]
     while k != a:

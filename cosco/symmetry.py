@@ -178,9 +178,6 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     >>> s.found, round(float(np.degrees(min(s.heading, np.pi - s.heading))), 0)
     (True, 0.0)
     """
-    from scipy.optimize import minimize
-    from scipy.spatial import cKDTree
-
     pts = as_points(points, min_points=10)
     offset = pts.mean(0)
     # work in the footprint's principal frame, so that voxel grids turn with the object (rotation invariance)
@@ -189,6 +186,26 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     frame_angle = float(np.arctan2(vecs[1, -1], vecs[0, -1]))
     c, s = np.cos(frame_angle), np.sin(frame_angle)
     local = np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1], pts[:, 2] - offset[2]])
+    pcr, rmse, phi, rho, tol = _best_plane(local, params)
+    phi, rho = _canonical(phi + frame_angle, rho)
+    rho_scene = rho + float(offset[:2] @ np.array([np.cos(phi), np.sin(phi)]))
+    return Symmetry(
+        found=bool(pcr >= params.symmetry.pcr_threshold),
+        pcr=pcr,
+        rmse=rmse,
+        phi=phi,
+        rho=rho_scene,
+        heading=wrap_axis(phi + np.pi / 2),
+        tolerance=tol,
+    )
+
+
+def _best_plane(local: np.ndarray, params: CoscoParams) -> tuple[float, float, float, float, float]:
+    """(pcr, rmse, phi, rho, tolerance) of the best plane of an object in its principal frame: the searches from
+    the best start overall and the best along the footprint's long axis, the longitudinal one kept unless the
+    other beats it by more than ``symmetry.long_axis_margin``."""
+    from scipy.spatial import cKDTree
+
     # the reference set: the object at the base voxel size (equalised density); the tolerance follows its spacing
     ref, _ = voxel_downsample(local, params.symmetry.voxel)
     ref_tree = cKDTree(ref)
@@ -208,19 +225,6 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
         scored.append((obj.soft(phi, rho), phi, rho))
     scored.sort(key=lambda t: -t[0])
 
-    def optimise(phi0: float, rho0: float) -> tuple[float, float]:
-        # to about 0.3 degrees and 5 mm: the closed-form refinement from the mirror pairs takes it from there (a
-        # tighter search cost a fifth more look-ups for headings within 0.01 degrees, docs/PERFORMANCE.md)
-        res = minimize(
-            lambda x: -obj.soft(x[0], x[1]),
-            x0=[phi0, rho0],
-            method="Nelder-Mead",
-            options={"maxiter": params.symmetry.iterations, "xatol": params.symmetry.xatol, "fatol": params.symmetry.fatol,
-                     "initial_simplex": [[phi0, rho0], [phi0 + params.symmetry.simplex_turn, rho0],
-                                         [phi0, rho0 + params.symmetry.simplex_shift]]},
-        )
-        return _refine_pairs(ref, ref_tree, res.x[0], res.x[1], tol, params.symmetry.refine_steps, obj.index)
-
     # the best start overall, and the best start whose plane contains the footprint's long axis (a vehicle's
     # mirror plane does; a box-like van is nearly symmetric front to back too)
     long_normal = rect.angle + np.pi / 2
@@ -229,7 +233,8 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     for k, (_, phi0, rho0) in enumerate([scored[0]] + along[:1]):
         if k == 1 and axis_difference(phi0, scored[0][1]) < params.symmetry.same_plane:
             break
-        phi, rho = optimise(phi0, rho0)
+        phi, rho = _optimise(obj, phi0, rho0, params.symmetry)
+        phi, rho = _refine_pairs(ref, ref_tree, phi, rho, tol, params.symmetry.refine_steps, obj.index)
         pcr, rmse = obj.hard(phi, rho)
         candidates.append((pcr, rmse, phi, rho, axis_difference(phi, long_normal) < params.symmetry.along_axis))
     best = max(candidates, key=lambda c: c[0])
@@ -237,17 +242,23 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     if longitudinal and longitudinal[0][0] >= best[0] - params.symmetry.long_axis_margin:
         best = longitudinal[0]
     pcr, rmse, phi, rho, _ = best
-    phi, rho = _canonical(phi + frame_angle, rho)
-    rho_scene = rho + float(offset[:2] @ np.array([np.cos(phi), np.sin(phi)]))
-    return Symmetry(
-        found=bool(pcr >= params.symmetry.pcr_threshold),
-        pcr=pcr,
-        rmse=rmse,
-        phi=phi,
-        rho=rho_scene,
-        heading=wrap_axis(phi + np.pi / 2),
-        tolerance=tol,
+    return pcr, rmse, phi, rho, tol
+
+
+def _optimise(obj: "_Objective", phi0: float, rho0: float, sym) -> tuple[float, float]:
+    """The Nelder-Mead search of the soft PCR from (phi0, rho0): to about 0.3 degrees and 5 mm (the closed-form
+    refinement from the mirror pairs takes it from there; a tighter search cost a fifth more look-ups for headings
+    within 0.01 degrees, docs/PERFORMANCE.md)."""
+    from scipy.optimize import minimize
+
+    res = minimize(
+        lambda x: -obj.soft(x[0], x[1]),
+        x0=[phi0, rho0],
+        method="Nelder-Mead",
+        options={"maxiter": sym.iterations, "xatol": sym.xatol, "fatol": sym.fatol,
+                 "initial_simplex": [[phi0, rho0], [phi0 + sym.simplex_turn, rho0], [phi0, rho0 + sym.simplex_shift]]},
     )
+    return res.x[0], res.x[1]
 
 
 def with_footprint(sym: Symmetry, points, params: CoscoParams = DEFAULT) -> Symmetry:

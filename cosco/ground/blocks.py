@@ -33,60 +33,12 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
     # largest coordinate's
     extent = ((column_max(pts[:, :2]) - origin) / cell).astype(np.int64) + 1
     n_cols = int(extent[1] // b + 1)
-    counts_fast, rows_fast = fast(_block_counts_fast), fast(_window_rows_fast)
-    compiled = counts_fast is not None and not (extent <= b).all()
-    if (extent <= b).all():  # one block (a scene or a city cell of up to 512 m): no grouping of the points
-        keys, ci, cj = np.zeros(1, dtype=np.int64), None, None
-    elif compiled:  # the blocks holding points counted in one pass, no (n,) cells kept
-        pts = np.ascontiguousarray(pts)
-        n_rows = int(extent[0] // b + 1)
-        keys = np.flatnonzero(counts_fast(pts, origin, float(cell), int(b), n_cols, n_rows * n_cols))
-        ci = cj = None
-        bounds = []
-        for key in keys:
-            bi, bj = divmod(int(key), n_cols)
-            lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
-            hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
-            bounds.append([lo[0], hi[0], lo[1], hi[1]])
-        rows, starts = rows_fast(pts, origin, float(cell), np.array(bounds, dtype=np.int64))
-    else:
-        # every point's cell, once (32-bit: a grid of 2^31 cells is a million kilometres wide)
-        ci = ((pts[:, 0] - origin[0]) / cell).astype(np.int32)
-        cj = ((pts[:, 1] - origin[1]) / cell).astype(np.int32)
-        bkey = (ci // b).astype(np.int64) * n_cols
-        bkey += cj // b
-        keys = np.flatnonzero(np.bincount(bkey))
-        if len(keys) > FEW_BLOCKS:  # many blocks: each takes its points from its neighbours' groups
-            order, _, starts = group_by_key(bkey)
-            ends = np.r_[starts[1:], len(order)]
-        del bkey
+    keys, window_of = _blocks(pts, origin, extent, n_cols, params)
     tiles = np.empty((len(keys), b, b))
     for k, key in enumerate(keys):
         bi, bj = divmod(int(key), n_cols)
-        lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
-        hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
-        if compiled:  # the window's points in one pass (their order kept, as below)
-            window = pts[rows[starts[k]:starts[k + 1]]]
-        elif ci is None:
-            window = pts
-        else:
-            if len(keys) > FEW_BLOCKS:
-                wanted = np.array([(bi + di) * n_cols + bj + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)
-                                   if 0 <= bi + di and 0 <= bj + dj < n_cols])
-                pos = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
-                idx = np.concatenate([order[starts[n]:ends[n]] for n in pos[keys[pos] == wanted]])
-                inside = (ci[idx] >= lo[0]) & (ci[idx] < hi[0]) & (cj[idx] >= lo[1]) & (cj[idx] < hi[1])
-                idx = idx[inside]
-            else:  # a few blocks (a city cell across the lattice's lines): one pass over the points each
-                inside = ci >= lo[0]
-                inside &= ci < hi[0]
-                inside &= cj >= lo[1]
-                inside &= cj < hi[1]
-                idx = np.flatnonzero(inside)
-            del inside
-            window = pts[idx]
-            del idx
-        z = _window_ground(window, origin + lo * cell, tuple(hi - lo), params)
+        lo, hi = _window_bounds(bi, bj, b, h, extent)
+        z = _window_ground(window_of(k, bi, bj, lo, hi), origin + lo * cell, tuple(hi - lo), params)
         core = np.full((b, b), np.nan)
         a0, a1 = bi * b - lo[0], bj * b - lo[1]
         part = z[a0:a0 + b, a1:a1 + b]
@@ -98,6 +50,66 @@ def estimate_ground(points, params: CoscoParams = DEFAULT) -> Ground:
         if not known.all():
             tiles[k] = _fill_nearest(np.where(known, tiles[k], 0.0), known)
     return Ground(origin, cell, b, n_cols, keys, tiles)
+
+
+def _window_bounds(bi: int, bj: int, b: int, h: int, extent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cells (lo, hi; half-open) of block (bi, bj)'s window: the block and its halo, inside the extent."""
+    lo = np.maximum(np.array([bi * b - h, bj * b - h]), 0)
+    hi = np.minimum(np.array([(bi + 1) * b + h, (bj + 1) * b + h]), extent)
+    return lo, hi
+
+
+def _blocks(pts: np.ndarray, origin: np.ndarray, extent: np.ndarray, n_cols: int, params: CoscoParams):
+    """The keys of the blocks holding points, and ``window_of(k, bi, bj, lo, hi)``: block k's window's points, in
+    their order."""
+    cell, b, h = params.ground.cell, params.ground.block, params.ground.halo
+    if (extent <= b).all():  # one block (a scene or a city cell of up to 512 m): no grouping of the points
+        return np.zeros(1, dtype=np.int64), lambda k, bi, bj, lo, hi: pts
+    counts_fast, rows_fast = fast(_block_counts_fast), fast(_window_rows_fast)
+    if counts_fast is None:
+        return _blocks_numpy(pts, origin, n_cols, params)
+    # compiled: the blocks holding points counted in one pass, no (n,) cells kept; the windows' points in one pass
+    pts = np.ascontiguousarray(pts)
+    n_rows = int(extent[0] // b + 1)
+    keys = np.flatnonzero(counts_fast(pts, origin, float(cell), int(b), n_cols, n_rows * n_cols))
+    bounds = []
+    for key in keys:
+        lo, hi = _window_bounds(*divmod(int(key), n_cols), b, h, extent)
+        bounds.append([lo[0], hi[0], lo[1], hi[1]])
+    rows, starts = rows_fast(pts, origin, float(cell), np.array(bounds, dtype=np.int64))
+    return keys, lambda k, bi, bj, lo, hi: pts[rows[starts[k]:starts[k + 1]]]
+
+
+def _blocks_numpy(pts: np.ndarray, origin: np.ndarray, n_cols: int, params: CoscoParams):
+    """:func:`_blocks`' reference: every point's cell once (32-bit: a grid of 2^31 cells is a million kilometres
+    wide); with many blocks, each takes its points from its neighbours' groups, else one pass over the points."""
+    cell, b = params.ground.cell, params.ground.block
+    ci = ((pts[:, 0] - origin[0]) / cell).astype(np.int32)
+    cj = ((pts[:, 1] - origin[1]) / cell).astype(np.int32)
+    bkey = (ci // b).astype(np.int64) * n_cols
+    bkey += cj // b
+    keys = np.flatnonzero(np.bincount(bkey))
+    many = len(keys) > FEW_BLOCKS
+    if many:
+        order, _, starts = group_by_key(bkey)
+        ends = np.r_[starts[1:], len(order)]
+    del bkey
+
+    def window_of(k, bi, bj, lo, hi):
+        if many:
+            wanted = np.array([(bi + di) * n_cols + bj + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)
+                               if 0 <= bi + di and 0 <= bj + dj < n_cols])
+            pos = np.clip(np.searchsorted(keys, wanted), 0, len(keys) - 1)
+            idx = np.concatenate([order[starts[n]:ends[n]] for n in pos[keys[pos] == wanted]])
+            inside = (ci[idx] >= lo[0]) & (ci[idx] < hi[0]) & (cj[idx] >= lo[1]) & (cj[idx] < hi[1])
+            return pts[idx[inside]]
+        inside = ci >= lo[0]  # a few blocks (a city cell across the lattice's lines): one pass over the points each
+        inside &= ci < hi[0]
+        inside &= cj >= lo[1]
+        inside &= cj < hi[1]
+        return pts[np.flatnonzero(inside)]
+
+    return keys, window_of
 
 
 def remove_ground(points, params: CoscoParams = DEFAULT) -> tuple[np.ndarray, np.ndarray, Ground]:

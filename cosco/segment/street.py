@@ -172,11 +172,23 @@ def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosco
     pairs, gap = pairs[keep], gap[keep]
     if len(pairs) == 0:
         return comp
-    # the union's plan box: stacking does not widen it beyond the wider piece (a wall's corner pieces stay apart);
-    # pieces off the ground (a roof's, a crown's) widen it up to a street object's size
+    pr = _merge_stacked(pairs, gap, lo, hi, floating, link, params)
+    if (pr == np.arange(len(pick))).all():
+        return comp
+    roots = np.arange(len(labels))
+    roots[pick] = pick[pr]
+    return labels[roots][np.searchsorted(labels, comp)]
+
+
+def _merge_stacked(pairs: np.ndarray, gap: np.ndarray, lo: np.ndarray, hi: np.ndarray, floating: np.ndarray,
+                   link: float, params: CoscoParams) -> np.ndarray:
+    """Each piece's root after joining the ``pairs`` nearest in height first: the union's plan box does not widen
+    beyond the wider piece's (a wall's corner pieces stay apart) but by a link; pieces off the ground (a roof's, a
+    crown's) widen it up to a street object's size. Union-find, since whether two sets join depends on the boxes
+    of the sets they are by then."""
     box_lo, box_hi = lo.copy(), hi.copy()
     up = floating.copy()
-    parent = np.arange(len(pick))
+    parent = np.arange(len(lo))
 
     def root(k):
         while parent[k] != k:
@@ -200,12 +212,7 @@ def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosco
             continue
         parent[ra] = rb
         box_lo[rb], box_hi[rb], up[rb] = mlo, mhi, up[ra] and up[rb]
-    pr = np.array([root(k) for k in range(len(pick))])
-    if (pr == np.arange(len(pick))).all():
-        return comp
-    roots = np.arange(len(labels))
-    roots[pick] = pick[pr]
-    return labels[roots][np.searchsorted(labels, comp)]
+    return np.array([root(k) for k in range(len(lo))])
 
 
 def reach_link(voxel: float) -> float:
@@ -213,6 +220,30 @@ def reach_link(voxel: float) -> float:
     two patches, at least half a metre (an airborne scan hits a pole every metre of its height or so, and the
     voxels link their neighbours); its top is what lies within two links under the ceiling."""
     return max(2 * voxel, 0.5)
+
+
+def _reach(o, pts, hag, high, tree, link: float, params: CoscoParams):
+    """The high points within reach of object ``o``'s top and joined to it: (their rows in ``high``, which of them
+    join, the centre and radius looked at), or None (a car-sized or too large object, no top, nothing joined)."""
+    top = o.indices[hag[o.indices] > params.segment.max_height - 2 * link]
+    if car_sized(o.length, o.width, o.height, params) or len(top) < 2 or \
+            max(o.length, o.width) > params.segment.object_max_extent:
+        return None
+    xy = pts[o.indices, :2]
+    centre = (xy.min(0) + xy.max(0)) / 2
+    # looked at beyond the reach, by half the largest street object: a lamp's arm or a crown wider than the
+    # trunk's reach is the object's own unless it runs on further still
+    radius = float(np.hypot(*(xy.max(0) - xy.min(0))) / 2 + params.segment.object_reach
+                   + params.segment.object_max_extent / 2)
+    near = np.asarray(tree.query_ball_point(centre, radius), dtype=np.int64)
+    if not len(near):
+        return None
+    # thin uprights are sparse along their height: linked across two patches, a pole (under a link across) across
+    # twice that
+    thin = max(o.length, o.width) <= params.segment.object_link
+    comp, _, _ = voxel_components(np.vstack([pts[top], pts[high[near]]]), 2 * link if thin else link)
+    joined = np.isin(comp[len(top):], comp[:len(top)])
+    return (near, joined, centre, radius) if joined.any() else None
 
 
 def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, spacing: float) -> list:
@@ -235,26 +266,11 @@ def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, 
     out = []
     for k in sorted(range(len(objects)), key=lambda k: -objects[k].n_points):
         o = objects[k]
-        top = o.indices[hag[o.indices] > ceiling - 2 * link]
-        if car_sized(o.length, o.width, o.height, params) or len(top) < 2 or max(o.length, o.width) > params.segment.object_max_extent:
+        found = _reach(o, pts, hag, high, tree, link, params)
+        if found is None:
             out.append(o)
             continue
-        xy = pts[o.indices, :2]
-        centre = (xy.min(0) + xy.max(0)) / 2
-        # looked at beyond the reach, by half the largest street object: a lamp's arm or a crown wider than the
-        # trunk's reach is the object's own unless it runs on further still
-        radius = float(np.hypot(*(xy.max(0) - xy.min(0))) / 2 + params.segment.object_reach + params.segment.object_max_extent / 2)
-        near = np.asarray(tree.query_ball_point(centre, radius), dtype=np.int64)
-        joined = np.zeros(0, dtype=bool)
-        if len(near):
-            # thin uprights are sparse along their height: linked across two patches, a pole (under a link
-            # across) across twice that
-            thin = max(o.length, o.width) <= params.segment.object_link
-            comp, _, _ = voxel_components(np.vstack([pts[top], pts[high[near]]]), 2 * link if thin else link)
-            joined = np.isin(comp[len(top):], comp[:len(top)])
-        if not joined.any():
-            out.append(o)
-            continue
+        near, joined, centre, radius = found
         mine = near[joined & (owner[near] < 0)]
         others = sorted({int(v) for v in owner[near[joined]] if v >= 0})
         # what the first (largest) of an object's pieces joins runs on beyond the reach looked at: part of

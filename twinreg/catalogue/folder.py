@@ -12,6 +12,7 @@ from pathlib import Path
 from ..errors import CatalogueError, TwinregError
 from ..io.meshes import MESH_SUFFIXES
 from .duplicates import near_duplicate_report
+from .names import printable
 
 
 @dataclass
@@ -55,13 +56,40 @@ _FRONTS = ("auto", "+x", "-x", "+y", "-y")
 def read_manifest(path, folder) -> dict[Path, dict]:
     """The manifest's rows by file (resolved inside ``folder``), each a dict of the options it sets (empty cells
     left out); :class:`CatalogueError` naming the manifest, its line and the fix for anything wrong."""
+    path, folder = Path(path), Path(folder)
+    reader, header = _manifest_reader(path)
+    root = folder.resolve()
+    rows: dict[Path, dict] = {}
+    seen: set = set()  # the listed files, resolved (two spellings of one file are one file)
+    for line, cells in enumerate(reader, start=2):
+        if not any(c.strip() for c in cells):
+            continue
+        if line > MAX_MANIFEST_ROWS + 1:
+            raise CatalogueError(f"{path}: more than {MAX_MANIFEST_ROWS:,} rows")
+        if len(cells) > len(header):
+            raise CatalogueError(f"{path}, line {line}: {len(cells)} cells for {len(header)} columns")
+        row = {h: c.strip() for h, c in zip(header, cells) if c.strip()}
+        where = f"{path}, line {line}: "
+        target = _manifest_file(where, row.pop("file", ""), folder, root, seen)
+        try:
+            _check_manifest_values(row)
+        except ValueError as exc:
+            raise CatalogueError(f"{where}scale {printable(row.get('scale'))[:20]!r} is not a factor between 0.0001 "
+                                 "and 10000") from exc
+        except CatalogueError as exc:
+            raise CatalogueError(f"{where}{exc}") from exc
+        rows[target] = row
+    if not rows:
+        raise CatalogueError(f"{path}: no rows under its header")
+    return rows
+
+
+def _manifest_reader(path: Path):
+    """A CSV reader of the manifest's rows and its header (lower case), after its size, encoding and columns are
+    checked."""
     import csv
     import io
 
-    from .categories import check_category
-    from .names import check_name, check_text, printable
-
-    path, folder = Path(path), Path(folder)
     if not path.is_file():
         raise CatalogueError(f"{path}: no such manifest; give a CSV with a header row ({','.join(MANIFEST_COLUMNS)})")
     if path.stat().st_size > MAX_MANIFEST_BYTES:
@@ -78,54 +106,46 @@ def read_manifest(path, folder) -> dict[Path, dict]:
                 "no 'file' column" if "file" not in header else "a column twice")
         raise CatalogueError(f"{path}: {what}; the header row names some of {','.join(MANIFEST_COLUMNS)} "
                              "(file required)")
-    root = folder.resolve()
-    rows: dict[Path, dict] = {}
-    seen: set = set()  # the listed files, resolved (two spellings of one file are one file)
-    for line, cells in enumerate(reader, start=2):
-        if not any(c.strip() for c in cells):
-            continue
-        if line > MAX_MANIFEST_ROWS + 1:
-            raise CatalogueError(f"{path}: more than {MAX_MANIFEST_ROWS:,} rows")
-        if len(cells) > len(header):
-            raise CatalogueError(f"{path}, line {line}: {len(cells)} cells for {len(header)} columns")
-        row = {h: c.strip() for h, c in zip(header, cells) if c.strip()}
-        where = f"{path}, line {line}: "
-        rel = row.pop("file", "")
-        target = (folder / rel)
-        if (not rel or Path(rel).is_absolute() or ".." in Path(rel).parts or target.is_symlink()
-                or root not in target.resolve().parents):
-            raise CatalogueError(f"{where}file {printable(rel)[:100]!r} is not a path inside {folder}; give it "
-                                 "relative to the folder")
-        if not target.is_file():
-            raise CatalogueError(f"{where}{printable(rel)[:100]} is not in {folder}; fix the manifest's file column")
-        if target.resolve() in seen:
-            raise CatalogueError(f"{where}{printable(rel)[:100]} is listed twice")
-        seen.add(target.resolve())
-        try:
-            if "name" in row:
-                check_name(row["name"])
-            for key in ("make", "model"):
-                check_text(row.get(key), key)
-            if "category" in row:
-                row["category"] = check_category(row["category"])
-            if "scale" in row:
-                row["scale"] = float(row["scale"])
-                if not (math.isfinite(row["scale"]) and 1e-4 <= row["scale"] <= 1e4):
-                    raise ValueError
-            for key, allowed in (("unit", _UNITS), ("up", _UPS), ("front", _FRONTS)):
-                if key in row:
-                    row[key] = row[key].lower()
-                    if row[key] not in allowed:
-                        raise CatalogueError(f"{key} {printable(row[key])[:20]!r} is not one of {', '.join(allowed)}")
-        except ValueError as exc:
-            raise CatalogueError(f"{where}scale {printable(row.get('scale'))[:20]!r} is not a factor between 0.0001 "
-                                 "and 10000") from exc
-        except CatalogueError as exc:
-            raise CatalogueError(f"{where}{exc}") from exc
-        rows[target] = row
-    if not rows:
-        raise CatalogueError(f"{path}: no rows under its header")
-    return rows
+    return reader, header
+
+
+def _manifest_file(where: str, rel: str, folder: Path, root: Path, seen: set) -> Path:
+    """The file a row lists: a path inside ``folder`` (no absolute path, no ``..``, no link out), present, and not
+    listed before (``seen``, resolved)."""
+    target = folder / rel
+    if (not rel or Path(rel).is_absolute() or ".." in Path(rel).parts or target.is_symlink()
+            or root not in target.resolve().parents):
+        raise CatalogueError(f"{where}file {printable(rel)[:100]!r} is not a path inside {folder}; give it "
+                             "relative to the folder")
+    if not target.is_file():
+        raise CatalogueError(f"{where}{printable(rel)[:100]} is not in {folder}; fix the manifest's file column")
+    if target.resolve() in seen:
+        raise CatalogueError(f"{where}{printable(rel)[:100]} is listed twice")
+    seen.add(target.resolve())
+    return target
+
+
+def _check_manifest_values(row: dict) -> None:
+    """A row's values checked (names and texts as everywhere, the category known, a scale in 1e-4..1e4, unit, up and
+    front among their choices), the category, scale and axes normalised in place."""
+    from .categories import check_category
+    from .names import check_name, check_text
+
+    if "name" in row:
+        check_name(row["name"])
+    for key in ("make", "model"):
+        check_text(row.get(key), key)
+    if "category" in row:
+        row["category"] = check_category(row["category"])
+    if "scale" in row:
+        row["scale"] = float(row["scale"])
+        if not (math.isfinite(row["scale"]) and 1e-4 <= row["scale"] <= 1e4):
+            raise ValueError
+    for key, allowed in (("unit", _UNITS), ("up", _UPS), ("front", _FRONTS)):
+        if key in row:
+            row[key] = row[key].lower()
+            if row[key] not in allowed:
+                raise CatalogueError(f"{key} {printable(row[key])[:20]!r} is not one of {', '.join(allowed)}")
 
 
 def import_folder(catalogue, files, unit: str = "auto", up: str = "auto", progress=None, manifest=None,

@@ -166,17 +166,32 @@ def normalise(mesh: LoadedMesh, unit: str = "auto", up: str = "auto", front: str
 
     Raises :class:`UnitError` when the resulting size is not plausible for the category.
     """
-    from .categories import is_vehicle, size_range
-
     notes: list[str] = []
     used = np.unique(mesh.faces)
-    raw = mesh.vertices
-    longest = float(np.ptp(raw[used], axis=0).max()) * factor
+    unit_name, scale, source = _unit(mesh, used, unit, category, factor, notes)
+    verts = mesh.vertices * scale
+    up_name, front_name, rot = _axes(verts, mesh, up, front, category, notes)
+    v = verts @ rot.T
+    lo, hi = v[used].min(0), v[used].max(0)
+    shift = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    v = v + shift
+    transform = np.eye(4)
+    transform[:3, :3] = rot * scale
+    transform[:3, 3] = shift
+    return NormalisedMesh(v, mesh.faces, mesh.glass, unit_name, scale, source, up_name, front_name, transform, notes)
+
+
+def _unit(mesh: LoadedMesh, used: np.ndarray, unit: str, category: str, factor: float,
+          notes: list) -> tuple[str, float, str]:
+    """(unit name, metres per file unit times ``factor``, where the unit came from): ``--unit``, the file's when it
+    gives a plausible size, else inferred from the category's sizes; an implausible size is a :class:`UnitError`."""
+    from .categories import size_range
+
+    longest = float(np.ptp(mesh.vertices[used], axis=0).max()) * factor
     vehicle = category == "car"
     sizes = (*PLAUSIBLE_LENGTH, 4.5) if vehicle else size_range(category)
     accepted = ACCEPTED_LENGTH if vehicle else (sizes[0] * 0.8, sizes[1] * 1.25)
     what = "car length" if vehicle else f"{category} size"
-
     unit = unit.lower()
     if unit != "auto":
         if unit not in UNITS:
@@ -205,9 +220,15 @@ def normalise(mesh: LoadedMesh, unit: str = "auto", up: str = "auto", front: str
         noun = "car" if vehicle else category
         raise UnitError(f"{mesh.path}: a {length_m:.4g} m long {noun} is implausible "
                         f"(expected {accepted[0]:g}-{accepted[1]:g} m); {fix}")
-    scale *= factor
+    return unit_name, scale * factor, source
 
-    verts = raw * scale
+
+def _axes(verts: np.ndarray, mesh: LoadedMesh, up: str, front: str, category: str,
+          notes: list) -> tuple[str, str, np.ndarray]:
+    """(up axis, front axis, the rotation that turns them to +z and +x): given, stated by the file, or detected
+    from the surface (a vehicle's front; another category's is the file's +x)."""
+    from .categories import is_vehicle
+
     samples = surface_samples(verts, mesh.faces)
     up = up.lower()
     if up == "auto":
@@ -221,7 +242,6 @@ def normalise(mesh: LoadedMesh, unit: str = "auto", up: str = "auto", front: str
         up_name = _check_axis(up, AXES, "up")
         notes.append(f"up {up_name} (--up)")
     r_up = UP_ROTATIONS[up_name]
-
     front = front.lower()
     if front == "auto" and not is_vehicle(category):
         front_name = "+x"
@@ -232,13 +252,4 @@ def normalise(mesh: LoadedMesh, unit: str = "auto", up: str = "auto", front: str
     else:
         front_name = _check_axis(front, FRONT_ROTATIONS, "front")
         notes.append(f"front {front_name} (--front)")
-    rot = FRONT_ROTATIONS[front_name] @ r_up
-
-    v = verts @ rot.T
-    lo, hi = v[used].min(0), v[used].max(0)
-    shift = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
-    v = v + shift
-    transform = np.eye(4)
-    transform[:3, :3] = rot * scale
-    transform[:3, 3] = shift
-    return NormalisedMesh(v, mesh.faces, mesh.glass, unit_name, scale, source, up_name, front_name, transform, notes)
+    return up_name, front_name, FRONT_ROTATIONS[front_name] @ r_up

@@ -121,28 +121,11 @@ def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEF
     from cosco.arrays import check_object
     from cosco.levels import symmetry_level
 
-    from ..io.points import read_points
     from .categories import size_range
     from .normalise import NormalisedMesh
 
-    from ..io.points import point_count_bound
-
     path = Path(path)
-    bound = point_count_bound(path)
-    if bound > MAX_REFERENCE_POINTS:
-        raise MeshLoadError(f"{path}: {bound:,} points, more than a scanned reference of one object needs (at most "
-                            f"{MAX_REFERENCE_POINTS:,}); crop it to the object or thin it (e.g. to "
-                            f"{SAMPLE_SPACING * 100:.0f} cm) first")
-    ps = read_points(path, unit=unit)
-    notes = [f"a scan of {len(ps.points)} points"]
-    if factor != 1.0:
-        ps.points = ps.points * factor
-        notes.append(f"scale x{factor:g} (--scale)")
-    if ps.n_dropped:
-        notes.append(f"{ps.n_dropped} rows without finite x, y, z dropped")
-    if len(ps.points) > THIN_REFERENCE_POINTS:
-        ps.points = cosco.voxel_downsample(ps.points, SAMPLE_SPACING)[0]
-        notes.append(f"thinned to {len(ps.points)} points ({SAMPLE_SPACING * 100:.0f} cm, the models' sampling)")
+    ps, notes = _scan_points(path, unit, factor)
     try:
         pts = check_object(ps.points, min_points=params.segment.min_points)
     except ValueError as exc:
@@ -172,4 +155,27 @@ def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEF
                           notes + ["its mesh the convex hull of its points"])
     return PreparedModel(path, file_sha256(path), mesh, local, shape, np.ptp(vertices, axis=0), spacing, 0.0,
                          category, "scan", symmetry_level(local, params))
+
+
+def _scan_points(path: Path, unit: str, factor: float):
+    """A scanned reference's points (refused beyond MAX_REFERENCE_POINTS before reading, thinned beyond
+    THIN_REFERENCE_POINTS, scaled by ``factor``) and the notes saying what was done."""
+    from ..io.points import point_count_bound, read_points
+
+    bound = point_count_bound(path)
+    if bound > MAX_REFERENCE_POINTS:
+        raise MeshLoadError(f"{path}: {bound:,} points, more than a scanned reference of one object needs (at most "
+                            f"{MAX_REFERENCE_POINTS:,}); crop it to the object or thin it (e.g. to "
+                            f"{SAMPLE_SPACING * 100:.0f} cm) first")
+    ps = read_points(path, unit=unit)
+    notes = [f"a scan of {len(ps.points)} points"]
+    if factor != 1.0:
+        ps.points = ps.points * factor
+        notes.append(f"scale x{factor:g} (--scale)")
+    if ps.n_dropped:
+        notes.append(f"{ps.n_dropped} rows without finite x, y, z dropped")
+    if len(ps.points) > THIN_REFERENCE_POINTS:
+        ps.points = cosco.voxel_downsample(ps.points, SAMPLE_SPACING)[0]
+        notes.append(f"thinned to {len(ps.points)} points ({SAMPLE_SPACING * 100:.0f} cm, the models' sampling)")
+    return ps, notes
 

@@ -99,15 +99,10 @@ def process_cell(job: CellJob, *ready) -> CellResult:
 
 
 def _process_cell(job: CellJob) -> CellResult:
-    from cosco.footprint import min_area_rectangle
-    from cosco.arrays import point_spacing
-
+    from ..detect import detect_points
     from ..io.observed import raster
-    from ..detect import describe_detected, detect_points, object_ground, object_levels, object_points
-    from ..export.scan_tiles import cell_scan_folder, write_cell_scan
-    from ..export.tiles3d import scan_sample
     from ..io.points import PointSet
-    from ..matching.acceptance import sample_cloud, scene_noise
+    from ..matching.acceptance import scene_noise
 
     cell, params = job.cell, job.params
     out = CellResult(cell.name, job.key, cell.lo, cell.hi)
@@ -116,11 +111,7 @@ def _process_cell(job: CellJob) -> CellResult:
     out.n_read = len(pts[0])
     out.timing_s["read"] = time.perf_counter() - t0
     if out.n_read < 100:
-        if job.scan_dir:  # an empty cell has no tiles: its empty folder says it is done
-            cell_scan_folder(Path(job.scan_dir), cell.name, job.key).mkdir(parents=True, exist_ok=True)
-        if job.labels:
-            save_labels(Path(job.labels), np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0, np.uint16))
-        return out
+        return _empty_cell(job, out)
     offset = np.asarray(job.offset, dtype=np.float64)
     # the ground from everything read (the filter's reach), the objects from the core and its buffer
     det = detect_points(PointSet(path=Path(cell.name), points=pts.pop(), offset=offset, unit="m"), params,
@@ -135,13 +126,50 @@ def _process_cell(job: CellJob) -> CellResult:
     t = time.perf_counter()
     out.observed = raster(pts, det.hag, det.is_ground, cell.lo, cell.hi)
     if job.scan_dir:  # every point of the core, as level-of-detail tiles written here on the worker
-        rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
-        if len(rows):
-            out.scan_tiles = write_cell_scan(Path(job.scan_dir), cell.name, job.key, pts[rows], colours)
-        else:
-            cell_scan_folder(Path(job.scan_dir), cell.name, job.key).mkdir(parents=True, exist_ok=True)
+        _write_scan(job, out, det, own)
     out.timing_s["scan_tiles"] = time.perf_counter() - t  # with the observation raster
     t = time.perf_counter()
+    owned = _owned_objects(det, cell, out)
+    _describe_owned(job, out, det, owned, offset)
+    out.timing_s["sections"] = time.perf_counter() - t
+    if job.labels:
+        t = time.perf_counter()
+        rows, classes, ids = cell_labels(det.is_ground, own, [o for o in det.segmentation.objects if o.target], owned)
+        save_labels(Path(job.labels), pts[rows], classes, ids)
+        out.timing_s["labels"] = time.perf_counter() - t
+    return out
+
+
+def _empty_cell(job: CellJob, out: CellResult) -> CellResult:
+    """A cell of under 100 points: no objects; its empty scan folder and labels say it is done."""
+    from ..export.scan_tiles import cell_scan_folder
+
+    if job.scan_dir:  # an empty cell has no tiles: its empty folder says it is done
+        cell_scan_folder(Path(job.scan_dir), job.cell.name, job.key).mkdir(parents=True, exist_ok=True)
+    if job.labels:
+        save_labels(Path(job.labels), np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0, np.uint16))
+    return out
+
+
+def _write_scan(job: CellJob, out: CellResult, det, own: np.ndarray) -> None:
+    """The core's points as level-of-detail scan tiles, written on the worker."""
+    from ..export.scan_tiles import cell_scan_folder, write_cell_scan
+    from ..export.tiles3d import scan_sample
+
+    pts = det.scene.points
+    rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
+    if len(rows):
+        out.scan_tiles = write_cell_scan(Path(job.scan_dir), job.cell.name, job.key, pts[rows], colours)
+    else:
+        cell_scan_folder(Path(job.scan_dir), job.cell.name, job.key).mkdir(parents=True, exist_ok=True)
+
+
+def _owned_objects(det, cell, out: CellResult) -> list:
+    """The target objects whose footprint centre the cell owns, ordered by that centre (counting every owned
+    segment in ``out``)."""
+    from cosco.footprint import min_area_rectangle
+
+    pts = det.scene.points
     owned, centres = [], []
     for o in det.segmentation.objects:
         p = pts[o.indices, :2]
@@ -152,7 +180,17 @@ def _process_cell(job: CellJob) -> CellResult:
                 owned.append(o)
                 centres.append(centre)
     order = sorted(range(len(owned)), key=lambda k: (round(float(centres[k][0]), 2), round(float(centres[k][1]), 2)))
-    owned = [owned[k] for k in order]
+    return [owned[k] for k in order]
+
+
+def _describe_owned(job: CellJob, out: CellResult, det, owned: list, offset: np.ndarray) -> None:
+    """Each owned object described (sections, level of symmetry, a sample of its points) into ``out``."""
+    from cosco.arrays import point_spacing
+
+    from ..detect import describe_detected, object_ground, object_levels, object_points
+    from ..matching.acceptance import sample_cloud
+
+    params, cell = job.params, job.cell
     shapes = describe_detected(det, params, objects=owned)
     clouds = [object_points(det, o) for o in owned]
     levels = object_levels(clouds, shapes, params)
@@ -161,10 +199,3 @@ def _process_cell(job: CellJob) -> CellResult:
             id=f"{cell.name}-{k + 1}", cell=cell.name, offset=offset, n_points=int(o.n_points), shape=shape,
             cloud=sample_cloud(cloud, params.matching.accept_max_points),
             spacing=float(point_spacing(cloud)), ground_z=object_ground(det, o), level=level))
-    out.timing_s["sections"] = time.perf_counter() - t
-    if job.labels:
-        t = time.perf_counter()
-        rows, classes, ids = cell_labels(det.is_ground, own, [o for o in det.segmentation.objects if o.target], owned)
-        save_labels(Path(job.labels), pts[rows], classes, ids)
-        out.timing_s["labels"] = time.perf_counter() - t
-    return out

@@ -19,23 +19,35 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     """(taxonomy, outcomes in object order, matching statistics, the client's ModelCache). ``samples``: where each
     object's point sample is, ``(cell file, index in it)``, for objects that do not hold it (the workers read
     them)."""
-    from ..matching.match import MatchStats, ModelCache
+    from ..matching.match import ModelCache
     from ..stages import taxonomy
 
     shapes = [o.shape for o in objects]
-    sections = [s.sections for s in shapes]
+    tax = taxonomy(shapes, params, timing, distances_of=_pair_distances(eng, shapes, params, progress),
+                   spacing=[o.spacing for o in objects])
+    noise_of = {r.name: r.noise for r in results}
+    noise = np.array([noise_of[o.cell] for o in objects])
+    t = time.perf_counter()
+    outcomes, stats = _match_all(eng, objects, tax, noise, str(catalogue.folder), params, progress, samples)
+    timing["matching"] = time.perf_counter() - t  # the workers' own sums are in twin.json's matching.worker_s
+    models = ModelCache(catalogue, params)
+    models.add_rows(catalogue.list())
+    return tax, outcomes, stats, models
 
-    n_workers = eng.n_workers
-    # objects ranked by length: an object's nearest neighbours by descriptor sit next to it
+
+def _pair_distances(eng, shapes: list, params, progress):
+    """The taxonomy's ``distances_of(pairs)`` on the workers: batches shrinking towards the end, so that the workers
+    finish together (each object's sections sent a few times only), at most PAIRS_PER_BATCH pairs each (what one
+    batch carries does not grow with the city), pairs ordered by the objects' rank by length (an object's nearest
+    neighbours by descriptor sit next to it)."""
+    sections = [s.sections for s in shapes]
     rank = np.argsort(np.argsort([s.size.length for s in shapes], kind="stable"), kind="stable")
 
     def distances_of(pairs):
-        # batches shrinking towards the end, so that the workers finish together (each object's sections sent a
-        # few times only), at most PAIRS_PER_BATCH pairs each: what one batch carries does not grow with the city
         r = rank[np.asarray(pairs, dtype=np.int64).reshape(-1, 2)]
         perm = np.lexsort((r.max(1), r.min(1))) if len(r) else np.zeros(0, dtype=np.int64)
         batches = pair_batches(sections, np.asarray(pairs)[perm], params,
-                               size=guided_sizes(len(pairs), n_workers, PAIRS_PER_BATCH, 250))
+                               size=guided_sizes(len(pairs), eng.n_workers, PAIRS_PER_BATCH, 250))
         if progress:
             progress("taxonomy", 0, len(batches))
         out = eng.map(compare_pairs, batches, [f"pairs{k}" for k in range(len(batches))])
@@ -45,35 +57,34 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
         d[perm] = np.concatenate(out) if out else np.zeros(0)
         return d
 
-    tax = taxonomy(shapes, params, timing, distances_of=distances_of, spacing=[o.spacing for o in objects])
-    noise_of = {r.name: r.noise for r in results}
-    noise = np.array([noise_of[o.cell] for o in objects])
-    t = time.perf_counter()
+    return distances_of
+
+
+def _match_all(eng, objects: list, tax, noise: np.ndarray, folder: str, params, progress, samples):
+    """Every object matched on the workers, the types' leaders first and then their members (who start from their
+    leader's models): (outcomes in object order, the statistics)."""
+    from ..errors import EngineError
+    from ..matching.match import MatchStats
+
     if progress:
         progress("matching", 0, len(objects))
     outcomes = [None] * len(objects)
     stats = MatchStats()
     leaders: dict = {}
     done = [0]
-    folder = str(catalogue.folder)
     first = leader_indices(tax.labels)
     rest = np.setdiff1d(np.arange(len(objects)), first)
-    phases = [(first, None), (rest, leaders)]
-    from ..errors import EngineError
-
-    for indices, known in phases:
+    for indices, known in [(first, None), (rest, leaders)]:
         if not len(indices):
             continue
-        size = guided_sizes(len(indices), n_workers, OBJECTS_PER_BATCH, 20)
+        size = guided_sizes(len(indices), eng.n_workers, OBJECTS_PER_BATCH, 20)
         batches, members = match_batches(objects, tax.labels, noise, folder, params, indices, size=size,
                                          leaders=known, samples=samples)
-
         names = [f"batch{k}" for k in range(len(batches))]
 
         def batch_done(name, result, members=members, number={n: k for k, n in enumerate(names)}):
-            k = number[name]
             res, st = result
-            for i, r in zip(members[k], res):
+            for i, r in zip(members[number[name]], res):
                 outcomes[i] = r
             stats.add(st)
             leaders.update(st.leaders)
@@ -84,7 +95,4 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
         fails = eng.run(match_batch, batches, names, on_result=batch_done)
         if fails:
             raise EngineError(f"matching failed twice for {fails[0].name} ({fails[0].error})")
-    timing["matching"] = time.perf_counter() - t  # the workers' own sums are in twin.json's matching.worker_s
-    models = ModelCache(catalogue, params)
-    models.add_rows(catalogue.list())
-    return tax, outcomes, stats, models
+    return outcomes, stats

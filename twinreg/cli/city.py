@@ -13,6 +13,17 @@ from ._common import Command, JsonOpt, LibraryOpt, RunProgress, command_app, han
 app = command_app()
 
 
+def _city_summary(truth: dict, out: Path, source: str, later: bool) -> dict:
+    """simulate-city's JSON: the city's figures, and a later survey's events by kind."""
+    doc = {k: truth.get(k) for k in ("crs", "tile_m", "density", "seed", "side_m", "n_points", "tiles", "date")}
+    doc |= {"n_cars": len(truth["cars"]), "truth": str(out / "truth.json"), "models": source,
+            "n_furniture": sum(1 for o in truth.get("others", []) if o["kind"].startswith("furniture:"))}
+    if later:
+        doc["events"] = {k: sum(1 for e in truth["events"] if e["event"] == k)
+                         for k in ("same", "moved", "left", "replaced", "arrived")}
+    return doc
+
+
 @app.command("simulate-city", cls=Command)
 @handled
 def simulate_city_cmd(
@@ -65,14 +76,8 @@ def simulate_city_cmd(
             truth = simulate_city(stage, models, names, km2=km2, density=density or 150.0, tile=tile, seed=seed,
                                   crs=crs, progress=bars.update, copc=copc, date=when, kind=layout,
                                   furniture=city_furniture(library) if furniture else None)
-    doc = {k: truth.get(k) for k in ("crs", "tile_m", "density", "seed", "side_m", "n_points", "tiles", "date")}
-    doc |= {"n_cars": len(truth["cars"]), "truth": str(out / "truth.json"), "models": source,
-            "n_furniture": sum(1 for o in truth.get("others", []) if o["kind"].startswith("furniture:"))}
-    if epoch_of is not None:
-        doc["events"] = {k: sum(1 for e in truth["events"] if e["event"] == k)
-                         for k in ("same", "moved", "left", "replaced", "arrived")}
     if json_:
-        print_json(doc)
+        print_json(_city_summary(truth, out, source, later=epoch_of is not None))
     else:
         info(f"{out}: {len(truth['tiles'])} tiles, {truth['n_points']:,} points, {len(truth['cars'])} cars "
              f"({truth['side_m']:g} m square, {crs}); truth in {out / 'truth.json'}")

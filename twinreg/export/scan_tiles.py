@@ -137,7 +137,24 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
                               "boundingVolume": {"box": box_volume(p_lo - c, p_hi - c)},
                               "geometricError": error, "content": {"uri": uri},
                               "children": [], "_lo": p_lo, "_hi": p_hi, "_c": c}
-    # every tile under its parent (a tile whose level drew no points there gets an empty parent)
+    _link_parents(nodes, area, upto)
+    root = nodes[(0, 0, 0)]
+    cell_error = float(np.sqrt(area / max(int(upto[0]), 1))) if depth else 0.0
+    lo_all, hi_all, c0 = root["_lo"], root["_hi"], root["_c"]
+    tree = _relative(root, np.zeros(3))
+    tree["refine"] = "ADD"
+    # the link to the quadtree: drawing none of it misses the whole cell (a viewer at any distance from which the
+    # cell is more than a few pixels wide goes in and draws the root's even thinning)
+    missing = link_error(lo_all, hi_all, cell_error)
+    doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": missing, "root": tree}
+    (folder / f"{name}.json").write_text(json.dumps(doc), encoding="utf-8")
+    return {"boundingVolume": {"box": box_volume(lo_all, hi_all)}, "geometricError": missing,
+            "content": {"uri": f"{name}.json"}, "_lo": lo_all, "_hi": hi_all, "_n": len(enu), "_c": c0}
+
+
+def _link_parents(nodes: dict, area: float, upto: np.ndarray) -> None:
+    """Every tile under its parent (a tile whose level drew no points there gets an empty parent), the parents'
+    boxes grown over their children's."""
     for (d, i, j) in sorted(nodes, reverse=True):
         if d == 0:
             continue
@@ -149,32 +166,21 @@ def write_cell_quadtree(folder: Path, name: str, enu: np.ndarray, rgb: np.ndarra
         par, child = nodes[parent], nodes[(d, i, j)]
         par["_lo"], par["_hi"] = np.minimum(par["_lo"], child["_lo"]), np.maximum(par["_hi"], child["_hi"])
         par["children"].append(child)
-    root = nodes[(0, 0, 0)]
-    cell_error = float(np.sqrt(area / max(int(upto[0]), 1))) if depth else 0.0
 
-    def finish(node, parent_c):
-        """Child transforms are relative to the parent's; boxes in the tile's own frame."""
-        c = node["_c"]
-        node["transform"] = translation(c - parent_c)
-        node["boundingVolume"] = {"box": box_volume(node["_lo"] - c, node["_hi"] - c)}
-        for ch in node["children"]:
-            finish(ch, c)
-        if not node["children"]:
-            node.pop("children")
-        for k in ("_lo", "_hi", "_c"):
-            node.pop(k)
-        return node
 
-    lo_all, hi_all, c0 = root["_lo"], root["_hi"], root["_c"]
-    tree = finish(root, np.zeros(3))
-    tree["refine"] = "ADD"
-    # the link to the quadtree: drawing none of it misses the whole cell (a viewer at any distance from which the
-    # cell is more than a few pixels wide goes in and draws the root's even thinning)
-    missing = link_error(lo_all, hi_all, cell_error)
-    doc = {"asset": {"version": "1.1", "generator": "twinreg"}, "geometricError": missing, "root": tree}
-    (folder / f"{name}.json").write_text(json.dumps(doc), encoding="utf-8")
-    return {"boundingVolume": {"box": box_volume(lo_all, hi_all)}, "geometricError": missing,
-            "content": {"uri": f"{name}.json"}, "_lo": lo_all, "_hi": hi_all, "_n": len(enu), "_c": c0}
+def _relative(node: dict, parent_c: np.ndarray) -> dict:
+    """A tile and those under it finished: child transforms relative to the parent's, boxes in the tile's own
+    frame, the working keys dropped."""
+    c = node["_c"]
+    node["transform"] = translation(c - parent_c)
+    node["boundingVolume"] = {"box": box_volume(node["_lo"] - c, node["_hi"] - c)}
+    for ch in node["children"]:
+        _relative(ch, c)
+    if not node["children"]:
+        node.pop("children")
+    for k in ("_lo", "_hi", "_c"):
+        node.pop(k)
+    return node
 
 
 def link_error(lo, hi, below: float) -> float:

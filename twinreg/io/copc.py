@@ -15,22 +15,11 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     """Write (n, 3) float64 points to ``path`` (``.copc.laz``) with ``crs`` (pyproj input; None: none) in its header;
     ``classes``: (n,) ASPRS classification codes, ``source_ids``: (n,) uint16 point source ids (None: zeros)."""
     import copclib as copc
-    import laspy
     import pyproj
 
     from cosco.arrays import column_max, column_min
 
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    lo, hi = column_min(pts), column_max(pts)
-    offset = np.floor(lo / 1000.0) * 1000.0
-    las_header = laspy.LasHeader(point_format=6, version="1.4")
-    las_header.scales, las_header.offsets = [0.001] * 3, offset
-    rec = laspy.ScaleAwarePointRecord.zeros(len(pts), header=las_header)
-    rec.x, rec.y, rec.z = pts[:, 0], pts[:, 1], pts[:, 2]
-    if classes is not None:
-        rec.classification = np.asarray(classes, dtype=np.uint8)
-    if source_ids is not None:
-        rec.point_source_id = np.asarray(source_ids, dtype=np.uint16)
+    rec, offset = _point_record(points, classes, source_ids)
     # the nodes hold the points as stored (millimetre integers), so each lies inside its node's bounds
     pts = np.column_stack([np.asarray(rec.x), np.asarray(rec.y), np.asarray(rec.z)])
     lo, hi = column_min(pts), column_max(pts)
@@ -44,6 +33,48 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     info.halfsize = half
     depth = max(0, int(np.ceil(np.log(max(len(pts) / node_points, 1.0)) / np.log(4))))
     info.spacing = 2 * half / 128 / 2 ** depth
+    level, codes = _node_levels(pts, centre, half, depth, seed)
+    writer = copc.FileWriter(str(path), cfg, wkt=pyproj.CRS(crs).to_wkt() if crs else "")
+    raw = rec.array
+    try:
+        for d in range(depth + 1):
+            rows = np.flatnonzero(level == d)
+            c = codes(rows, d)
+            order = np.argsort(c, kind="stable")
+            rows, c = rows[order], c[order]
+            cuts = np.flatnonzero(np.diff(c)) + 1
+            n = 2 ** d
+            for idx, code in zip(np.split(rows, cuts), c[np.r_[0, cuts]] if len(c) else []):
+                i, j, k = int(code // (n * n)), int(code // n % n), int(code % n)
+                data = copc.VectorChar(raw[idx].view(np.int8).reshape(-1))
+                writer.AddNode(copc.VoxelKey(d, i, j, k), data)
+    finally:
+        writer.Close()
+    return Path(path)
+
+
+def _point_record(points, classes, source_ids):
+    """(the points as a LAS 1.4 format 6 record of millimetre integers, its offset: whole kilometres)."""
+    import laspy
+
+    from cosco.arrays import column_min
+
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    offset = np.floor(column_min(pts) / 1000.0) * 1000.0
+    las_header = laspy.LasHeader(point_format=6, version="1.4")
+    las_header.scales, las_header.offsets = [0.001] * 3, offset
+    rec = laspy.ScaleAwarePointRecord.zeros(len(pts), header=las_header)
+    rec.x, rec.y, rec.z = pts[:, 0], pts[:, 1], pts[:, 2]
+    if classes is not None:
+        rec.classification = np.asarray(classes, dtype=np.uint8)
+    if source_ids is not None:
+        rec.point_source_id = np.asarray(source_ids, dtype=np.uint16)
+    return rec, offset
+
+
+def _node_levels(pts: np.ndarray, centre: np.ndarray, half: float, depth: int, seed: int):
+    """Each point's level (a random level d with a probability proportional to 4^d, then moved up where its node's
+    parent would be empty) and ``codes(rows, d)``, the nodes of those rows at level d."""
     share = 4.0 ** np.arange(depth + 1)
     level = np.random.default_rng(seed).choice(depth + 1, len(pts), p=share / share.sum())
     # each point's node at its level as one integer code ((i * n + j) * n + k), every level at once
@@ -68,23 +99,7 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
                 _, first = np.unique(parents[missing], return_index=True)
                 level[here[missing[first]]] = d - 1
                 moved = True
-    writer = copc.FileWriter(str(path), cfg, wkt=pyproj.CRS(crs).to_wkt() if crs else "")
-    raw = rec.array
-    try:
-        for d in range(depth + 1):
-            rows = np.flatnonzero(level == d)
-            c = codes(rows, d)
-            order = np.argsort(c, kind="stable")
-            rows, c = rows[order], c[order]
-            cuts = np.flatnonzero(np.diff(c)) + 1
-            n = 2 ** d
-            for idx, code in zip(np.split(rows, cuts), c[np.r_[0, cuts]] if len(c) else []):
-                i, j, k = int(code // (n * n)), int(code // n % n), int(code % n)
-                data = copc.VectorChar(raw[idx].view(np.int8).reshape(-1))
-                writer.AddNode(copc.VoxelKey(d, i, j, k), data)
-    finally:
-        writer.Close()
-    return Path(path)
+    return level, codes
 
 
 #: the most hierarchy pages and nodes a COPC file may have (a 10-billion-point file at 100,000 points a node has

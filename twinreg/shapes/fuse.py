@@ -238,12 +238,34 @@ def _wall(e, z0, z1, ids, zv, nz, vout, nv, fout, nf, lo, cell):
 
 @kernel(entry="_grid_solid", example="_solid_example")
 def _grid_solid_fast(h, b, occ, lo, cell):
-    """:func:`twinreg.shapes.fuse._grid_solid` (tops ``h``, bottoms ``b``, the occupied cells ``occ``): the same
-    vertices and faces in the same order."""
+    """:func:`_grid_solid` (tops ``h``, bottoms ``b``, the occupied cells ``occ``): the same vertices and faces in
+    the same order."""
+    nx, ny = occ.shape
+    zv, nz, n_occ = _corner_heights(h, b, occ)
+    ids = np.full((nx + 1, ny + 1, 8), -1, dtype=np.int64)
+    vout = np.empty(((nx + 1) * (ny + 1) * 8, 3))
+    fout = np.empty((n_occ * 124, 3), dtype=np.int64)
+    nv = np.zeros(1, dtype=np.int64)
+    nf = np.zeros(1, dtype=np.int64)
+    e = np.empty(4, dtype=np.int64)
+    for i in range(nx):
+        for j in range(ny):
+            if not occ[i, j]:
+                continue
+            z, z0 = h[i, j], b[i, j]
+            _top_and_floor(i, j, z, z0, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+            for side in range(4):
+                _side(i, j, side, z, z0, h, b, occ, e, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+    return vout[:nv[0]].copy(), fout[:nf[0]].copy()
+
+
+@kernel(helper=True)
+def _corner_heights(h, b, occ):
+    """Each grid corner's distinct heights (the bottoms and tops of the occupied columns around it, at most 8), their
+    count, and the number of occupied columns."""
     nx, ny = occ.shape
     zv = np.empty((nx + 1, ny + 1, 8))
     nz = np.zeros((nx + 1, ny + 1), dtype=np.int64)
-    ids = np.full((nx + 1, ny + 1, 8), -1, dtype=np.int64)
     n_occ = 0
     for i in range(nx):
         for j in range(ny):
@@ -259,53 +281,54 @@ def _grid_solid_fast(h, b, occ, lo, cell):
                     if not seen:
                         zv[c0, c1, nz[c0, c1]] = z
                         nz[c0, c1] += 1
-    vout = np.empty(((nx + 1) * (ny + 1) * 8, 3))
-    fout = np.empty((n_occ * 124, 3), dtype=np.int64)
-    nv = np.zeros(1, dtype=np.int64)
-    nf = np.zeros(1, dtype=np.int64)
-    e = np.empty(4, dtype=np.int64)
-    for i in range(nx):
-        for j in range(ny):
-            if not occ[i, j]:
-                continue
-            z, z0 = h[i, j], b[i, j]
-            va = _corner_vid(i, j, z, ids, zv, nz, vout, nv, lo, cell)
-            vb = _corner_vid(i + 1, j, z, ids, zv, nz, vout, nv, lo, cell)
-            vc = _corner_vid(i + 1, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
-            fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = va, vb, vc
-            vd = _corner_vid(i, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
-            fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = va, vc, vd
-            nf[0] += 2
-            wa = _corner_vid(i, j, z0, ids, zv, nz, vout, nv, lo, cell)
-            wc = _corner_vid(i + 1, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
-            wb = _corner_vid(i + 1, j, z0, ids, zv, nz, vout, nv, lo, cell)
-            fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = wa, wc, wb
-            wd = _corner_vid(i, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
-            fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = wa, wd, wc
-            nf[0] += 2
-            for side in range(4):
-                if side == 0:
-                    di, dj, e[0], e[1], e[2], e[3] = 1, 0, i + 1, j, i + 1, j + 1
-                elif side == 1:
-                    di, dj, e[0], e[1], e[2], e[3] = -1, 0, i, j + 1, i, j
-                elif side == 2:
-                    di, dj, e[0], e[1], e[2], e[3] = 0, 1, i + 1, j + 1, i, j + 1
-                else:
-                    di, dj, e[0], e[1], e[2], e[3] = 0, -1, i, j, i + 1, j
-                ni, nj = i + di, j + dj
-                if 0 <= ni < nx and 0 <= nj < ny and occ[ni, nj]:
-                    nz0, nzt = b[ni, nj], h[ni, nj]
-                else:
-                    nz0 = z + 1.0
-                    nzt = z + 1.0
-                if nz0 >= z or nzt <= z0:
-                    _wall(e, z0, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
-                    continue
-                if nzt < z:
-                    _wall(e, nzt, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
-                if nz0 > z0:
-                    _wall(e, z0, nz0, ids, zv, nz, vout, nv, fout, nf, lo, cell)
-    return vout[:nv[0]].copy(), fout[:nf[0]].copy()
+    return zv, nz, n_occ
+
+
+@kernel(helper=True)
+def _top_and_floor(i, j, z, z0, ids, zv, nz, vout, nv, fout, nf, lo, cell):
+    """Column (i, j)'s top at ``z`` and floor at ``z0``, two triangles each."""
+    va = _corner_vid(i, j, z, ids, zv, nz, vout, nv, lo, cell)
+    vb = _corner_vid(i + 1, j, z, ids, zv, nz, vout, nv, lo, cell)
+    vc = _corner_vid(i + 1, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
+    fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = va, vb, vc
+    vd = _corner_vid(i, j + 1, z, ids, zv, nz, vout, nv, lo, cell)
+    fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = va, vc, vd
+    nf[0] += 2
+    wa = _corner_vid(i, j, z0, ids, zv, nz, vout, nv, lo, cell)
+    wc = _corner_vid(i + 1, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
+    wb = _corner_vid(i + 1, j, z0, ids, zv, nz, vout, nv, lo, cell)
+    fout[nf[0], 0], fout[nf[0], 1], fout[nf[0], 2] = wa, wc, wb
+    wd = _corner_vid(i, j + 1, z0, ids, zv, nz, vout, nv, lo, cell)
+    fout[nf[0] + 1, 0], fout[nf[0] + 1, 1], fout[nf[0] + 1, 2] = wa, wd, wc
+    nf[0] += 2
+
+
+@kernel(helper=True)
+def _side(i, j, side, z, z0, h, b, occ, e, ids, zv, nz, vout, nv, fout, nf, lo, cell):
+    """Column (i, j)'s walls on one side (0: +i, 1: -i, 2: +j, 3: -j) where it stands out of its neighbour's span
+    (or the footprint's edge)."""
+    nx, ny = occ.shape
+    if side == 0:
+        di, dj, e[0], e[1], e[2], e[3] = 1, 0, i + 1, j, i + 1, j + 1
+    elif side == 1:
+        di, dj, e[0], e[1], e[2], e[3] = -1, 0, i, j + 1, i, j
+    elif side == 2:
+        di, dj, e[0], e[1], e[2], e[3] = 0, 1, i + 1, j + 1, i, j + 1
+    else:
+        di, dj, e[0], e[1], e[2], e[3] = 0, -1, i, j, i + 1, j
+    ni, nj = i + di, j + dj
+    if 0 <= ni < nx and 0 <= nj < ny and occ[ni, nj]:
+        nz0, nzt = b[ni, nj], h[ni, nj]
+    else:
+        nz0 = z + 1.0
+        nzt = z + 1.0
+    if nz0 >= z or nzt <= z0:
+        _wall(e, z0, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+        return
+    if nzt < z:
+        _wall(e, nzt, z, ids, zv, nz, vout, nv, fout, nf, lo, cell)
+    if nz0 > z0:
+        _wall(e, z0, nz0, ids, zv, nz, vout, nv, fout, nf, lo, cell)
 
 
 def surface_points(vertices: np.ndarray, faces: np.ndarray, n: int, rng=None) -> np.ndarray:
@@ -347,22 +370,9 @@ def fuse_type(clouds: list, shapes: list, level: str, params: Settings = DEFAULT
     member is registered (its pose), the shape gathered from at most ``params.fusion.max_members`` of them. A
     rotational type's members are not registered; those of a rotational type and of one
     with two mirror planes are centred each on the middle of its points' plan extent (where the planes cross)."""
-    from scipy.spatial import cKDTree
-
     order = sorted(range(len(shapes)), key=lambda k: -len(clouds[k]))
-    ref = order[0]
     locals_ = [shape.frame.to_local(np.asarray(pts, dtype=np.float64)) for pts, shape in zip(clouds, shapes)]
-    if level == "rotational":  # turned about its axis, a member has no heading to register
-        to_ref, rmse = np.repeat(np.eye(4)[None], len(shapes), axis=0), np.zeros(len(shapes))
-    else:
-        to_ref, rmse = member_transforms(shapes, params, ref)
-    if level in ("rotational", "two_mirrors"):
-        # the centre is where the mirror planes (or the axis) cross: each member centred on the middle of its own
-        # plan extent, not shifted along its length by a registration its symmetric sections cannot pin
-        for k, local in enumerate(locals_):
-            turned = local[:, :2] @ to_ref[k][:2, :2].T
-            to_ref[k, :2, 3] = -(turned.min(0) + turned.max(0)) / 2
-            to_ref[k, 2, 3] = 0.0
+    to_ref, rmse = _member_transforms(locals_, shapes, level, params, order[0])
     # the shape from the members with most points (``params.fusion.max_members``): beyond ten members the curve of
     # docs/PERFORMANCE.md gains nothing, and a city's type of thousands would gather millions of points
     used = sorted(order[:max(params.fusion.max_members, 1)])
@@ -378,16 +388,42 @@ def fuse_type(clouds: list, shapes: list, level: str, params: Settings = DEFAULT
         cell = float(min(np.clip(np.sqrt(area / max(len(full), 1)) * 1.5, 0.1, 0.3), max(extent.min() / 10, 0.03)))
     v, f = height_solid(full, cell=cell, hang=hang)
     v, f = decimated(v, f, faces)
-    # quality: the members' points to the shape (median: near 0 where each cell holds one point, so also) the
-    # members' agreement (each half's points to the solid of the other half, median), and the share of the shape's
-    # top some member saw
+    quality = _quality(v, f, allp, gathered, level, cell, hang, seen_m, len(shapes))
+    poses = np.array([np.linalg.inv(m) for m in to_ref])
+    return FusedShape(v, f, poses, quality, rmse)
+
+
+def _member_transforms(locals_: list, shapes: list, level: str, params: Settings, ref: int):
+    """Each member's transform onto the reference member ``ref`` (4x4) and its registration's RMSE: registered by
+    its sections, not at all for a rotational type; a rotational or two-mirror type's members centred each on the
+    middle of its plan extent."""
+    if level == "rotational":  # turned about its axis, a member has no heading to register
+        to_ref, rmse = np.repeat(np.eye(4)[None], len(shapes), axis=0), np.zeros(len(shapes))
+    else:
+        to_ref, rmse = member_transforms(shapes, params, ref)
+    if level in ("rotational", "two_mirrors"):
+        # the centre is where the mirror planes (or the axis) cross: each member centred on the middle of its own
+        # plan extent, not shifted along its length by a registration its symmetric sections cannot pin
+        for k, local in enumerate(locals_):
+            turned = local[:, :2] @ to_ref[k][:2, :2].T
+            to_ref[k, :2, 3] = -(turned.min(0) + turned.max(0)) / 2
+            to_ref[k, 2, 3] = 0.0
+    return to_ref, rmse
+
+
+def _quality(v, f, allp, gathered: list, level: str, cell: float, hang, seen_m, n_members: int) -> dict:
+    """The fused shape's quality: the members' points to the shape (median: near 0 where each cell holds one point,
+    so also) the members' agreement (each half's points to the solid of the other half, median), and the share of
+    the shape's top some member saw."""
+    from scipy.spatial import cKDTree
+
     from ..raycast import surface_distances
 
     rng = np.random.default_rng(0)
     sample = allp if len(allp) <= 20000 else allp[rng.choice(len(allp), 20000, replace=False)]
     d = surface_distances(v, f, sample) if len(f) else np.zeros(len(sample))
     agree = None
-    if len(shapes) >= 2:
+    if n_members >= 2:
         half = [np.vstack([g for k, g in enumerate(gathered) if k % 2 == side]) for side in (0, 1)]
         half = [h[h[:, 2] > 0.0] for h in half]
         dd = []
@@ -401,9 +437,8 @@ def fuse_type(clouds: list, shapes: list, level: str, params: Settings = DEFAULT
     up = up[up[:, 2] > 0.05]
     seen_m = seen_m if seen_m is not None else 2 * cell
     seen = float((cKDTree(allp).query(up)[0] <= seen_m).mean()) if len(up) else 0.0
-    poses = np.array([np.linalg.inv(m) for m in to_ref])
-    return FusedShape(v, f, poses, {"median_m": round(float(np.median(d)), 4), "agreement_m": agree,
-                                    "seen": round(seen, 3), "members": len(shapes), "cell_m": round(cell, 3)}, rmse)
+    return {"median_m": round(float(np.median(d)), 4), "agreement_m": agree, "seen": round(seen, 3),
+            "members": n_members, "cell_m": round(cell, 3)}
 
 
 def generic_solid(shape, cell: float = 0.2, faces: int = 1000):

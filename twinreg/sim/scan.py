@@ -171,26 +171,7 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
     ymin = -10.0
     ymax = cursor + 3.0
     if distractors:
-        extra = [
-            ("wall", _box([0.3, 14.0, 2.4], [8.2, (ymin + ymax) / 2, float(ground_height(8.2, 0)) + 1.2])),
-            ("kerb", _box([0.3, ymax - ymin - 2, 0.15], [-6.4, (ymin + ymax) / 2,
-                                                         float(ground_height(-6.4, 0)) + 0.075])),
-            ("pole", _box([0.2, 0.2, 6.0], [0.0, ymax - 1.5, float(ground_height(0, 0)) + 3.0])),
-        ]
-        # a tree by the first car of row 0: trunk beside it, canopy (from 2.3 m) overhanging its roof
-        tx, ty = cars[0].x + 0.8, cars[0].y - 2.2
-        cars[0].under_tree = True
-        gz = float(ground_height(tx, ty))
-        import trimesh
-
-        canopy = trimesh.creation.icosphere(subdivisions=2, radius=2.2)
-        canopy.apply_scale([1.0, 1.0, 0.6])
-        canopy.apply_translation([tx, ty + 0.8, gz + 2.3 + 1.32])
-        extra.append(("tree trunk", _box([0.35, 0.35, 3.0], [tx, ty, gz + 1.5])))
-        extra.append(("tree canopy", (canopy.vertices, canopy.faces)))
-        if kiosk:
-            extra.append(("kiosk", _box([2.4, 2.0, 2.0], [-11.0, 0.0, float(ground_height(-11.0, 0.0)) + 1.0])))
-        for k, (name, mesh) in enumerate(extra):
+        for k, (name, mesh) in enumerate(_distractors(cars, ymin, ymax, kiosk)):
             meshes.append(mesh)
             labels_of_mesh.append(-2 - k)
             names.append(name)
@@ -199,6 +180,31 @@ def car_park(models, n_cars: int = 12, seed: int = 0, gaps=(0.4, 1.0), passes=DE
     scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed)
     labels = np.asarray(labels_of_mesh)[scan.labels]
     return CarPark(scan.points, labels, cars, names)
+
+
+def _distractors(cars: list, ymin: float, ymax: float, kiosk: bool) -> list:
+    """(name, mesh) of what stands beside the cars: a wall, a kerb, a lamp pole, a tree by the first car of row 0
+    (its trunk beside it, its canopy from 2.3 m overhanging the roof; that car marked ``under_tree``), a kiosk."""
+    import trimesh
+
+    extra = [
+        ("wall", _box([0.3, 14.0, 2.4], [8.2, (ymin + ymax) / 2, float(ground_height(8.2, 0)) + 1.2])),
+        ("kerb", _box([0.3, ymax - ymin - 2, 0.15], [-6.4, (ymin + ymax) / 2,
+                                                     float(ground_height(-6.4, 0)) + 0.075])),
+        ("pole", _box([0.2, 0.2, 6.0], [0.0, ymax - 1.5, float(ground_height(0, 0)) + 3.0])),
+    ]
+    # a tree by the first car of row 0: trunk beside it, canopy (from 2.3 m) overhanging its roof
+    tx, ty = cars[0].x + 0.8, cars[0].y - 2.2
+    cars[0].under_tree = True
+    gz = float(ground_height(tx, ty))
+    canopy = trimesh.creation.icosphere(subdivisions=2, radius=2.2)
+    canopy.apply_scale([1.0, 1.0, 0.6])
+    canopy.apply_translation([tx, ty + 0.8, gz + 2.3 + 1.32])
+    extra.append(("tree trunk", _box([0.35, 0.35, 3.0], [tx, ty, gz + 1.5])))
+    extra.append(("tree canopy", (canopy.vertices, canopy.faces)))
+    if kiosk:
+        extra.append(("kiosk", _box([2.4, 2.0, 2.0], [-11.0, 0.0, float(ground_height(-11.0, 0.0)) + 1.0])))
+    return extra
 
 
 def non_car(kind: str, length: float, width: float, height: float):
