@@ -105,12 +105,13 @@ class SectionPair:
         fine_lon, fine_tra = sections.fine
         fine = {"lon": _nonempty(fine_lon), "tra": _nonempty(fine_tra)}
         pad = max(params.registration.tz_max, params.registration.du_max) + 0.5
-        self.fields = {k: distance_field(v, params.sections.field_cell, pad, params.registration.dist_cap) for k, v in fine.items()}
+        cap = params.registration.dist_cap
+        self.fields = {k: distance_field(v, params.sections.field_cell, pad, cap) for k, v in fine.items()}
         self.trees = {k: cKDTree(v) for k, v in fine.items()}
         self._bounded: dict = {}
         self.n = len(self.probes["lon"]) + len(self.probes["tra"])
         # the contour's own noise: its probes against its own fine set (0 for a noise-free, densely seen object)
-        self.floor_sq = sum(float((self.capped(k, self.probes[k], params.registration.dist_cap) ** 2).sum()) for k in ("lon", "tra"))
+        self.floor_sq = sum(float((self.capped(k, self.probes[k], cap) ** 2).sum()) for k in ("lon", "tra"))
 
     def capped(self, key: str, points: np.ndarray, cap: float) -> np.ndarray:
         """(n,) distances of (n, 2) ``points`` to the fine set ``key`` ("lon" or "tra"), each at most ``cap`` (m):
@@ -360,7 +361,8 @@ def register_sections(a: SectionPair, b: SectionPair, params: CoscoParams = DEFA
     paper's Eq. 1 writes it); the default is symmetric (object against object).
     """
     starts = []
-    dus0 = _grid(0.0, params.registration.du_max, params.registration.du_step * 2) if params.registration.du_max > 0 else np.array([0.0])
+    reg = params.registration
+    dus0 = _grid(0.0, reg.du_max, reg.du_step * 2) if reg.du_max > 0 else np.array([0.0])
     tzs0 = _grid(0.0, params.registration.tz_max, params.registration.tz_step * 2)
     T, D = np.meshgrid(tzs0, dus0, indexing="ij")
     coarse = []
@@ -399,7 +401,8 @@ def _finish(a: SectionPair, b: SectionPair, starts: tuple, params: CoscoParams, 
         if polish:
             exact, tz_c, du_c = _polish(a, b, r, tz_c, du_c, params, one_way)
         else:
-            exact = float(_sq_sums(a, b, r, np.array([du_c]), np.array([tz_c]), params.registration.dist_cap, exact=True,
+            cap = params.registration.dist_cap
+            exact = float(_sq_sums(a, b, r, np.array([du_c]), np.array([tz_c]), cap, exact=True,
                                    one_way=one_way)[0])
         if exact < best[0]:
             best = (exact, r, tz_c, du_c)

@@ -28,15 +28,15 @@ class GroundParams:
         a block, or a tile read that much wider, gets exactly the ground the whole scene gives.
     """
 
-    cell: float = 0.5
-    windows: tuple = (1.0, 2.0, 4.0, 8.0, 14.0)
-    dh0: float = 0.15
-    slope: float = 0.10
-    dh_max: float = 2.5
-    dh_final: float = 0.30
-    tol: float = 0.15
-    block: int = 1024
-    halo: int = 64
+    cell: float = 0.5  # m, the lowest-point grid
+    windows: tuple = (1.0, 2.0, 4.0, 8.0, 14.0)  # m, opening windows
+    dh0: float = 0.15  # m, first step's threshold
+    slope: float = 0.10  # per m of window growth
+    dh_max: float = 2.5  # m, threshold cap
+    dh_final: float = 0.30  # m, against the widest opening
+    tol: float = 0.15  # m, ground band
+    block: int = 1024  # cells a block side
+    halo: int = 64  # cells around a block
 
     @property
     def reach(self) -> float:
@@ -74,28 +74,28 @@ class SegmentParams:
     max_base : an object's lowest point may be this many m plus one spacing above the ground.
     """
 
-    voxel: float = 0.15
-    column: float = 0.25
-    gap: float = 0.6
-    max_height: float = 4.0
-    core_height: float = 0.5
-    min_points: int = 30
-    outlier_voxel: float = 10.0
-    outlier_points: int = 10
-    targets: str = "cars"
-    object_height: tuple = (0.3, 16.0)
-    object_max_extent: float = 12.0
-    object_max_area: float = 60.0
-    object_reach: float = 3.0
-    object_min_points: int = 10
-    object_crown_height: float = 3.0
-    object_link: float = 0.6
-    car_length: tuple = (2.5, 7.5)
-    car_width: tuple = (1.0, 3.0)
-    car_height: tuple = (0.9, 3.3)
-    car_area: tuple = (1.0, 20.0)
-    height_quantile: float = 0.99
-    max_base: float = 1.0
+    voxel: float = 0.15  # m, patch voxel
+    column: float = 0.25  # m, overhang columns
+    gap: float = 0.6  # m, overhang gap
+    max_height: float = 4.0  # m, car-class ceiling
+    core_height: float = 0.5  # m, object cores
+    min_points: int = 30  # points, noise below
+    outlier_voxel: float = 10.0  # m, far-outlier cubes
+    outlier_points: int = 10  # points, at most a far group
+    targets: str = "cars"  # "cars" or "all"
+    object_height: tuple = (0.3, 16.0)  # m, (min, max)
+    object_max_extent: float = 12.0  # m across
+    object_max_area: float = 60.0  # m2 of footprint
+    object_reach: float = 3.0  # m, upward growth
+    object_min_points: int = 10  # points
+    object_crown_height: float = 3.0  # m, crown without trunk
+    object_link: float = 0.6  # m, stacked pieces
+    car_length: tuple = (2.5, 7.5)  # m, (min, max)
+    car_width: tuple = (1.0, 3.0)  # m, (min, max)
+    car_height: tuple = (0.9, 3.3)  # m, (min, max)
+    car_area: tuple = (1.0, 20.0)  # m2, (min, max)
+    height_quantile: float = 0.99  # of heights above ground
+    max_base: float = 1.0  # m, lowest point over ground
 
 
 @dataclass(frozen=True)
@@ -113,16 +113,16 @@ class JoinParams:
         below ``split_ratio`` of the tops on both sides.
     """
 
-    fragment_points: int = 100
-    fragment_share: float = 0.25
-    fragment_margin: float = 0.2
-    gap: float = 0.8
-    cover: float = 0.5
-    widen: float = 0.3
-    offset: float = 0.25
-    max_length: float = 6.0
-    split_ratio: float = 0.75
-    split_bin: float = 0.1
+    fragment_points: int = 100  # points
+    fragment_share: float = 0.25  # of the host's points
+    fragment_margin: float = 0.2  # m around the host
+    gap: float = 0.8  # m from the host's end
+    cover: float = 0.5  # of the host's width
+    widen: float = 0.3  # m wider at most
+    offset: float = 0.25  # host widths from its axis
+    max_length: float = 6.0  # m, the union
+    split_ratio: float = 0.75  # of the tops on both sides
+    split_bin: float = 0.1  # m, slices
 
 
 @dataclass(frozen=True)
@@ -151,26 +151,26 @@ class SymmetryParams:
         ``simplex_shift`` (m) wide and stops within ``xatol`` (rad and m) and ``fatol`` (score).
     """
 
-    voxel: float = 0.10
-    tol: float = 0.08
-    tol_spacing: float = 1.2
-    pcr_threshold: float = 0.60
-    iterations: int = 30
-    long_axis_margin: float = 0.10
-    max_points: int = 400
-    side_share: float = 0.15
-    refine_steps: int = 4
-    heading_sparse_points: int = 600
-    heading_elongation: float = 1.5
-    heading_snap: float = 0.175
-    heading_trust_pcr: float = 0.9
-    sweep_step: float = math.pi / 12
-    along_axis: float = math.radians(20.0)
-    same_plane: float = math.radians(8.0)
-    simplex_turn: float = math.radians(4.0)
-    simplex_shift: float = 0.08
-    xatol: float = 5e-3
-    fatol: float = 1e-3
+    voxel: float = 0.10  # m, down-sampling
+    tol: float = 0.08  # m, correspondence
+    tol_spacing: float = 1.2  # point spacings
+    pcr_threshold: float = 0.60  # PCR, found
+    iterations: int = 30  # Nelder-Mead per start
+    long_axis_margin: float = 0.10  # PCR
+    max_points: int = 400  # down-sampled
+    side_share: float = 0.15  # of the points
+    refine_steps: int = 4  # closed-form
+    heading_sparse_points: int = 600  # points
+    heading_elongation: float = 1.5  # length / width
+    heading_snap: float = 0.175  # rad
+    heading_trust_pcr: float = 0.9  # PCR
+    sweep_step: float = math.pi / 12  # rad between starts
+    along_axis: float = math.radians(20.0)  # rad
+    same_plane: float = math.radians(8.0)  # rad
+    simplex_turn: float = math.radians(4.0)  # rad
+    simplex_shift: float = 0.08  # m
+    xatol: float = 5e-3  # rad and m
+    fatol: float = 1e-3  # score
 
 
 @dataclass(frozen=True)
@@ -182,17 +182,17 @@ class LevelParams:
     and the one across it then moved along their normals by up to ``offset_share`` of the extent in ``offsets``
     steps each way; a level holds when ``share`` of the points map."""
 
-    voxel: float = 0.03
-    cells: int = 60
-    max_points: int = 3000
-    object_points: int = 800
-    tol: float = 0.03
-    tol_spacing: float = 1.5
-    base_share: float = 0.2
-    step: float = math.pi / 60
-    share: float = 0.8
-    offsets: int = 5
-    offset_share: float = 0.03
+    voxel: float = 0.03  # m
+    cells: int = 60  # across the plan
+    max_points: int = 3000  # points
+    object_points: int = 800  # points, plane known
+    tol: float = 0.03  # m
+    tol_spacing: float = 1.5  # point spacings
+    base_share: float = 0.2  # of the points, the axis
+    step: float = math.pi / 60  # rad between planes
+    share: float = 0.8  # mapped, a level holds
+    offsets: int = 5  # steps each way
+    offset_share: float = 0.03  # of the extent
 
 
 @dataclass(frozen=True)
@@ -211,17 +211,17 @@ class SectionParams:
     field_cell : cell (m) of the distance fields sections are matched against (and of the fine sections).
     """
 
-    eps: float = 0.10
-    min_points: int = 30
-    eps_max: float = 0.40
-    res: float = 0.10
-    size_quantile: float = 0.0005
-    profile_bin: float = 0.10
-    width_quantile: float = 0.90
-    top_cell: float = 0.20
-    cell_top_quantile: float = 1.0
-    top_quantile: float = 0.97
-    field_cell: float = 0.02
+    eps: float = 0.10  # m, slab half-width
+    min_points: int = 30  # points a slab
+    eps_max: float = 0.40  # m, widest slab
+    res: float = 0.10  # m, section voxel
+    size_quantile: float = 0.0005  # ignored at each end
+    profile_bin: float = 0.10  # m, width profile slice
+    width_quantile: float = 0.90  # of the half-widths
+    top_cell: float = 0.20  # m, footprint cell
+    cell_top_quantile: float = 1.0  # of z, a cell's top
+    top_quantile: float = 0.97  # of cell tops
+    field_cell: float = 0.02  # m, distance fields
 
 
 @dataclass(frozen=True)
@@ -235,11 +235,11 @@ class RegistrationParams:
         own model (no cap: 14 of 16).
     """
 
-    tz_max: float = 0.40
-    tz_step: float = 0.02
-    du_max: float = 0.20
-    du_step: float = 0.05
-    dist_cap: float = 0.10
+    tz_max: float = 0.40  # m, vertical shift range
+    tz_step: float = 0.02  # m, its coarse step
+    du_max: float = 0.20  # m, axial shift range
+    du_step: float = 0.05  # m, its step
+    dist_cap: float = 0.10  # m, distances capped
 
 
 @dataclass(frozen=True)
@@ -256,11 +256,11 @@ class TaxonomyParams:
         connected parts of the graph of pairs closer than ``threshold``.
     """
 
-    threshold: float = 0.065
-    linkage: str = "average"
-    spacing_k: float = 0.22
-    full_max: int = 32
-    neighbours: int = 3
+    threshold: float = 0.065  # m of RMSE, the cut
+    linkage: str = "average"  # scipy's method
+    spacing_k: float = 0.22  # point spacings
+    full_max: int = 32  # objects, full matrix
+    neighbours: int = 3  # per object beyond
 
 
 def with_groups(obj, changes: dict):

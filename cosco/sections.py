@@ -206,13 +206,14 @@ def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
 
     - length: robust extent along u;
     - width: the body width without mirrors: the half-width profile along u (largest ``|v|`` per
-      ``params.sections.profile_bin`` slice, both sides for a symmetric object, so the better-seen side counts) read at its
-      ``params.sections.width_quantile`` quantile, so mirrors and stray points (a few slices) do not count while a side that
-      was seen in most slices does; sparse airborne scans rarely see mirrors, so this is what both can agree on;
+      ``params.sections.profile_bin`` slice, both sides for a symmetric object, so the better-seen side counts) read at
+      its ``params.sections.width_quantile`` quantile, so mirrors and stray points (a few slices) do not count while a
+      side that was seen in most slices does; sparse airborne scans rarely see mirrors, so this is what both can agree
+      on;
     - height: the top of the footprint cells (``params.sections.top_cell`` squares): each cell's top is its
       ``params.sections.cell_top_quantile`` quantile of z (noise averages out), and the height is the
-      ``params.sections.top_quantile`` quantile of the cell tops, so a whip antenna or a shark fin (one or two cells) does
-      not count while a roof rack does.
+      ``params.sections.top_quantile`` quantile of the cell tops, so a whip antenna or a shark fin (one or two cells)
+      does not count while a roof rack does.
     """
     uvz = frame.to_local(as_points(points))
     q = params.sections.size_quantile
@@ -237,8 +238,9 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     """Symmetry, frame, sections, size and footprint centre of one object's points.
 
     points : (n, 3) float, metres (at least 10 distinct points, not all on a line: see
-    :func:`~cosco.footprint.check_object`, which raises ``ValueError`` otherwise). ground_z : the ground level under the object (m); the lowest point
-    when None. front_hint : direction (rad) the heading should point to when known (see :func:`object_frame`).
+    :func:`~cosco.footprint.check_object`, which raises ``ValueError`` otherwise). ground_z : the ground level under the
+    object (m); the lowest point when None. front_hint : direction (rad) the heading should point to when known (see
+    :func:`object_frame`).
 
     >>> rng = np.random.default_rng(1)
     >>> box = rng.uniform([-2.2, -0.9, 0], [2.2, 0.9, 1.5], (3000, 3)) + [100.0, 50.0, 3.0]

@@ -1,7 +1,8 @@
 """The taxonomy of many objects without the N x N matrix (beyond the paper, for city scale).
 
-Up to ``params.taxonomy.full_max`` objects (32: a car park like the paper's) the paper's way is kept: every pair compared, average-linkage
-dendrogram cut at ``params.taxonomy.threshold``. Beyond, the work must not grow with the square of the objects:
+Up to ``params.taxonomy.full_max`` objects (32: a car park like the paper's) the paper's way is kept: every pair
+compared, average-linkage dendrogram cut at ``params.taxonomy.threshold``. Beyond, the work must not grow with the
+square of the objects:
 
 1. each object gets a cheap descriptor: its length, width and height, and the height of its longitudinal
    section's top at two stations each side of the middle (averaged over both sides, so a car seen front-first

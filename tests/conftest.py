@@ -253,7 +253,8 @@ def city_twin(small_city, parametric_catalogue):
 @pytest.fixture(params=["numpy", "compiled"])
 def kernel_path(request, monkeypatch):
     """Each test that takes it runs twice in this process: with the numpy references (what a scene of fewer than
-    ``Settings.jit_min_objects`` objects runs) and with the compiled kernels (a city's); the path's name is the value."""
+    ``Settings.jit_min_objects`` objects runs) and with the compiled kernels (a city's); the path's name is the
+    value."""
     from cosco import kernels
 
     monkeypatch.setattr(kernels, "_STATE", {})

@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from cosco.ground import Ground, estimate_ground
-from twinreg.settings import DEFAULT, Settings
+from .settings import DEFAULT, Settings
 from cosco.segment import Segmentation, far_outliers, segment_objects
 
 from .errors import SceneReadError
 from .io.points import PointSet, read_points
+from .progress import say
 
 
 @dataclass
@@ -58,15 +59,13 @@ def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, ke
     hag = ground.height(local)
     is_ground = hag < params.ground.tol
     t1 = time.perf_counter()
-    if progress:
-        progress("ground")
+    say(progress, "ground")
     if len(local):
         seg = segment_objects(local, hag, params, is_ground=is_ground)
     else:  # a tile's margin held points, the part searched for objects none
         seg = Segmentation(np.zeros(0, dtype=np.int64), [], 0, 0)
     t2 = time.perf_counter()
-    if progress:
-        progress("objects")
+    say(progress, "objects")
     ground = ground.shifted(*scene.offset)
     return Detection(scene, is_ground, hag, ground, seg, {"ground": t1 - t0, "objects": t2 - t1})
 
@@ -114,8 +113,7 @@ def detect_file(path, unit: str = "auto", params: Settings = DEFAULT, progress=N
     if len(scene.points) < 100:
         raise SceneReadError(f"{path}: only {len(scene.points)} points; a scene needs at least 100")
     read_s = time.perf_counter() - t
-    if progress:
-        progress("read")
+    say(progress, "read")
     det = detect_points(scene, params, progress)
     det.timing_s = {"read": read_s, **det.timing_s}
     return det

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 import cosco
-from twinreg.settings import DEFAULT, Settings
+from .progress import say
+from .settings import DEFAULT, Settings
 
 from .errors import SceneReadError
 from .io.points import POINT_SUFFIXES, read_points
@@ -66,18 +67,18 @@ def objects_from_scene(path, unit: str = "auto", params: Settings = DEFAULT) -> 
 
 
 def objects_from_folder(folder, unit: str = "auto", params: Settings = DEFAULT, progress=None) -> ObjectSet:
-    """Every point file in a folder, one object per file (e.g. DALES objects)."""
+    """Every point file in a folder, one object per file (e.g. DALES objects); ``progress("sections", done, total)``
+    as they are read (:mod:`twinreg.progress`)."""
     folder = Path(folder)
     files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in POINT_SUFFIXES)
     if not files:
         raise SceneReadError(f"{folder}: no point files ({', '.join(sorted(POINT_SUFFIXES))})")
     names, shapes = [], []
-    for f in files:
+    for k, f in enumerate(files):
         shape, _ = inspect_file(f, unit=unit, params=params)
         names.append(f.stem)
         shapes.append(shape)
-        if progress:
-            progress(1)
+        say(progress, "sections", k + 1, len(files))
     return ObjectSet(names, shapes)
 
 
@@ -92,26 +93,16 @@ def cluster_objects(path, unit: str = "auto", threshold: float | None = None, pl
     if not path.exists():
         raise SceneReadError(f"{path}: no such file or folder")
     if path.is_dir():
-        total = sum(1 for _ in path.iterdir())
-        done = [0]
-
-        def step(k):
-            done[0] += k
-            if progress:
-                progress("sections", done[0], total)
-
-        objs = objects_from_folder(path, unit=unit, params=params, progress=step)
+        objs = objects_from_folder(path, unit=unit, params=params, progress=progress)
     else:
         objs = objects_from_scene(path, unit=unit, params=params)
-        if progress:
-            progress("detection and sections", 1, 1)
+        say(progress, "detection and sections", 1, 1)
     n = len(objs.shapes)
     pairs, done_pairs = n * (n - 1) // 2, [0]
 
     def pair_step(k):
         done_pairs[0] += k
-        if progress:
-            progress("dissimilarity", done_pairs[0], pairs)
+        say(progress, "dissimilarity", done_pairs[0], pairs)
 
     matrix = cosco.dissimilarity_matrix([s.sections for s in objs.shapes], progress=pair_step)
     result = cosco.cluster(matrix, threshold=threshold)

@@ -8,7 +8,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from twinreg.settings import DEFAULT, Settings
+from .settings import DEFAULT, Settings
 
 from .catalogue.repository import Catalogue
 from .detect import describe_detected, detect_file, object_levels, object_points
@@ -24,6 +24,7 @@ from .io.outdir import check_replaceable, locked, staged_folder
 from .matching.acceptance import scene_noise
 from .matching.match import Evidence, ModelCache, match_objects
 from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
+from .progress import say
 from .report.scene import plot_taxonomy, warm_up, write_report
 from .stages import (
     checked_params,
@@ -33,11 +34,6 @@ from .stages import (
     taxonomy,
     with_targets,
 )
-
-
-def _say(progress, msg):
-    if progress:
-        progress(msg)
 
 
 @dataclass(frozen=True)
@@ -86,24 +82,23 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
                                date=s.date, classified=s.classified_scan, min_confidence=s.min_confidence)
-    say = (lambda msg: progress(msg, None, None)) if progress else None
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
-                      progress=say, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates,
-                      tick=progress, min_confidence=s.min_confidence)
+                      progress=progress, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates,
+                      min_confidence=s.min_confidence)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
                tol: float | None = None, params: Settings = DEFAULT, progress=None,
                threshold: float | None = None, ply: bool = True, date: str | None = None,
-               templates: bool = False, tick=None, min_confidence: float | None = None) -> dict:
+               templates: bool = False, min_confidence: float | None = None) -> dict:
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
     ``ply=False`` leaves out twin.ply; ``date``: the survey's date, ``YYYY-MM-DD``, else the LAS/LAZ header's;
     ``templates``: CityJSON with geometry templates).
 
     georef : from :func:`~twinreg.geo.georef.georef_from_options`, or None to use the CRS the file states. tol,
-    threshold : the size tolerance and cluster threshold (m), ``params.matching.size_tol`` and ``params.taxonomy.threshold``
-    when None. progress : ``progress(message)`` as each stage starts; tick : ``tick(stage, done, total)`` as the
-    objects of a counted stage (the matching) are done.
+    threshold : the size tolerance and cluster threshold (m), ``params.matching.size_tol`` and
+    ``params.taxonomy.threshold`` when None. progress : :mod:`twinreg.progress`'s ``progress(stage, done, total)``, a
+    message as each stage starts and counts as the objects of the matching are done.
     """
     t_start = time.perf_counter()
     timing = {}
@@ -115,11 +110,11 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     check_replaceable(Path(out), protect=[scene_path, catalogue.folder], kind="twin")
     with locked(Path(out), "build-twin"):
         return _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
-                             templates, tick)
+                             templates)
 
 
 def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
-                  templates, tick=None) -> dict:
+                  templates) -> dict:
     require_models(catalogue)
     params = with_targets(catalogue, params)
     from .matching.prober import Prober
@@ -128,7 +123,7 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
     painter = Painter.start(warm=warm_up)
     try:
         return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply,
-                      date, templates, prober, tick)
+                      date, templates, prober)
     finally:
         if painter:
             painter.stop()
@@ -137,8 +132,8 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
 
 
 def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing,
-           ply=True, date=None, templates=False, prober=None, tick=None) -> dict:
-    _say(progress, "reading and detecting")
+           ply=True, date=None, templates=False, prober=None) -> dict:
+    say(progress, "reading and detecting")
     given = georef is not None and georef.crs_source == "--crs"
     located = {}
 
@@ -161,7 +156,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
         from . import KERNEL_MODULES
 
         timing["kernels"] = enable(*KERNEL_MODULES)
-    _say(progress, f"sections of {len(targets)} objects")
+    say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes = describe_detected(det, params)
     clouds = [object_points(det, o) for o in targets]
@@ -180,7 +175,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
             run = SceneRun(stage=stage, scene_path=scene_path, catalogue=catalogue, georef=georef, det=det,
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=pictures, ply=ply, date=date,
-                           templates=templates, prober=prober, tick=tick, levels=levels, clouds=clouds,
+                           templates=templates, prober=prober, levels=levels, clouds=clouds,
                            spacing=spacing)
             twin = _match_and_export(run)
         except BaseException:
@@ -217,7 +212,6 @@ class SceneRun:
     date: str | None = None
     templates: bool = False
     prober: object = None
-    tick: object = None
     levels: list | None = None
     clouds: list | None = None
     spacing: list | None = None
@@ -229,18 +223,18 @@ def _match_and_export(run: SceneRun) -> dict:
     timing, t_start, painter, taxonomy, ply = run.timing, run.t_start, run.painter, run.taxonomy, run.ply
     local = det.scene.local
     offset = det.scene.offset
-    _say(progress, "prefilter and registration")
+    say(progress, "prefilter and registration")
     noise = scene_noise(det.hag, det.is_ground)
     models = ModelCache(catalogue, params, prober=run.prober)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
                                    evidence=Evidence(run.clouds, noise), cache=models,
-                                   done=(lambda k, n: run.tick("matching", k, n)) if run.tick else None)
+                                   done=(lambda k, n: say(progress, "matching", k, n)) if progress else None)
     timing["prefilter"] = stats.prefilter_s
     timing["model_prep"] = stats.model_prep_s
     timing["registration"] = stats.registration_s
     timing["verification"] = stats.verification_s
 
-    _say(progress, "export")
+    say(progress, "export")
     t = time.perf_counter()
     results, placed = finish([f"obj{k + 1}" for k in range(len(targets))], [o.n_points for o in targets], results,
                              shapes, clusters.labels, [offset] * len(targets), run.levels, run.spacing,

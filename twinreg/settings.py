@@ -43,33 +43,33 @@ class MatchingParams:
     its score lies more than ``refine_sigma`` noise units behind the best candidate's (it cannot win then).
     """
 
-    size_tol: float = 0.20
-    size_spacing_k: float = 1.5
-    register_k: int = 6
-    nearest_k: int = 2
-    share_margin: float = 0.01
-    cluster_share: int = 4
-    accept_sigmas: float = 3.0
-    accept_model_tol: float = 0.04
-    accept_spacing_k: float = 0.20
-    accept_max_outliers: float = 0.10
-    accept_candidates: int = 4
-    accept_max_unseen: float = 0.5
-    accept_max_points: int = 1500
-    accept_sink_sigmas: float = 2.0
-    accept_sink_tol: float = 0.03
-    accept_max_float: float = 0.25
-    w_sections: float = 0.5
-    w_size: float = 0.5
-    confidence_sigma: float = 1.0
-    ambiguous_sigma: float = 0.3
-    outside_factor: float = 0.5
-    poor_fit: float = 0.75
-    refine_reach: float = 0.3
-    refine_sigma: float = 6.0
-    refine_max_points: int = 500
-    refine_max_turn: float = math.radians(8.0)
-    refine_max_shift: float = 0.4
+    size_tol: float = 0.20  # m, the window's floor
+    size_spacing_k: float = 1.5  # point spacings
+    register_k: int = 6  # candidates registered
+    nearest_k: int = 2  # tried outside the window
+    share_margin: float = 0.01  # m of RMSE
+    cluster_share: int = 4  # models from the leader
+    accept_sigmas: float = 3.0  # noise sigmas
+    accept_model_tol: float = 0.04  # m
+    accept_spacing_k: float = 0.20  # point spacings
+    accept_max_outliers: float = 0.10  # of the points unexplained
+    accept_candidates: int = 4  # scored
+    accept_max_unseen: float = 0.5  # of the top unseen
+    accept_max_points: int = 1500  # points judged
+    accept_sink_sigmas: float = 2.0  # noise sigmas
+    accept_sink_tol: float = 0.03  # m below the ground
+    accept_max_float: float = 0.25  # m above the ground
+    w_sections: float = 0.5  # weight
+    w_size: float = 0.5  # weight
+    confidence_sigma: float = 1.0  # noise units
+    ambiguous_sigma: float = 0.3  # noise units
+    outside_factor: float = 0.5  # outside the window
+    poor_fit: float = 0.75  # of a limit
+    refine_reach: float = 0.3  # m, pairs
+    refine_sigma: float = 6.0  # noise units behind
+    refine_max_points: int = 500  # points
+    refine_max_turn: float = math.radians(8.0)  # rad
+    refine_max_shift: float = 0.4  # m
 
 
 @dataclass(frozen=True)
@@ -82,15 +82,15 @@ class KindParams:
     distance) in ``confidence_scale``. A mesh model's plan size is its points' above ``seen_height`` m (what a
     scan's ground filter leaves). Tuned on the even-numbered DALES objects (docs/PERFORMANCE.md)."""
 
-    min_size: float = 0.1
-    length_weight: float = 1.0
-    level_penalty: float = 0.6
-    k: int = 2
-    vote_floor: float = 0.05
-    unknown_distance: float = 3.0
-    max_height_ratio: float = 2.5
-    confidence_scale: float = 0.28
-    seen_height: float = 0.2
+    min_size: float = 0.1  # m
+    length_weight: float = 1.0  # in the distance
+    level_penalty: float = 0.6  # levels differ
+    k: int = 2  # nearest references
+    vote_floor: float = 0.05  # in 1 / (d + floor)
+    unknown_distance: float = 3.0  # farther: unknown
+    max_height_ratio: float = 2.5  # taller or shorter
+    confidence_scale: float = 0.28  # logistic scale
+    seen_height: float = 0.2  # m above the ground
 
 
 @dataclass(frozen=True)
@@ -101,10 +101,10 @@ class FusionParams:
     model ``pole_ratio`` times taller than its plan is wide is typed by kind and size alone (a thin pole's sections
     do not group copies of one lamp post)."""
 
-    min_points: int = 60
-    hang_height: float = 2.0
-    max_members: int = 40
-    pole_ratio: float = 3.0
+    min_points: int = 60  # points together
+    hang_height: float = 2.0  # m, hanging columns
+    max_members: int = 40  # gathered
+    pole_ratio: float = 3.0  # height / plan width
 
 
 @dataclass(frozen=True)
@@ -113,9 +113,9 @@ class ChangeParams:
     it is (pairs.py); a piece of one survey's object lies inside the other's when ``piece_inside`` of it is within
     that object's footprint grown by ``piece_grow`` m (fragments.py)."""
 
-    sure: float = 0.9
-    piece_inside: float = 0.6
-    piece_grow: float = 0.3
+    sure: float = 0.9  # confidence
+    piece_inside: float = 0.6  # of a piece
+    piece_grow: float = 0.3  # m around a footprint
 
 
 @dataclass(frozen=True)

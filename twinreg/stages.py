@@ -10,14 +10,10 @@ from __future__ import annotations
 
 import time
 
-from twinreg.settings import Settings
+from .settings import Settings
 
 from .errors import CatalogueError
-
-
-def _say(progress, msg):
-    if progress:
-        progress(msg)
+from .progress import say
 
 
 def checked_params(params: Settings, tol: float | None, threshold: float | None,
@@ -74,7 +70,7 @@ def taxonomy(shapes, params: Settings, timing: dict, progress=None, distances_of
     ``params.taxonomy.spacing_k`` times their median (a sparse scan)."""
     from cosco.taxonomy import taxonomy_of
 
-    return taxonomy_of(shapes, params, timing, (lambda text: _say(progress, text)) if progress else None,
+    return taxonomy_of(shapes, params, timing, (lambda text: say(progress, text)) if progress else None,
                        distances_of, spacing)
 
 
@@ -120,9 +116,10 @@ def apply_floor(outcomes: list, floor: float) -> list:
 def types_of(labels, outcomes: list, kinds: list | None, params: Settings, spacing=None) -> list[int]:
     """Each object's type (:func:`twinreg.recognition.kinds.object_types`): its taxonomy group split by kind, by
     decided model and by size, two objects of a type no farther apart in size than the catalogue's size window
-    (``params.matching.size_tol`` plus ``params.matching.size_spacing_k`` times the objects' median point ``spacing``). Twice the
-    window grouped more of a sparse scan's copies, but let a type's shape outgrow a member cut by the scan's edge
-    by over 3 m on an AHN tile. Poles without a model group by kind and size alone (``params.fusion.pole_ratio``)."""
+    (``params.matching.size_tol`` plus ``params.matching.size_spacing_k`` times the objects' median point ``spacing``).
+    Twice the window grouped more of a sparse scan's copies, but let a type's shape outgrow a member cut by the scan's
+    edge by over 3 m on an AHN tile. Poles without a model group by kind and size alone
+    (``params.fusion.pole_ratio``)."""
     import numpy as np
 
     from .recognition.kinds import object_types
@@ -131,7 +128,8 @@ def types_of(labels, outcomes: list, kinds: list | None, params: Settings, spaci
     return object_types(labels, [k.kind for k in kinds] if kinds is not None else None,
                         sizes=[res.shape.size.as_array() for res in outcomes],
                         models=[res.match.name if res.match is not None else None for res in outcomes],
-                        tol=params.matching.size_tol + params.matching.size_spacing_k * s, pole_ratio=params.fusion.pole_ratio)
+                        tol=params.matching.size_tol + params.matching.size_spacing_k * s,
+                        pole_ratio=params.fusion.pole_ratio)
 
 
 def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: Settings,
@@ -183,7 +181,7 @@ def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, la
     objects."""
     outcomes, kinds = recognise(outcomes, shapes, levels, catalogue, params)
     types = types_of(labels, outcomes, kinds, params, spacing)
-    _say(progress, "shapes of the types without a model")
+    say(progress, "shapes of the types without a model")
     fused = fuse(types, outcomes, clouds_of(outcomes), levels, params, timing, kinds)
     placed = place(ids, n_points, outcomes, labels, offsets, georef, models, kinds, levels, types, fused)
     return outcomes, placed

@@ -144,8 +144,8 @@ def _block_counts_fast(pts, origin, cell, block, n_cols, n_blocks):
 @kernel(entry="estimate_ground", example="_blocks_example")
 def _window_rows_fast(pts, origin, cell, bounds):
     """The rows of the points whose cell (i, j) (truncated as 32-bit integers) lies in each window ``bounds[k]`` =
-    (i0, i1, j0, j1) (half-open), in order: window k's are ``rows[starts[k]:starts[k + 1]]`` (:func:`~cosco.arrays.box_rows` on
-    the cells' indices)."""
+    (i0, i1, j0, j1) (half-open), in order: window k's are ``rows[starts[k]:starts[k + 1]]``
+    (:func:`~cosco.arrays.box_rows` on the cells' indices)."""
     n, m = pts.shape[0], bounds.shape[0]
     ci = np.empty(n)
     cj = np.empty(n)

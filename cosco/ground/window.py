@@ -125,8 +125,8 @@ def _cell_lowest_fast(pts, origin, cell, ny, n_cells):
 
 @kernel(entry="_window_ground", example="_window_example")
 def _near_surface_fast(pts, origin, cell, values, ground, flat, tol):
-    """(n,) bool: the points within ``tol`` of the bilinear surface ``values`` (as :func:`~cosco.ground.surface._grid_heights_fast`) whose
-    cell (``flat``) is ground."""
+    """(n,) bool: the points within ``tol`` of the bilinear surface ``values`` (as
+    :func:`~cosco.ground.surface._grid_heights_fast`) whose cell (``flat``) is ground."""
     n = pts.shape[0]
     out = np.empty(n, dtype=np.bool_)
     for p in range(n):

@@ -98,7 +98,8 @@ def join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosc
             if both.width > max(widths) + widen:
                 continue
             # a whole-length host before a piece; then the narrowest union
-            rank = (rects[host].length < params.segment.car_length[0] if host in rects and len(group[host]) == 1 else False,
+            short = rects[host].length < params.segment.car_length[0]
+            rank = (short if host in rects and len(group[host]) == 1 else False,
                     both.width)
             if best is None or rank < best[1]:
                 best = (host, rank)
@@ -233,7 +234,8 @@ def _parts(pts, hag, cand, rows, params: CoscoParams, cell: float, spacing: floa
     if not too_big(obj, params) or obj.height > params.segment.car_height[1]:
         return [rows]
     labels = _footprint_split(pts[idx, :2], params, cell=max(params.joins.split_bin, spacing / 2))
-    if labels is None and obj.length <= 2 * params.segment.car_length[1] and obj.width <= 2 * params.segment.car_width[1]:
+    seg = params.segment
+    if labels is None and obj.length <= 2 * seg.car_length[1] and obj.width <= 2 * seg.car_width[1]:
         # a few cars a sparse scan joined, not a hedge or a row of planters cut into car-sized pieces
         labels = _profile_split(pts[idx, :2], hag[idx], params, spacing)
     if labels is None:

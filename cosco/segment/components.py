@@ -97,9 +97,9 @@ def voxel_components(points: np.ndarray, voxel: float) -> tuple[np.ndarray, int,
 
 def far_outliers(points, params: CoscoParams = DEFAULT, dense_limit: float = 4e6) -> np.ndarray:
     """Mask of points far from the rest of the scan (birds, multipath, a stray return kilometres away): groups of
-    at most ``params.segment.outlier_points`` points with no other point in the 26 neighbouring ``params.segment.outlier_voxel``
-    cubes. A dense grid of coarse voxels counts them when it has at most ``dense_limit`` cells; beyond that,
-    sparse voxel keys do (memory and time by points, whatever the bounding box).
+    at most ``params.segment.outlier_points`` points with no other point in the 26 neighbouring
+    ``params.segment.outlier_voxel`` cubes. A dense grid of coarse voxels counts them when it has at most
+    ``dense_limit`` cells; beyond that, sparse voxel keys do (memory and time by points, whatever the bounding box).
 
     >>> pts = np.vstack([np.random.default_rng(0).uniform(0, 20, (500, 3)), [[30000.0, 0.0, 0.0]]])
     >>> np.flatnonzero(far_outliers(pts)).tolist(), np.flatnonzero(far_outliers(pts, dense_limit=0)).tolist()
@@ -198,18 +198,21 @@ def groups(comp: np.ndarray) -> list[np.ndarray]:
 
 def car_sized(length: float, width: float, height: float, params: CoscoParams) -> bool:
     """Whether a footprint of ``length`` x ``width`` and a ``height`` (m) are within the target class's ranges
-    (``segment.car_length``, ``segment.car_width``, ``segment.car_height``): the one size test of the segmentation's passes.
+    (``segment.car_length``, ``segment.car_width``, ``segment.car_height``): the one size test of the segmentation's
+    passes.
 
     >>> car_sized(4.3, 1.8, 1.5, DEFAULT), car_sized(4.3, 1.8, 3.5, DEFAULT)
     (True, False)
     """
-    return (params.segment.car_length[0] <= length <= params.segment.car_length[1] and params.segment.car_width[0] <= width
-            <= params.segment.car_width[1] and params.segment.car_height[0] <= height <= params.segment.car_height[1])
+    seg = params.segment
+    return (seg.car_length[0] <= length <= seg.car_length[1] and seg.car_width[0] <= width <= seg.car_width[1]
+            and seg.car_height[0] <= height <= seg.car_height[1])
 
 
 def too_big(o: DetectedObject, params: CoscoParams) -> bool:
     """Whether an object is larger in plan than the target class (a few cars a scan joined, a hedge)."""
-    return o.length > params.segment.car_length[1] or o.width > params.segment.car_width[1] or o.area > params.segment.car_area[1]
+    seg = params.segment
+    return o.length > seg.car_length[1] or o.width > seg.car_width[1] or o.area > seg.car_area[1]
 
 
 def describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: CoscoParams,
@@ -224,7 +227,8 @@ def describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosco
     height = float(np.quantile(hag[idx], params.segment.height_quantile))
     base = float(hag[idx].min())
     grounded = base <= params.segment.max_base + spacing
-    target = car_sized(length, width, height, params) and params.segment.car_area[0] <= area <= params.segment.car_area[1] and grounded
+    car_area = params.segment.car_area
+    target = car_sized(length, width, height, params) and car_area[0] <= area <= car_area[1] and grounded
     if params.segment.targets == "all" and not target:  # every object standing on the ground, of a street's sizes
         # (a tree's crown above a trunk the airborne scan does not see stands on the ground too)
         crown = height >= params.segment.object_crown_height and base <= height / 2

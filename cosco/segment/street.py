@@ -1,5 +1,5 @@
-"""The passes of a street's segmentation (``segment.targets="all"``): the overhangs set aside taken back (a sign's plate,
-a shelter's roof), the pieces of one street object stacked over each other joined, and thin uprights grown up
+"""The passes of a street's segmentation (``segment.targets="all"``): the overhangs set aside taken back (a sign's
+plate, a shelter's roof), the pieces of one street object stacked over each other joined, and thin uprights grown up
 through the segmentation's ceiling (a pole's lamp, a tree's crown)."""
 
 from __future__ import annotations
@@ -133,12 +133,12 @@ def _touching(p: np.ndarray, labels, members: dict, these: np.ndarray, link: flo
 
 def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, voxel: float) -> np.ndarray:
     """Pieces of one street object that a sparse scan left apart, joined: components stacked one over the other in
-    plan (their footprint boxes, widened by half a patch, overlap) with at most a link (``segment.object_link`` m, or three
-    patches) of height between them (a sign's plate and its post, a shelter's roof and its posts, a crown's pieces,
-    a mailbox's box and its foot); a piece off the ground (lowest point over ``segment.max_base``) joins what is within
-    a link of it in plan too (a roof's, a crown's pieces). Components as large as a car in plan and no taller are left alone (a car under
-    a crown, cars side by side stay apart). Union-find over neighbours from a KD-tree: no pair of far components
-    is looked at."""
+    plan (their footprint boxes, widened by half a patch, overlap) with at most a link (``segment.object_link`` m, or
+    three patches) of height between them (a sign's plate and its post, a shelter's roof and its posts, a crown's
+    pieces, a mailbox's box and its foot); a piece off the ground (lowest point over ``segment.max_base``) joins what is
+    within a link of it in plan too (a roof's, a crown's pieces). Components as large as a car in plan and no taller are
+    left alone (a car under a crown, cars side by side stay apart). Union-find over neighbours from a KD-tree: no pair
+    of far components is looked at."""
     from scipy.spatial import cKDTree
 
     labels, _, members = _members(comp)
@@ -250,9 +250,9 @@ def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, 
     """Every object that is not car-sized and reaches the segmentation's ceiling (``segment.max_height``: it keeps
     tree crowns off the cars under them) grown upwards: the points above the ceiling (up to ``segment.object_height``'s
     top) connected to its top join it (a pole's upper part and its lamp, a sign's plate, a tree's crown), unless
-    they run on beyond ``segment.object_reach`` plus half ``segment.object_max_extent`` m of it in plan (a building's wall under its
-    roof: the object is then no target). Objects whose tops join the same high points are one object (a crown's
-    lower pieces under its top); the larger objects look first."""
+    they run on beyond ``segment.object_reach`` plus half ``segment.object_max_extent`` m of it in plan (a building's
+    wall under its roof: the object is then no target). Objects whose tops join the same high points are one object (a
+    crown's lower pieces under its top); the larger objects look first."""
     from scipy.spatial import cKDTree
 
     ceiling = params.segment.max_height

@@ -55,7 +55,8 @@ def test_every_object_on_the_ground_and_the_car_unchanged():
     pts, hag, labels, names = _scene()
     cars = _owner(segment_objects(pts, hag, DEFAULT, is_ground=hag < 0.03), labels, names)
     assert set(cars) == {"car"}
-    every = _owner(segment_objects(pts, hag, DEFAULT.with_(segment={"targets": "all"}), is_ground=hag < 0.03), labels, names)
+    street = DEFAULT.with_(segment={"targets": "all"})
+    every = _owner(segment_objects(pts, hag, street, is_ground=hag < 0.03), labels, names)
     assert {"car", "pole", "bollard", "crown"} <= set(every)
     for piece in every.get("building", []):  # no roof: wall pieces under the ceiling
         assert piece.height < DEFAULT.segment.max_height

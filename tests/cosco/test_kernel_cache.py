@@ -102,12 +102,12 @@ def test_a_planted_cache_runs_no_code_in_a_city_build(tmp_path, tiny_tiles, para
     assert marker.exists()
 
 
-def test_a_corrupt_cache_is_dropped_and_compiled_anew(tmp_path, tiny_tiles, parametric_catalogue, compiled):
+def test_a_corrupt_cache_is_dropped_and_compiled_anew(tmp_path, compiled):
     base = tmp_path / "cache"
     folder = _copy(compiled, base)
     for f in list(folder.rglob("*.nbi"))[:3]:
         f.write_bytes(b"\x00garbage")
-    res = _build(tiny_tiles, parametric_catalogue.folder, tmp_path / "out", _env(base))
+    res = subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     assert "could not be read" in res.stderr and "compiling anew" in res.stderr
     assert not any(f.read_bytes().startswith(b"\x00garbage") for f in folder.rglob("*.nbi"))  # dropped
@@ -138,13 +138,17 @@ def test_a_folder_of_another_user_or_behind_a_link_is_not_used(tmp_path, compile
 
 
 def test_a_read_only_cache_never_writes_beside_the_code(tmp_path):
+    """A cache folder that cannot be made: the kernels are still compiled, for the process alone, and nothing is
+    written beside the code."""
     base = tmp_path / "cache"
     base.mkdir(mode=0o700)
     (base / "twinreg").mkdir(mode=0o500)
     package = Path(cosco.__file__).parent
     before = set(package.rglob("*.nbi"))
-    out = subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True, check=True)
-    assert not Path(out.stdout.strip()).is_relative_to(package)
+    code = ENABLE + "; print(k.in_use())"
+    out = subprocess.run([sys.executable, "-c", code], env=_env(base), capture_output=True, text=True, check=True)
+    where, used = out.stdout.split()
+    assert not Path(where).is_relative_to(package) and used == "True"
     assert set(package.rglob("*.nbi")) == before
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from twinreg.settings import DEFAULT
+from ..settings import DEFAULT
 
 from ..errors import SceneReadError
 from ..io._files import MAX_TWIN_BYTES, read_json_doc
@@ -36,7 +36,8 @@ def read_objects(paths) -> list[dict]:
             if not isinstance(objs, list):
                 raise TypeError("its objects are not a list")
             m = doc.get("matching", {})
-            window = (float(m.get("tol_m", DEFAULT.matching.size_tol)), float(m.get("tol_spacing_k", DEFAULT.matching.size_spacing_k)))
+            window = (float(m.get("tol_m", DEFAULT.matching.size_tol)),
+                      float(m.get("tol_spacing_k", DEFAULT.matching.size_spacing_k)))
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             raise SceneReadError(f"{p}: not a twin.json written by build-twin ({exc}); give OUT/twin.json") from exc
         out += [o | {"twin": str(p), "window": window} for o in objs]

@@ -75,26 +75,26 @@ class RefModel(Base):
     front_axis: Mapped[str] = mapped_column(String(4))
     notes: Mapped[str] = mapped_column(Text, default="")
 
-    length: Mapped[float] = mapped_column(Float, index=True)
-    width: Mapped[float] = mapped_column(Float, index=True)
-    height: Mapped[float] = mapped_column(Float, index=True)
-    mesh_length: Mapped[float] = mapped_column(Float)
-    mesh_width: Mapped[float] = mapped_column(Float)
-    mesh_height: Mapped[float] = mapped_column(Float)
+    length: Mapped[float] = mapped_column(Float, index=True)  # m, the scan-visible size
+    width: Mapped[float] = mapped_column(Float, index=True)  # m
+    height: Mapped[float] = mapped_column(Float, index=True)  # m
+    mesh_length: Mapped[float] = mapped_column(Float)  # m, the whole mesh
+    mesh_width: Mapped[float] = mapped_column(Float)  # m
+    mesh_height: Mapped[float] = mapped_column(Float)  # m
 
-    sym_found: Mapped[bool] = mapped_column(Boolean)
-    sym_pcr: Mapped[float] = mapped_column(Float)
-    sym_rmse: Mapped[float] = mapped_column(Float)
-    sym_heading: Mapped[float] = mapped_column(Float)
+    sym_found: Mapped[bool] = mapped_column(Boolean)  # a plane at or above the PCR threshold
+    sym_pcr: Mapped[float] = mapped_column(Float)  # point correspondence ratio
+    sym_rmse: Mapped[float] = mapped_column(Float)  # m
+    sym_heading: Mapped[float] = mapped_column(Float)  # rad
     #: the level of symmetry (:mod:`cosco.levels`): none, mirror, two_mirrors, rotational
     sym_level: Mapped[str | None] = mapped_column(String(20), nullable=True)
 
-    sample_spacing: Mapped[float] = mapped_column(Float)
-    n_points: Mapped[int] = mapped_column(Integer)
-    points: Mapped[bytes] = mapped_column(LargeBinary)
+    sample_spacing: Mapped[float] = mapped_column(Float)  # m between samples
+    n_points: Mapped[int] = mapped_column(Integer)  # samples
+    points: Mapped[bytes] = mapped_column(LargeBinary)  # float32 (n, 3) samples
     section_longitudinal: Mapped[bytes] = mapped_column(LargeBinary)
     section_transverse: Mapped[bytes] = mapped_column(LargeBinary)
-    section_res: Mapped[float] = mapped_column(Float)
+    section_res: Mapped[float] = mapped_column(Float)  # m
     section_longitudinal_fine: Mapped[bytes | None] = mapped_column(LargeBinary, nullable=True)
     section_transverse_fine: Mapped[bytes | None] = mapped_column(LargeBinary, nullable=True)
     frame_x: Mapped[float | None] = mapped_column(Float, nullable=True)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 import cosco
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from ..errors import MeshLoadError, UnitError
 from ..io.meshes import load_mesh

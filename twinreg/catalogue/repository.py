@@ -24,7 +24,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 import cosco
-from twinreg.settings import DEFAULT
+from ..settings import DEFAULT
 from cosco.taxonomy import descriptor
 
 from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, require_positive

@@ -11,9 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from ..io.outdir import check_replaceable, locked, staged_folder
+from ..progress import say as report_progress
 from .align import align
 from .epochs import read_epochs
 from .fragments import merge_pieces
@@ -70,11 +71,9 @@ def _locked_compare(folders, out, params, say, progress, protect) -> dict:
     from .viewdata import write_view
 
     t0 = time.perf_counter()
-    if progress:
-        progress(f"reading {len(folders)} twins and comparing them")
+    report_progress(progress, f"reading {len(folders)} twins and comparing them")
     doc, epochs = changes_document(folders, params, say)
-    if progress:
-        progress("writing changes.json, changes.geojson and changes.html")
+    report_progress(progress, "writing changes.json, changes.geojson and changes.html")
     with staged_folder(out, protect=protect, kind="comparison") as stage:
         t = time.perf_counter()
         write_geojson(stage / "changes.geojson", doc, epochs)

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cosco.footprint import min_area_rectangle
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from .epochs import Epoch
 from .footprints import corners, inside, samples

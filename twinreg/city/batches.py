@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 
 @dataclass(frozen=True)

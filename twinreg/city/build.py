@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
+from ..progress import say
 
 from ..errors import CityError, ParameterError, SceneReadError
 from .cells import CellJob, process_cell
@@ -95,11 +96,6 @@ def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0,
     lo = np.min([s.lo for s in sources], axis=0)
     offset = (float(np.floor(lo[0] / 100.0) * 100.0), float(np.floor(lo[1] / 100.0) * 100.0), 0.0)
     return Plan(grid, cells, {n: feeds[n] for n in cells}, offset)
-
-
-def _say(progress, stage, done=0, total=0):
-    if progress:
-        progress(stage, done, total)
 
 
 def city_georef(georef, sources: list[Source]):
@@ -211,14 +207,14 @@ def _locked_city(sources, georef, p, out, protect, catalogue, params, workers, s
     from .export import CityRun, export_city
 
     t = time.perf_counter()
-    _say(progress, "export", 0, 1)
+    say(progress, "export", 0, 1)
     run = CityRun(out=out, protect=protect, store=store, keys=keys, sources=sources, plan=p, georef=georef,
                   results=results, objects=objects, tax=tax, outcomes=outcomes, stats=stats, models=models,
                   catalogue=catalogue, params=params, ply=ply, timing=timing, t_start=t_start, progress=progress,
                   reused=p.n_cells - len(todo), date=date, classified=copc)
     twin = export_city(run)
     timing["export"] = time.perf_counter() - t
-    _say(progress, "export", 1, 1)
+    say(progress, "export", 1, 1)
     return twin
 
 
@@ -242,11 +238,11 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
               for path, s in need.items()}
     if splits:
         n_split = [0]
-        _say(progress, "split tiles", 0, len(splits))
+        say(progress, "split tiles", 0, len(splits))
 
         def split_done(_future):
             n_split[0] += 1
-            _say(progress, "split tiles", n_split[0], len(splits))
+            say(progress, "split tiles", n_split[0], len(splits))
 
         for f in splits.values():
             f.add_done_callback(split_done)
@@ -262,12 +258,12 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
                                  labels))
         deps[n] = [splits[s.path] for s in p.feeds[n] if s.path in splits]
     done = [p.n_cells - len(todo)]
-    _say(progress, "cells", done[0], p.n_cells)
+    say(progress, "cells", done[0], p.n_cells)
 
     def cell_done(name, result):
         store.save(result)
         done[0] += 1
-        _say(progress, "cells", done[0], p.n_cells)
+        say(progress, "cells", done[0], p.n_cells)
 
     fails = eng.run(process_cell, cell_jobs, todo, on_result=cell_done, deps=deps)
     timing["cells"] = time.perf_counter() - t  # the splits included

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from .classified import cell_labels, save_labels
 from .grid import Cell
@@ -68,12 +68,12 @@ class CellResult:
     key: str
     lo: tuple
     hi: tuple
-    n_read: int = 0
-    n_points: int = 0
-    n_ground: int = 0
-    n_outliers: int = 0
-    noise: float = 0.0
-    n_segments: int = 0
+    n_read: int = 0  # points read with the margin
+    n_points: int = 0  # points of the core
+    n_ground: int = 0  # ground points of the core
+    n_outliers: int = 0  # far outliers set aside
+    noise: float = 0.0  # m, range noise on the ground
+    n_segments: int = 0  # segments the core owns
     objects: list = field(default_factory=list)
     timing_s: dict = field(default_factory=dict)
     observed: object = None

@@ -33,17 +33,17 @@ class Source:
     ``copc``: the file is a COPC (read by bounds)."""
 
     path: str
-    n_points: int
+    n_points: int  # in the header
     lo: tuple
     hi: tuple
     copc: bool
-    crs: str | None
-    crs_name: str | None
-    unit: str
-    scale: float
-    z_scale: float
-    size: int
-    mtime_ns: int
+    crs: str | None  # the header's, as given
+    crs_name: str | None  # its name, for messages
+    unit: str  # of the coordinates
+    scale: float  # m per horizontal unit
+    z_scale: float  # m per vertical unit
+    size: int  # bytes
+    mtime_ns: int  # the file's change time
     date: str | None = None
     date_source: str | None = None
     date_warning: str | None = None

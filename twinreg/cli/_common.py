@@ -24,6 +24,9 @@ LibraryOpt = Annotated[
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", envvar="TWINREG_JSON",
                                        help="Print one JSON document to stdout.")]
+#: a scan's unit (objects and scenes)
+PointsUnitOpt = Annotated[str, typer.Option("--unit",
+                                            help="auto|m|cm|mm|ft|us-ft|in (auto: metres or the LAS CRS unit).")]
 
 
 #: what the console says (``-v``: every object too, ``-q``: warnings and errors only) and the ``--log`` file, which

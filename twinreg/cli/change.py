@@ -29,7 +29,7 @@ def compare_cmd(
     from ..change.compare import compare
 
     with RunProgress("compare") as bars:
-        doc = compare(twins, out, say=info, progress=lambda m: bars.update(m, None, None),
+        doc = compare(twins, out, say=info, progress=bars.update,
                       protect=[library_folder(library)])
     if json_:
         print_json(doc)

@@ -8,18 +8,8 @@ from typing import Annotated, List, Optional
 
 import typer
 
-from ._common import (
-    Command,
-    JsonOpt,
-    LibraryOpt,
-    command_app,
-    err_console,
-    handled,
-    info,
-    library_folder,
-    open_catalogue,
-    print_json,
-)
+from ._common import (Command, JsonOpt, LibraryOpt, command_app, err_console, handled, info, library_folder,
+                      open_catalogue, print_json)
 
 app = command_app()
 
@@ -131,7 +121,7 @@ def library_report(
     cat = open_catalogue(library, create=False)
     with err_console.status("library report") as status:
         doc = report(cat, out, density=density, scans=scans, seed=seed, workers=workers,
-                     progress=lambda msg: status.update(msg))
+                     progress=lambda stage, *_: status.update(stage))
     if json_:
         print_json(doc)
         return

@@ -7,33 +7,21 @@ from typing import Annotated, Optional
 
 import typer
 
-from twinreg.settings import DEFAULT
+from ..settings import DEFAULT
 
 from ..errors import require_positive
 from ..given import cluster_objects, inspect_file, shape_json
-from ._common import (
-    Command,
-    JsonOpt,
-    LibraryOpt,
-    RunProgress,
-    command_app,
-    fail,
-    handled,
-    info,
-    open_catalogue,
-    print_json,
-)
+from ._common import (Command, JsonOpt, LibraryOpt, PointsUnitOpt, RunProgress, command_app, fail, handled, info,
+                      open_catalogue, print_json)
 
 app = command_app()
-
-UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|ft|us-ft|in (auto: metres or the LAS CRS unit).")]
 
 
 @app.command("inspect", cls=Command)
 @handled
 def inspect(
     obj: Annotated[Path, typer.Argument(metavar="OBJECT", help="One object's points: PLY, PCD, LAS, LAZ, XYZ, BIN.")],
-    unit: UnitOpt = "auto",
+    unit: PointsUnitOpt = "auto",
     plot: Annotated[Optional[Path], typer.Option("--plot", help="Draw the sections to this PNG.")] = None,
     json_: JsonOpt = False,
 ):
@@ -65,7 +53,7 @@ def cluster_cmd(
     threshold: Annotated[Optional[float], typer.Option(
         help=f"Dendrogram cut (m) [default: {DEFAULT.taxonomy.threshold}, the paper's].")] = None,
     plot: Annotated[Optional[Path], typer.Option("--plot", help="Folder for heatmap.png and dendrogram.png.")] = None,
-    unit: UnitOpt = "auto",
+    unit: PointsUnitOpt = "auto",
     json_: JsonOpt = False,
 ):
     """Dissimilarity matrix and hierarchical clustering of objects."""
@@ -86,7 +74,7 @@ def classify_cmd(
     objects: Annotated[list[Path], typer.Argument(
         metavar="OBJECT", help="Object files, one object each (PLY, PCD, LAS, LAZ, XYZ); a folder stands for its "
                                "point files.", show_default=False)],
-    unit: UnitOpt = "auto",
+    unit: PointsUnitOpt = "auto",
     min_confidence: Annotated[Optional[float], typer.Option(
         "--min-confidence", help="Below this confidence no model is claimed (match null, candidates listed) "
                                  f"[default: {DEFAULT.min_confidence}, build-twin's].", show_default=False)] = None,

@@ -8,34 +8,21 @@ from typing import Annotated, Optional
 
 import typer
 
-from twinreg.settings import DEFAULT
+from ..settings import DEFAULT
 
 from ..detect import detect_file, detection_json, write_detection
 from ..io.outdir import check_replaceable
-from ._common import (
-    Command,
-    JsonOpt,
-    LibraryOpt,
-    RunProgress,
-    command_app,
-    detail,
-    err_console,
-    handled,
-    info,
-    open_catalogue,
-    print_json,
-)
+from ._common import (Command, JsonOpt, LibraryOpt, PointsUnitOpt, RunProgress, command_app, detail, err_console,
+                      handled, info, open_catalogue, print_json)
 
 app = command_app()
-
-UnitOpt = Annotated[str, typer.Option("--unit", help="auto|m|cm|mm|ft|us-ft|in (auto: metres or the LAS CRS unit).")]
 
 
 @app.command("detect", cls=Command)
 @handled
 def detect(
     scene: Annotated[Path, typer.Argument(help="Scene points: PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin.")],
-    unit: UnitOpt = "auto",
+    unit: PointsUnitOpt = "auto",
     out: Annotated[Optional[Path], typer.Option("--out", help="Write one PLY per object and topview.png here.")] = None,
     all_objects: Annotated[bool, typer.Option("--all", help="List every object, not only car-sized ones.")] = False,
     json_: JsonOpt = False,
@@ -44,7 +31,7 @@ def detect(
     if out is not None:
         check_replaceable(out, protect=[scene], kind="detection")
     with err_console.status(f"reading {scene.name}") as status:
-        det = detect_file(scene, unit=unit, progress=lambda stage: status.update(f"{scene.name}: {stage} done"))
+        det = detect_file(scene, unit=unit, progress=lambda stage, *_: status.update(f"{scene.name}: {stage} done"))
     doc = detection_json(det, all_objects)
     if det.scene.n_dropped:
         info(f"warning: {det.scene.n_dropped} points with NaN or infinite coordinates were dropped")
@@ -71,8 +58,7 @@ MinConfidenceOpt = Annotated[Optional[float], typer.Option(
 LatOpt = Annotated[Optional[float], typer.Option(help="WGS84 latitude of the anchor point.")]
 LonOpt = Annotated[Optional[float], typer.Option(help="WGS84 longitude of the anchor point.")]
 AltOpt = Annotated[float, typer.Option(help="Ellipsoidal height (m) of the anchor.")]
-AnchorOpt = Annotated[Optional[tuple[float, float]], typer.Option(
-    help="Scene X Y at --lat/--lon (default 0 0).")]
+AnchorOpt = Annotated[Optional[tuple[float, float]], typer.Option(help="Scene X Y at --lat/--lon (default 0 0).")]
 CrsOpt = Annotated[Optional[str], typer.Option(
     help="The scene's projected CRS, e.g. EPSG:2157 [default: the CRS a LAS/LAZ header states; a different one "
          "only with --override-crs].", show_default=False)]
@@ -84,7 +70,8 @@ VerticalCrsOpt = Annotated[Optional[str], typer.Option(
                            "ellipsoidal].", show_default=False)]
 TolOpt = Annotated[Optional[float], typer.Option(
     help=f"Size tolerance (m) of the catalogue prefilter: the window is then exactly +-TOL (default: "
-         f"{DEFAULT.matching.size_tol} m, models up to {DEFAULT.matching.size_spacing_k} point spacings longer and wider "
+         f"{DEFAULT.matching.size_tol} m, models up to {DEFAULT.matching.size_spacing_k} point spacings longer and "
+         "wider "
          "too).")]
 ThresholdOpt = Annotated[Optional[float], typer.Option(
     help=f"Cluster threshold (m) [default: {DEFAULT.taxonomy.threshold}].")]
@@ -95,13 +82,11 @@ CellOpt = Annotated[Optional[float], typer.Option(
 BufferOpt = Annotated[Optional[float], typer.Option(
     help="Tiled runs: metres read around each cell [default: 10].", show_default=False)]
 WorkersOpt = Annotated[Optional[int], typer.Option(
-    help="Tiled runs: Dask worker processes of the embedded cluster [default: the cores].",
-    show_default=False)]
+    help="Tiled runs: Dask worker processes of the embedded cluster [default: the cores].", show_default=False)]
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     help="Tiled runs: an existing Dask scheduler, tcp://HOST:PORT (inputs, catalogue and OUT at the same "
          "paths on its workers).", show_default=False)]
-RestartOpt = Annotated[bool, typer.Option(
-    "--restart", help="Tiled runs: ignore the cells a previous run finished.")]
+RestartOpt = Annotated[bool, typer.Option("--restart", help="Tiled runs: ignore the cells a previous run finished.")]
 DateOpt = Annotated[Optional[datetime], typer.Option(
     "--date", formats=["%Y-%m-%d"], help="The survey's date, YYYY-MM-DD [default: the LAS/LAZ header's "
                                          "creation date]; written to twin.json as survey_date.",
@@ -133,7 +118,7 @@ def build_twin_cmd(
     crs: CrsOpt = None,
     override_crs: OverrideCrsOpt = False,
     vertical_crs: VerticalCrsOpt = None,
-    unit: UnitOpt = "auto",
+    unit: PointsUnitOpt = "auto",
     tol: TolOpt = None,
     threshold: ThresholdOpt = None,
     out: OutOpt = None,
@@ -197,7 +182,7 @@ def demo(
     from ._common import out_console
 
     with err_console.status("demo") as status:
-        summary = run_demo(out, seed=seed, progress=lambda msg: status.update(msg))
+        summary = run_demo(out, seed=seed, progress=lambda stage, *_: status.update(stage))
     if json_:
         print_json(summary)
         return

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from twinreg.settings import DEFAULT
+from ..progress import say
+from ..settings import DEFAULT
 
 #: a pair is "cannot be told apart" when either is taken for the other in at least this share of its scans
 CONFUSED_SHARE = 0.2
@@ -142,11 +143,9 @@ def report(catalogue, out, density: float = 20.0, scans: int = 10, seed: int = 0
 
         raise CatalogueError(f"{catalogue.folder}: the catalogue is empty; add models first")
     rows = sorted(catalogue.list(), key=lambda r: r.id)
-    if progress:
-        progress("taxonomy")
+    say(progress, "taxonomy")
     tax = taxonomy(catalogue)
-    if progress:
-        progress(f"confusability: {scans} scans of each of {len(rows)} models at {density:g} pts/m2")
+    say(progress, f"confusability: {scans} scans of each of {len(rows)} models at {density:g} pts/m2")
     conf = confusion(catalogue, density, scans, seed, workers)
     m = np.array(conf["matrix"])
     names = conf["names"]
@@ -172,8 +171,7 @@ def report(catalogue, out, density: float = 20.0, scans: int = 10, seed: int = 0
            "cannot_tell_apart": _pairs_confused(conf)}
     with staged_folder(Path(out), protect=[catalogue.folder], kind="library report") as stage:
         (stage / "models").mkdir()
-        if progress:
-            progress("pictures")
+        say(progress, "pictures")
         for r in rows:
             _model_picture(catalogue, r, stage / "models" / f"{r.id}.png")
         _heatmap(tax, stage / "taxonomy.png")

@@ -42,13 +42,13 @@ class TwinFiles:
 
     stage: Path
     scene: str
-    placed: list
-    georef: object
-    models: object
-    groups: list
-    scans: list | None = None
-    ply: str | None = None
-    regions: dict | None = None
+    placed: list  # PlacedObject each
+    georef: object  # the scene's Georef
+    models: object  # ModelCache
+    groups: list  # (name, indices)
+    scans: list | None = None  # each group's sample
+    ply: str | None = None  # None, "twin" or "groups"
+    regions: dict | None = None  # name -> WGS84 bounds
     templates: bool = False
     seq: bool = False
     fork: bool = False

@@ -8,10 +8,10 @@ distance). A point is explained when it lies within
     tau = accept_sigmas * noise + accept_model_tol + accept_spacing_k * spacing
 
 of the surface: ``noise`` is the scan's range noise (measured on its ground points: 1.4826 x the median absolute
-height of the ground points above the ground surface), ``matching.accept_model_tol`` what a CAD model may differ from the
-car it stands for (trim, mirrors, wipers, a roof box), and ``spacing`` the object's point spacing (a sparse scan
-places the model less exactly). The match is accepted when at most ``matching.accept_max_outliers`` of the points are not
-explained.
+height of the ground points above the ground surface), ``matching.accept_model_tol`` what a CAD model may differ from
+the car it stands for (trim, mirrors, wipers, a roof box), and ``spacing`` the object's point spacing (a sparse scan
+places the model less exactly). The match is accepted when at most ``matching.accept_max_outliers`` of the points are
+not explained.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 #: bounds of the noise estimate (m): a noise-free simulation still leaves the grid's own error; a very rough
 #: ground (gravel, grass) must not make every fit acceptable
@@ -92,7 +92,8 @@ class SurfaceIndex:
 
 def verdict(distances: np.ndarray, noise: float, spacing: float, params: Settings = DEFAULT) -> Verdict:
     """The acceptance test from the points' distances (m) to the placed model's surface."""
-    tau = params.matching.accept_sigmas * noise + params.matching.accept_model_tol + params.matching.accept_spacing_k * spacing
+    m = params.matching
+    tau = m.accept_sigmas * noise + m.accept_model_tol + m.accept_spacing_k * spacing
     d = np.asarray(distances, dtype=np.float64)
     share = float(np.mean(d > tau)) if len(d) else 1.0
     return Verdict(bool(share <= params.matching.accept_max_outliers), float(tau), share,

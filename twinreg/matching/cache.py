@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 import cosco
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from ..catalogue.repository import Catalogue, ModelGeometry
 

@@ -18,11 +18,11 @@ part in metres:
 
     score = scan_fit + model_fit + w_sections * sections + w_size * size
 
-The lowest score wins among the candidates the acceptance test (:mod:`twinreg.matching.acceptance`) passes and that stand
-on the object's ground: ``sink`` (m) is how far the placed model's lowest point lies below the ground under the
+The lowest score wins among the candidates the acceptance test (:mod:`twinreg.matching.acceptance`) passes and that
+stand on the object's ground: ``sink`` (m) is how far the placed model's lowest point lies below the ground under the
 object (negative: above it); a model sunk deeper than ``accept_sink_sigmas * noise + accept_sink_tol`` is taller
-than the object (its roof was brought down onto a box's top) and one floating higher than ``matching.accept_max_float`` is
-lower than it. The margin to the runner-up, in units of the scan's noise, is the match's ``margin_sigma``; the
+than the object (its roof was brought down onto a box's top) and one floating higher than ``matching.accept_max_float``
+is lower than it. The margin to the runner-up, in units of the scan's noise, is the match's ``margin_sigma``; the
 margin's confidence ``1 - exp(-margin_sigma / decision_confidence_sigma)`` (0 when two models score alike, near 1
 when the runner-up is far behind) times the fit factor (:func:`fit_factor`: how much of its acceptance limits
 the winner uses) is its ``confidence``, so that a poor fit is never above 0.5 however far behind the runner-up
@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from .acceptance import Verdict, verdict
 
@@ -161,7 +161,8 @@ def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.n
     score = scan_fit + model_fit + params.matching.w_sections * rmse + params.matching.w_size * size
     sink_limit = params.matching.accept_sink_sigmas * noise + params.matching.accept_sink_tol
     return Evidence(model_id, float(rmse), scan_fit, model_fit, size, float(score), v, unseen, float(sink),
-                    float(sink_limit), float(params.matching.accept_max_float), float(params.matching.accept_max_unseen))
+                    float(sink_limit), float(params.matching.accept_max_float),
+                    float(params.matching.accept_max_unseen))
 
 
 @dataclass

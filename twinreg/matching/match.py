@@ -7,7 +7,8 @@
    3pi/2}, a continuous tz and a small axial shift du, and ranked by RMSE. Objects of one cluster share work: the
    cluster's first object (its leader) tries every candidate, the others first the leader's favourites and their
    own nearest, and all of their candidates only when those fit clearly worse (by ``matching.share_margin``).
-3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best ``matching.accept_candidates``
+3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best
+``matching.accept_candidates``
    are placed, their pose refined on the points (:mod:`twinreg.matching.refine`), checked
    (:mod:`twinreg.matching.acceptance`) and scored on all the evidence; the lowest acceptable score wins, with a
    confidence, the models it cannot be told from, and whether it lies outside the size window. An object no
@@ -24,7 +25,7 @@ import numpy as np
 
 import cosco
 from cosco.frames import yaw_pose
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from ..catalogue.repository import Catalogue
 from .cache import ModelCache
@@ -44,14 +45,14 @@ class MatchStats:
     leader's ranking (``{label: (model ids, best RMSE)}``, for members matched in another call). Batches of a
     city add up with :meth:`add`."""
 
-    prefilter_s: float = 0.0
-    model_prep_s: float = 0.0
-    registration_s: float = 0.0
-    verification_s: float = 0.0
-    n_trials: int = 0
-    n_pairs_without_prefilter: int = 0
-    n_without_window: int = 0
-    n_trials_saved_by_clusters: int = 0
+    prefilter_s: float = 0.0  # s, size windows
+    model_prep_s: float = 0.0  # s, models loaded
+    registration_s: float = 0.0  # s, section registration
+    verification_s: float = 0.0  # s, acceptance and decision
+    n_trials: int = 0  # registrations tried
+    n_pairs_without_prefilter: int = 0  # a full search's pairs
+    n_without_window: int = 0  # objects no window held
+    n_trials_saved_by_clusters: int = 0  # by the leaders' rankings
     leaders: dict = field(default_factory=dict)
 
     def add(self, other: "MatchStats") -> None:

@@ -3,9 +3,9 @@
 
 A scan measures a car smaller than it is, hardly ever larger: scan lines miss the ends of a bonnet and a boot, the
 lower sides are hidden by neighbours, glass returns nothing. So a model may be longer and wider than the object by
-the paper's tolerance (``matching.size_tol``, 0.2 m) plus ``matching.size_spacing_k`` scan-line spacings of the object, and smaller
-by the tolerance only; the height (the roof, which airborne scans always see) keeps the plain tolerance. A user's
-``--tol`` sets ``matching.size_spacing_k`` to 0: the window is then exactly +-tol, as in the paper.
+the paper's tolerance (``matching.size_tol``, 0.2 m) plus ``matching.size_spacing_k`` scan-line spacings of the object,
+and smaller by the tolerance only; the height (the roof, which airborne scans always see) keeps the plain tolerance. A
+user's ``--tol`` sets ``matching.size_spacing_k`` to 0: the window is then exactly +-tol, as in the paper.
 
 Inside the window the models are ranked by their descriptor (:func:`cosco.taxonomy.descriptor`: L, W, H and the
 section's top at two stations, stored with each model) against the object's, its L and W first grown by the
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 from cosco.taxonomy import descriptor
 
 #: scales (m) of the descriptor's parts in the ranking distance: sizes, then the two section tops

@@ -5,8 +5,8 @@ Section registration turns a model only by quarter turns about the object's axis
 symmetry plane or, on sparse objects, the footprint's edges, and a degree or two off it moves the ends of a car by
 several centimetres. Before a candidate is scored, a few iterations of trimmed point-to-point ICP with a turn about
 the vertical only (yaw, and a shift in x, y, z: a parked car stands on the ground) bring the object's points onto
-the model's sampled surface. The correction is bounded (``params.matching.refine_max_turn``, ``matching.refine_max_shift``): a pose the sections got
-wrong is not rescued here, only sharpened.
+the model's sampled surface. The correction is bounded (``params.matching.refine_max_turn``,
+``matching.refine_max_shift``): a pose the sections got wrong is not rescued here, only sharpened.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosco.frames import yaw_pose
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 
 def yaw_fit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
@@ -38,8 +38,8 @@ def refine(points_in_model: np.ndarray, model_tree, reach: float, iterations: in
            params: Settings = DEFAULT) -> np.ndarray:
     """(4, 4) correction ``c`` in the model's frame: ``c`` applied to the object's points (already in the model's
     frame) brings them onto the model's sampled points (``model_tree``, a cKDTree). Pairs farther than ``reach``
-    (m) are left out. The identity when the fit does not converge within the bounds (``params.matching.refine_max_turn``,
-    ``params.matching.refine_max_shift``)."""
+    (m) are left out. The identity when the fit does not converge within the bounds
+    (``params.matching.refine_max_turn``, ``params.matching.refine_max_shift``)."""
     q = np.asarray(points_in_model, dtype=np.float64)
     total = np.eye(4)
     for _ in range(iterations):

@@ -14,7 +14,7 @@ import numpy as np
 
 import cosco
 from cosco.levels import symmetry_level
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 from ..errors import SceneReadError, require_probability
 from .kinds import UNKNOWN, References, object_types, recognise_kind

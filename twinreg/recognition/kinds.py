@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 UNKNOWN = "unknown"
 

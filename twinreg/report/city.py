@@ -97,7 +97,7 @@ def plot_representatives(objects, outcomes, labels, path, params):
 def write_city_report(folder, twin: dict, results, objects, outcomes, plan, params=None) -> list[Path]:
     """map.png, histograms.png, taxonomy.png and report.html: the map first, then the cars per model and the
     objects without a model by reason, the pictures, the cells."""
-    from twinreg.settings import DEFAULT
+    from ..settings import DEFAULT
 
     folder = Path(folder)
     labels = [o["cluster"] for o in twin["objects"]]

@@ -16,7 +16,7 @@ import numpy as np
 import cosco
 from cosco.frames import yaw_pose
 from cosco.kernels import fast, kernel
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from twinreg.settings import DEFAULT, Settings
+from ..settings import DEFAULT, Settings
 
 #: ground density (pts/m^2) of :data:`twinreg.sim.scan.DEFAULT_PASSES` (counted on a flat ground, 30 x 30 m)
 DEFAULT_DENSITY = 208.0

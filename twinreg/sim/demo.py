@@ -18,6 +18,7 @@ from ..geo.georef import georef_from_options
 from ..io.outdir import staged_folder
 from ..io.ply import write_ply
 from ..pipeline import build_twin
+from ..progress import say as report_progress
 from .parametric import LIBRARY, car_mesh, write_obj
 from .scan import car_park
 
@@ -42,8 +43,11 @@ def _run(out: Path, seed: int, n_cars: int, progress) -> dict:
     models_dir.mkdir()
 
     def say(msg):
-        if progress:
-            progress(msg)
+        report_progress(progress, msg)
+
+    def build_progress(stage, done=None, total=None):  # build-twin's stages as the demo's lines
+        if done is None:
+            say(f"build-twin: {stage}")
 
     say("building the parametric car library")
     cat = Catalogue(lib_dir)
@@ -64,7 +68,7 @@ def _run(out: Path, seed: int, n_cars: int, progress) -> dict:
 
     say("building the twin")
     twin = build_twin(scan, cat, georef_from_options(*DUBLIN), out / "twin",
-                      progress=lambda m: say(f"build-twin: {m}"))
+                      progress=build_progress)
     cat.close()
     rows_out = []
     for o in twin["objects"]:

@@ -34,25 +34,20 @@ class CarSpec:
     wheel_radius: float = 0.31
 
 
-# real-world sizes of common cars of each class (rounded)
-LIBRARY = [
-    CarSpec("demo_supermini", "supermini", "city car (VW up!-sized)", 3.60, 1.65, 1.50, 0.92, 0.70, 0.85,
-            1.05, 0.35, -1.40, -1.72),
-    CarSpec("demo_hatchback", "hatchback", "C-segment hatchback (Golf-sized)", 4.26, 1.79, 1.46, 0.95, 0.68, 0.90,
-            1.05, 0.25, -1.62, -2.02),
-    CarSpec("demo_sedan", "sedan", "D-segment saloon (Passat-sized)", 4.78, 1.83, 1.46, 0.96, 0.70, 1.00,
-            1.05, 0.30, -1.20, -1.85),
-    CarSpec("demo_wagon", "wagon", "D-segment estate (Passat Variant-sized)", 4.77, 1.83, 1.50, 0.96, 0.70, 0.95,
-            1.05, 0.30, -2.10, -2.33),
-    CarSpec("demo_suv", "SUV", "mid-size SUV (Tiguan-sized)", 4.51, 1.86, 1.67, 1.08, 0.85, 1.05,
-            1.15, 0.45, -1.95, -2.20),
-    CarSpec("demo_van", "van", "panel van (Transporter-sized)", 4.90, 1.90, 1.97, 1.05, 0.95, 1.00,
-            2.05, 1.55, -2.40, -2.43),
-    CarSpec("demo_compact_suv", "SUV", "compact SUV (T-Roc-sized)", 4.23, 1.82, 1.57, 1.02, 0.80, 1.00,
-            1.05, 0.35, -1.75, -2.05),
-    CarSpec("demo_coupe", "sedan", "coupe (Audi TT-sized)", 4.18, 1.83, 1.35, 0.90, 0.65, 0.92,
-            0.95, 0.05, -1.15, -1.85),
-]
+# real-world sizes of common cars of each class (rounded), one a row: name | class | what it is | then, in metres,
+# length width height belt nose tail glass_front cabin_front cabin_rear glass_rear wheel_radius (CarSpec's order)
+_SIZES = """
+demo_supermini | supermini | city car (VW up!-sized) | 3.60 1.65 1.50 0.92 0.70 0.85 1.05 0.35 -1.40 -1.72 0.31
+demo_hatchback | hatchback | C-segment hatchback (Golf-sized) | 4.26 1.79 1.46 0.95 0.68 0.90 1.05 0.25 -1.62 -2.02 0.31
+demo_sedan | sedan | D-segment saloon (Passat-sized) | 4.78 1.83 1.46 0.96 0.70 1.00 1.05 0.30 -1.20 -1.85 0.31
+demo_wagon | wagon | D-segment estate (Passat Variant-sized) | 4.77 1.83 1.50 0.96 0.70 0.95 1.05 0.30 -2.10 -2.33 0.31
+demo_suv | SUV | mid-size SUV (Tiguan-sized) | 4.51 1.86 1.67 1.08 0.85 1.05 1.15 0.45 -1.95 -2.20 0.31
+demo_van | van | panel van (Transporter-sized) | 4.90 1.90 1.97 1.05 0.95 1.00 2.05 1.55 -2.40 -2.43 0.31
+demo_compact_suv | SUV | compact SUV (T-Roc-sized) | 4.23 1.82 1.57 1.02 0.80 1.00 1.05 0.35 -1.75 -2.05 0.31
+demo_coupe | sedan | coupe (Audi TT-sized) | 4.18 1.83 1.35 0.90 0.65 0.92 0.95 0.05 -1.15 -1.85 0.31
+"""
+LIBRARY = [CarSpec(name, body_class, what, *map(float, sizes.split()))
+           for name, body_class, what, sizes in (line.split(" | ") for line in _SIZES.strip().splitlines())]
 
 
 def prism(profile_xz: np.ndarray, y0: float, y1: float):

@@ -31,7 +31,8 @@ def test_the_window_grows_with_the_spacing_for_length_and_width_only():
     index = SizeIndex(_Cat([[1, 4.5, 1.8, 1.5, 1.2, 1.0]]))
     lo, hi = index.window(np.array([4.0, 1.7, 1.4]), spacing=0.2)
     assert np.allclose(lo, [3.8, 1.5, 1.2]) and np.allclose(hi, [4.5, 2.2, 1.6])
-    lo, hi = index.window(np.array([4.0, 1.7, 1.4]), spacing=0.2, params=DEFAULT.with_(matching={"size_spacing_k": 0.0}))
+    exact = DEFAULT.with_(matching={"size_spacing_k": 0.0})
+    lo, hi = index.window(np.array([4.0, 1.7, 1.4]), spacing=0.2, params=exact)
     assert np.allclose(hi, [4.2, 1.9, 1.6])
 
 

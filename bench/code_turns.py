@@ -1,0 +1,72 @@
+"""Two or more checkouts of twinreg timed in turns on one command (a refactor's "no slower"): each turn runs every
+checkout once, in a rotating order, the whole process tree timed from outside (wall seconds and the tree's peak
+resident memory, polled every 20 ms).
+
+    python bench/code_turns.py --code /tmp/base --code . --turns 5 -- \\
+        --library WORK/demo/library build-twin WORK/demo/scan.ply --out {out} -q
+
+``{out}`` in the command is replaced by a fresh folder per run. Each checkout runs with ``PYTHONPATH`` set to it, so
+one installed environment serves them all (the same packages; only the code differs)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import psutil
+
+
+def timed(cmd: list, env: dict) -> tuple[float, float]:
+    """(wall seconds, peak GB of the process tree's resident memory)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    peak = 0
+    root = psutil.Process(proc.pid)
+    while proc.poll() is None:
+        try:
+            tree = [root, *root.children(recursive=True)]
+            peak = max(peak, sum(p.memory_info().rss for p in tree if p.is_running()))
+        except psutil.Error:
+            pass
+        time.sleep(0.02)
+    wall = time.perf_counter() - t0
+    if proc.returncode:
+        raise SystemExit(f"{' '.join(cmd)}: exit {proc.returncode}: {proc.stderr.read().decode()[-400:]}")
+    return wall, peak / 1e9
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--code", action="append", required=True, type=Path, help="a checkout (repeat)")
+    ap.add_argument("--turns", type=int, default=5)
+    ap.add_argument("args", nargs=argparse.REMAINDER, help="-- then twinreg's arguments ({out}: the output folder)")
+    a = ap.parse_args()
+    args = a.args[1:] if a.args[:1] == ["--"] else a.args
+    times: dict = {str(c): [] for c in a.code}
+    work = Path(tempfile.mkdtemp(prefix="turns-"))
+    try:
+        for turn in range(a.turns):
+            order = a.code[turn % len(a.code):] + a.code[:turn % len(a.code)]
+            for code in order:
+                out = work / f"out-{turn}"
+                env = {**os.environ, "PYTHONPATH": str(code.resolve())}
+                cmd = [sys.executable, "-m", "twinreg", *[s.replace("{out}", str(out)) for s in args]]
+                times[str(code)].append(timed(cmd, env))
+                shutil.rmtree(out, ignore_errors=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    for code, runs in times.items():
+        walls = [w for w, _ in runs]
+        print(f"{code}: median {statistics.median(walls):.2f} s ({min(walls):.2f}-{max(walls):.2f}), "
+              f"peak {max(p for _, p in runs):.2f} GB, {len(runs)} runs")
+
+
+if __name__ == "__main__":
+    main()
