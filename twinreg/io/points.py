@@ -1,4 +1,4 @@
-"""Point readers: PLY, PCD, LAS, LAZ, XYZ/TXT/CSV and KITTI ``.bin``, always to float64.
+"""Point readers: PLY, PCD, LAS, LAZ, XYZ/TXT/CSV, KITTI ``.bin`` and nuScenes ``.pcd.bin``, always to float64.
 
 Large projected coordinates stay exact: LAS/LAZ integers are scaled in float64, text is parsed in float64, and a
 :class:`PointSet` carries a local offset (a round number near the minimum) for code that needs small numbers.
@@ -6,13 +6,17 @@ Large projected coordinates stay exact: LAS/LAZ integers are scaled in float64, 
 
 from __future__ import annotations
 
+import datetime
+import struct
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SceneReadError
+from ..geo.georef import crs_info
+from ..o3d import load
 from ._files import checked_input
 
 #: the largest coordinate (file units times the unit) a survey's point may have: projected and ECEF coordinates
@@ -50,8 +54,6 @@ class PointSet:
 
     def without(self, drop: np.ndarray) -> "PointSet":
         """The same scene without the points of the (n,) mask ``drop`` (counted as outliers)."""
-        from dataclasses import replace
-
         return replace(self, points=self.points[~drop], n_outliers=self.n_outliers + int(drop.sum()))
 
     @property
@@ -109,7 +111,7 @@ def point_count_bound(path) -> int:
         except Exception as exc:
             raise SceneReadError(f"{path}: not a readable LAS/LAZ file ({type(exc).__name__}: {exc})") from exc
     if suffix == ".bin":
-        return path.stat().st_size // 16
+        return path.stat().st_size // (4 * bin_fields(path))
     if suffix in (".ply", ".pcd"):
         with open(path, "rb") as fh:
             head = fh.read(65536)
@@ -144,12 +146,25 @@ def _read_text(path: Path) -> np.ndarray:
     return data
 
 
+def bin_fields(path: Path) -> int:
+    """The float32 values a point of a binary sweep holds: 5 for a nuScenes ``.pcd.bin`` (x y z intensity ring),
+    4 for a KITTI ``.bin`` (x y z reflectance).
+
+    >>> bin_fields(Path("n015__LIDAR_TOP__1532402927647951.pcd.bin")), bin_fields(Path("000008.bin"))
+    (5, 4)
+    """
+    return 5 if path.name.lower().endswith(".pcd.bin") else 4
+
+
 def _read_kitti(path: Path) -> np.ndarray:
+    n = bin_fields(path)
     raw = np.fromfile(path, dtype="<f4")
-    if raw.size == 0 or raw.size % 4:
-        raise SceneReadError(f"{path}: a KITTI .bin holds float32 x y z r records; this file's size "
-                             f"({path.stat().st_size} bytes) is not a multiple of 16 (truncated?)")
-    return raw.reshape(-1, 4)[:, :3].astype(np.float64)
+    if raw.size == 0 or raw.size % n:
+        what = "a nuScenes .pcd.bin holds float32 x y z intensity ring" if n == 5 else \
+            "a KITTI .bin holds float32 x y z r"
+        raise SceneReadError(f"{path}: {what} records; this file's size ({path.stat().st_size} bytes) is not a "
+                             f"multiple of {4 * n} (truncated?)")
+    return raw.reshape(-1, n)[:, :3].astype(np.float64)
 
 
 def check_las_header(path: Path, header) -> None:
@@ -170,8 +185,6 @@ def most_points(path: Path, header) -> int | None:
     """The most points a LAS/LAZ file of this size can hold, from its header alone: an uncompressed file stores
     every record in full; a LAZ file of fixed-size chunks stores at least each chunk's first point in full (None
     for LAZ with variable chunks, which have no such bound)."""
-    import struct
-
     room = Path(path).stat().st_size - int(header.offset_to_point_data)
     size = int(header.point_format.size)
     if not header.are_points_compressed:
@@ -218,8 +231,6 @@ def las_survey_date(path: Path, header, gps_time=None) -> tuple[str | None, str 
     when the header says they are adjusted standard GPS time (the acquisition itself), else the header's creation
     date, with a warning when that date is within a month before the file was written (it is then likely the day
     the file was made, not the flight)."""
-    import datetime
-
     try:
         standard = int(header.global_encoding.gps_time_type) == 1
     except Exception:
@@ -325,8 +336,6 @@ def _read_ply(path: Path) -> np.ndarray | None:
 
 
 def _read_o3d(path: Path) -> np.ndarray:
-    from ..o3d import load
-
     o3d = load()
 
     pcd = o3d.io.read_point_cloud(str(path))
@@ -346,8 +355,6 @@ def _read_o3d(path: Path) -> np.ndarray:
 def crs_and_units(path: Path, unit: str, crs, header_crs, header_error, override: bool = False):
     """(CrsInfo or None, unit name, horizontal scale, vertical scale) for a file, or SceneReadError. A ``crs``
     (``--crs``) that differs from the one the header states is refused unless ``override`` (``--override-crs``)."""
-    from ..geo.georef import crs_info
-
     info = None
     if crs:
         info = crs_info(crs, "--crs", where=f"--crs {crs}")
@@ -390,7 +397,8 @@ def same_crs(a, b) -> bool:
 def check_point_file(path) -> tuple[Path, str]:
     """``(path, lower-case suffix)`` of an existing, non-empty point file of a format :func:`read_points` reads, or
     :class:`SceneReadError` naming the file and the fix (before anything else of a run is looked at)."""
-    return checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT or KITTI .bin", SceneReadError)
+    return checked_input(path, POINT_SUFFIXES, "point", "PLY, PCD, LAS, LAZ, XYZ/TXT, KITTI .bin or nuScenes .pcd.bin",
+                         SceneReadError)
 
 
 def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> PointSet:
