@@ -21,6 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .arrays import as_points, voxel_downsample
+from .nearest import NearIndex, near_share_numpy
 from .params import DEFAULT, CoscoParams
 
 LEVELS = ("none", "mirror", "two_mirrors", "rotational")
@@ -53,8 +54,6 @@ class Level:
 def _sharer(pts: np.ndarray, tree: cKDTree, tol: float):
     """share(moved): the share of the moved (n, 3) points within ``tol`` of one of ``pts`` (``tree``'s), compiled
     where numba is in use (:class:`cosco.nearest.NearIndex`), else the KD-tree's."""
-    from .nearest import NearIndex, near_share_numpy
-
     index = NearIndex.of(pts, tol)
     if index is not None:
         return index.share

@@ -17,6 +17,7 @@ import numpy as np
 from .arrays import as_points, voxel_downsample
 from .footprint import min_area_rectangle
 from .frames import axis_difference, reflect, wrap_axis
+from .nearest import MirrorIndex, mirror_distances_numpy, mirror_nearest_numpy
 from .params import DEFAULT, CoscoParams
 
 if TYPE_CHECKING:
@@ -76,7 +77,6 @@ class _Objective:
 
         self.pts = pts
         self.side_share = side_share
-        from .nearest import MirrorIndex
 
         self.tree = cKDTree(pts) if tree is None else tree
         self.tol = tol
@@ -86,7 +86,6 @@ class _Objective:
     def distances(self, phi: float, rho: float) -> np.ndarray:
         if self.index is not None:
             return self.index.distances(phi, rho)
-        from .nearest import mirror_distances_numpy
 
         return mirror_distances_numpy(self.tree, self.pts, phi, rho, 3 * self.tol)
 
@@ -132,8 +131,6 @@ def _refine_pairs(pts: np.ndarray, tree: cKDTree, phi: float, rho: float, tol: f
     """Closed-form refinement: fit the plane through midpoints of mirror pairs (total least squares), on the
     voxel centroids of the reference set (density-equalised, and a third of the points of a dense scan).
     ``index``: the tree's points' :class:`~cosco.nearest.MirrorIndex` (compiled look-ups), None for the tree's."""
-    from .nearest import mirror_nearest_numpy
-
     for _ in range(steps):
         d, idx = (index.nearest(pts, phi, rho, tol) if index is not None
                   else mirror_nearest_numpy(tree, pts, phi, rho, tol))

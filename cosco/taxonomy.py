@@ -19,10 +19,13 @@ candidates), never a wrong match, because every object is still registered and v
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from .cluster import cluster
+from .dissimilarity import SectionPair, dissimilarity_matrix, register_sections
 from .params import DEFAULT, CoscoParams
 
 #: stations of the top profile, as fractions of the half-length from the middle
@@ -112,8 +115,6 @@ def graph_clusters(n: int, pairs: np.ndarray, distances: np.ndarray, threshold: 
 
 def pair_distances(sections: list, pairs: np.ndarray, params: CoscoParams = DEFAULT) -> np.ndarray:
     """Section dissimilarity (m) of each pair (as in the matrix); each object's sections are prepared once."""
-    from .dissimilarity import SectionPair, register_sections
-
     prepared: dict[int, SectionPair] = {}
 
     def get(i):
@@ -128,9 +129,6 @@ def taxonomy(shapes: list, params: CoscoParams = DEFAULT, distances_of=None) -> 
     """The taxonomy of objects' :class:`~cosco.sections.ObjectShape`: full (matrix and dendrogram) up to
     ``params.taxonomy.full_max`` objects, sparse beyond. ``distances_of(pairs) -> (m,)`` computes the pairs'
     dissimilarities (default :func:`pair_distances` here; a caller may spread them over workers)."""
-    from .cluster import cluster
-    from .dissimilarity import dissimilarity_matrix
-
     n = len(shapes)
     t = params.taxonomy.threshold
     if n <= params.taxonomy.full_max:
@@ -158,11 +156,6 @@ def taxonomy_of(shapes: list, params: CoscoParams = DEFAULT, timing: dict | None
     :func:`taxonomy` beyond (timed as "matrix": its comparisons and its components); ``say(text)`` as each part
     starts. ``spacing``: the objects' point spacings (m): the threshold is at least ``params.taxonomy.spacing_k``
     times their median (a sparse scan's sections differ by their sampling)."""
-    import time
-
-    from .cluster import cluster
-    from .dissimilarity import dissimilarity_matrix
-
     if spacing is not None and len(spacing):
         floor = params.taxonomy.spacing_k * float(np.median(spacing))
         if floor > params.taxonomy.threshold:

@@ -3,18 +3,23 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+import cosco
+from cosco.footprint import min_area_rectangle
 from cosco.ground import Ground, estimate_ground
-from .settings import DEFAULT, Settings
 from cosco.segment import Segmentation, far_outliers, segment_objects
 
 from .errors import SceneReadError
+from .io.outdir import staged_folder
+from .io.ply import write_ply
 from .io.points import PointSet, read_points
 from .progress import say
+from .report.plots import pyplot, save_figure
+from .settings import DEFAULT, Settings
 
 
 @dataclass
@@ -52,7 +57,6 @@ def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, ke
     ground = estimate_ground(local, params)
     if keep is not None:  # the heights only where objects are searched
         inside = np.asarray(keep(scene.points), dtype=bool)
-        from dataclasses import replace
 
         scene = replace(scene, points=scene.points[inside])
         local = local[inside]
@@ -87,8 +91,6 @@ def object_ground(det: Detection, obj) -> float:
 def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) -> list:
     """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
     from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
-    import cosco
-
     return [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o))
             for o in (det.objects if objects is None else objects)]
 
@@ -123,8 +125,6 @@ def detection_json(det: Detection, all_objects: bool = False) -> dict:
     """The contract's ``detect`` JSON (plus sizes, the unit, the offset and timings). ``centroid`` is the centre of
     the object's minimum-area footprint rectangle in x/y and mid-height above the ground under it in z (as in
     ``build-twin`` and ``inspect``); ``mean`` is the mean of its points."""
-    from cosco.footprint import min_area_rectangle
-
     pts = det.scene.points
     objs = []
     for oid, o in det.ids(all_objects):
@@ -152,9 +152,6 @@ def detection_json(det: Detection, all_objects: bool = False) -> dict:
 
 def write_detection(det: Detection, out: Path, all_objects: bool = False) -> list[Path]:
     """One PLY per object (float64 coordinates) and a numbered top view, into ``out`` (replaced as a whole)."""
-    from .io.outdir import staged_folder
-    from .io.ply import write_ply
-
     written = []
     with staged_folder(out, protect=[det.scene.path], kind="detection") as stage:
         for oid, o in det.ids(all_objects):
@@ -168,10 +165,6 @@ def write_detection(det: Detection, out: Path, all_objects: bool = False) -> lis
 
 def plot_detection(det: Detection, path, all_objects: bool = False, title: str | None = None):
     """Top view: ground in grey, other points by height, target objects outlined and numbered."""
-    from cosco.footprint import min_area_rectangle
-
-    from .report.plots import pyplot, save_figure
-
     plt = pyplot()
     local = det.scene.local
     ext = np.ptp(local[:, :2], axis=0)

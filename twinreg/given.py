@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 
 import cosco
-from .progress import say
-from .settings import DEFAULT, Settings
 
 from .errors import SceneReadError
 from .io.points import POINT_SUFFIXES, read_points
+from .progress import say
+from .report.plots import plot_dendrogram, plot_heatmap
+from .settings import DEFAULT, Settings
 
 
 def shape_json(shape: cosco.ObjectShape, sections: bool = True) -> dict:
@@ -112,8 +113,6 @@ def cluster_objects(path, unit: str = "auto", threshold: float | None = None, pl
            "n_clusters": result.n_clusters, "threshold_m": threshold,
            "dissimilarity": [[round(float(v), 5) for v in row] for row in matrix]}
     if plot is not None:
-        from .report.plots import plot_dendrogram, plot_heatmap
-
         plot = Path(plot)
         doc["plots"] = [str(plot_heatmap(matrix, objs.names, plot / "heatmap.png")),
                         str(plot_dendrogram(result.linkage, objs.names, threshold, plot / "dendrogram.png"))]

@@ -8,9 +8,13 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .settings import DEFAULT, Settings
+from cosco.arrays import point_spacing
+from cosco.kernels import enable
 
+from . import KERNEL_MODULES
 from .catalogue.repository import Catalogue
+from .city.build import build_city_twin
+from .city.sources import is_tiled
 from .detect import describe_detected, detect_file, object_levels, object_points
 from .errors import SceneReadError
 from .export.classified import scan_classes, write_classified
@@ -21,11 +25,14 @@ from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_docum
 from .geo.georef import Georef, scene_georef
 from .io import observed
 from .io.outdir import check_replaceable, locked, staged_folder
+from .io.points import check_point_file
 from .matching.acceptance import scene_noise
 from .matching.match import Evidence, ModelCache, match_objects
+from .matching.prober import Prober
 from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
 from .progress import say
 from .report.scene import plot_taxonomy, warm_up, write_report
+from .settings import DEFAULT, Settings
 from .stages import (
     checked_params,
     finish,
@@ -62,8 +69,6 @@ class RunSettings:
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
         tiled option given)."""
-        from .city.sources import is_tiled  # not city.build: a scene's run never imports the city engine
-
         explicit = any(v is not None for v in (self.cell, self.buffer, self.workers, self.scheduler))
         return is_tiled(paths, explicit=explicit or self.restart or bool(self.ply))
 
@@ -76,8 +81,6 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
     paths = [Path(p) for p in paths]
     s = settings
     if s.tiled(paths):
-        from .city.build import build_city_twin
-
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
@@ -104,7 +107,6 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     timing = {}
     params = checked_params(params, tol, threshold, min_confidence)
     scene_path = Path(scene_path)
-    from .io.points import check_point_file
 
     check_point_file(scene_path)
     check_replaceable(Path(out), protect=[scene_path, catalogue.folder], kind="twin")
@@ -117,7 +119,6 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
                   templates) -> dict:
     require_models(catalogue)
     params = with_targets(catalogue, params)
-    from .matching.prober import Prober
 
     prober = Prober.start()  # open3d loads in a helper while this process detects and registers
     painter = Painter.start(warm=warm_up)
@@ -151,9 +152,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
         raise SceneReadError(f"{scene_path}: no {what} were found; check --unit (the scene's unit) and that the "
                              "scan covers what the catalogue holds")
     if len(targets) >= params.jit_min_objects:  # the compiled kernels pay for numba's import (cosco.kernels)
-        from cosco.kernels import enable
 
-        from . import KERNEL_MODULES
 
         timing["kernels"] = enable(*KERNEL_MODULES)
     say(progress, f"sections of {len(targets)} objects")
@@ -163,7 +162,6 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     levels = object_levels(clouds, shapes, params)
     timing["sections"] = time.perf_counter() - t
 
-    from cosco.arrays import point_spacing
 
     spacing = [point_spacing(c) for c in clouds]
     clusters = taxonomy(shapes, params, timing, progress, spacing=spacing)

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .o3d import load
+
 
 def raycasting_scene(vertices: np.ndarray, faces: np.ndarray):
     """An open3d RaycastingScene of a triangle mesh (float32 inside: pass local coordinates)."""
-    from .o3d import load
-
     o3d = load()
 
     scene = o3d.t.geometry.RaycastingScene()
@@ -29,8 +29,6 @@ def cast(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray, direction
 
     vertices : (n, 3) metres (local: float32 is used inside, keep coordinates small). origins, directions : (r, 3).
     """
-    from .o3d import load
-
     o3d = load()
 
     scene = raycasting_scene(vertices, faces)
@@ -140,8 +138,6 @@ class CentredScene:
 
     def distances(self, points: np.ndarray) -> np.ndarray:
         """Unsigned distance (m) of (n, 3) points, in the mesh's frame, to its surface."""
-        from .o3d import load
-
         o3d = load()
         query = (np.asarray(points, dtype=np.float64) - self.centre).astype(np.float32)
         return self.scene.compute_distance(o3d.core.Tensor(query)).numpy().astype(np.float64)

@@ -9,19 +9,29 @@ batches; the simulator's accuracy runs use them too. Nothing here imports the pi
 from __future__ import annotations
 
 import time
+from collections import Counter
+from dataclasses import replace
 
-from .settings import Settings
+import numpy as np
 
-from .errors import CatalogueError
+from cosco.taxonomy import taxonomy_of
+
+from .catalogue.categories import VEHICLES
+from .errors import CatalogueError, require_positive, require_probability
+from .export.objects import fused_pose, place_object, pose
+from .export.twin_json import object_record
+from .geo.georef import check_area
 from .progress import say
+from .recognition.classify import near_candidates
+from .recognition.kinds import References, object_types, recognise_kind
+from .settings import Settings
+from .shapes.fuse import FusedShape, fuse_type, generic_solid
 
 
 def checked_params(params: Settings, tol: float | None, threshold: float | None,
                    min_confidence: float | None = None) -> Settings:
     """``params`` with the size tolerance and cluster threshold the user gave (both must be positive) and the
     models' confidence floor (0-1)."""
-    from .errors import require_positive, require_probability
-
     if min_confidence is not None:
         params = params.with_(min_confidence=require_probability("--min-confidence", min_confidence))
     tol = require_positive("--tol", tol, f" (default {params.matching.size_tol:g})")
@@ -54,10 +64,6 @@ def locate(georef, lo, hi, where: str):
     """The georeference of a scan whose footprint is ``lo``-``hi`` (scene metres): refused when its CRS puts it
     outside that CRS's area of use (:func:`~twinreg.geo.georef.check_area`, one line naming ``where``), else with
     the CRS's code and the reference system identified where the scan is."""
-    import numpy as np
-
-    from .geo.georef import check_area
-
     check_area(georef, lo, hi, where)
     centre = georef.centre_of(np.array([np.asarray(lo, dtype=np.float64)[:3], np.asarray(hi, dtype=np.float64)[:3]]))
     return georef.identified(centre["lon"], centre["lat"])
@@ -68,8 +74,6 @@ def taxonomy(shapes, params: Settings, timing: dict, progress=None, distances_of
     dendrogram up to ``params.taxonomy.full_max`` objects, the sparse graph beyond), its parts timed in
     ``timing``. ``spacing``: the objects' point spacings (m): the threshold is at least
     ``params.taxonomy.spacing_k`` times their median (a sparse scan)."""
-    from cosco.taxonomy import taxonomy_of
-
     return taxonomy_of(shapes, params, timing, (lambda text: say(progress, text)) if progress else None,
                        distances_of, spacing)
 
@@ -77,8 +81,6 @@ def taxonomy(shapes, params: Settings, timing: dict, progress=None, distances_of
 def with_targets(catalogue, params: Settings) -> Settings:
     """``params`` detecting every object on the ground (``segment.targets="all"``) when the catalogue holds models of
     other kinds than vehicles (what a run can recognise is what it looks for), else as given."""
-    from .catalogue.categories import VEHICLES
-
     kinds = {r.category or "car" for r in catalogue.list()}
     return params.with_(segment={"targets": "all"}) if kinds - VEHICLES else params
 
@@ -88,8 +90,6 @@ def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params
     from the catalogue's nearest references by size and level of symmetry (:mod:`twinreg.recognition.kinds`; one
     query for the references, numpy for the rest), and its model kept only at ``params.min_confidence`` or
     above (:func:`apply_floor`). Returns (the matching outcomes, the kinds)."""
-    from .recognition.kinds import References, recognise_kind
-
     refs = References.of_catalogue(catalogue, params)
     kinds = [recognise_kind(s.size.as_array(), level, refs, params) for s, level in zip(shapes, levels)]
     return apply_floor(outcomes, params.min_confidence), kinds
@@ -98,8 +98,6 @@ def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params
 def apply_floor(outcomes: list, floor: float) -> list:
     """The outcomes with every model whose confidence is under ``floor`` withdrawn: ``match`` None, the reason
     code ``under_floor``, the withdrawn model first among the candidates (the scan does not decide it)."""
-    from dataclasses import replace
-
     out = []
     for res in outcomes:
         m = res.match
@@ -120,10 +118,6 @@ def types_of(labels, outcomes: list, kinds: list | None, params: Settings, spaci
     Twice the window grouped more of a sparse scan's copies, but let a type's shape outgrow a member cut by the scan's
     edge by over 3 m on an AHN tile. Poles without a model group by kind and size alone
     (``params.fusion.pole_ratio``)."""
-    import numpy as np
-
-    from .recognition.kinds import object_types
-
     s = float(np.median(spacing)) if spacing is not None and len(spacing) else 0.0
     return object_types(labels, [k.kind for k in kinds] if kinds is not None else None,
                         sizes=[res.shape.size.as_array() for res in outcomes],
@@ -142,13 +136,6 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``). In a type that is not
     of vehicles (a van's roof is all a scan sees of it), parts whose points all stand over
     ``params.fusion.hang_height`` hang (a lamp's arm, a sign's plate, a shelter's roof)."""
-    from collections import Counter
-
-    import numpy as np
-
-    from .catalogue.categories import VEHICLES
-    from .shapes.fuse import FusedShape, fuse_type, generic_solid
-
     t0 = time.perf_counter()
     groups: dict = {}
     for k, (t, res) in enumerate(zip(types, outcomes)):
@@ -196,14 +183,6 @@ def place(ids: list[str], n_points: list[int], outcomes: list, labels, offsets: 
     (:func:`recognise`; None: not recognised), its ``types`` (:func:`types_of`; None: computed here) and the
     ``fused`` shapes of types without a model (:func:`fuse`; None: boxes). Every object's lat/lon and bearing come
     from two vectorised transformations (one per object took 8 s at 5,000 objects)."""
-    from collections import Counter
-
-    import numpy as np
-
-    from .export.objects import fused_pose, place_object, pose
-    from .export.twin_json import object_record
-    from .recognition.classify import near_candidates
-
     if types is None:
         types = types_of(labels, outcomes, kinds, models.params)
     shaped = {}

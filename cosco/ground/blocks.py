@@ -13,7 +13,6 @@ from ..sorting import group_by_key
 from .surface import Ground
 from .window import _fill_nearest, _window_ground
 
-
 #: up to this many blocks, each block's points are found by one pass over all of them (a few cheap comparisons);
 #: beyond, by grouping the points by block once (a sort)
 FEW_BLOCKS = 8

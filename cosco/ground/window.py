@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels import fast, kernel
-from ..params import CoscoParams
+from ..params import DEFAULT, CoscoParams
 from ..sorting import group_medians
 from .surface import _Grid, _linear
 
@@ -101,8 +101,6 @@ def _window_ground(pts: np.ndarray, origin: np.ndarray, shape: tuple, params: Co
 
 def _window_example(rng) -> tuple:
     """A window of ground with a car-sized box on it (the registry's example for :func:`_window_ground`)."""
-    from ..params import DEFAULT
-
     ground = np.c_[rng.uniform(0, 20, (4000, 2)), rng.normal(0, 0.02, 4000)]
     car = np.c_[rng.uniform([6, 6], [10.5, 8], (800, 2)), rng.uniform(0.3, 1.5, 800)]
     return np.vstack([ground, car]), np.zeros(2), (40, 40), DEFAULT

@@ -8,7 +8,9 @@ import numpy as np
 
 from ..footprint import min_area_rectangle
 from ..params import CoscoParams
-from .components import describe, groups, members as _members, too_big
+from .components import describe, groups
+from .components import members as _members
+from .components import too_big
 
 
 def absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams) -> np.ndarray:

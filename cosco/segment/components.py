@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..arrays import as_points, column_max, column_min, n_cells
+from ..arrays import as_points, check_object, column_max, column_min, n_cells
 from ..footprint import min_area_rectangle
 from ..kernels import fast, kernel
 from ..params import DEFAULT, CoscoParams
@@ -241,8 +241,6 @@ def describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosco
 def describable(points: np.ndarray) -> bool:
     """Whether COSCO can describe these points (:func:`~cosco.arrays.check_object`: enough distinct points, not
     on one line)."""
-    from ..arrays import check_object
-
     try:
         check_object(points)
     except ValueError:

@@ -10,7 +10,9 @@ import numpy as np
 
 from ..arrays import cell_keys
 from ..params import CoscoParams
-from .components import car_sized, describe, members as _members, voxel_components
+from .components import car_sized, describe
+from .components import members as _members
+from .components import voxel_components
 
 
 def _boxes(p: np.ndarray, hag: np.ndarray, labels, members: dict, params: CoscoParams):

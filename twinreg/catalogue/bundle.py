@@ -34,8 +34,9 @@ import numpy as np
 
 from ..errors import BundleError, CatalogueError, ExportError
 from ..io.outdir import atomic_path
+from .categories import check_category
 from .db import DB_NAME, make_engine, upgrade, writer_lock
-from .models import unpack
+from .models import RefModel, unpack
 from .names import is_sha256, name_problem, printable, text_problem
 from .prepare import file_sha256
 from .repository import atomic_copy, undone_on_failure
@@ -322,7 +323,6 @@ def check_row(row) -> tuple[str, str]:
             "it holds a control character" if printable(value or "") != (value or "") else None)
         if why:
             raise ValueError(f"its {c.replace('_', ' ')} is not plain text ({why})")
-    from .categories import check_category
 
     try:
         if check_category(row.category) != row.category:
@@ -354,7 +354,6 @@ def _read_rows(bundle: _Bundle, tmp: Path) -> list:
     from sqlalchemy import select
     from sqlalchemy.orm import Session
 
-    from .models import RefModel
 
     db = bundle.extract(DB_NAME, tmp)
     try:
@@ -417,7 +416,6 @@ def import_library(catalogue, zip_path, rename: bool = False, skip: bool = False
     """Add a bundle's models to ``catalogue``. Clashing names change nothing unless ``rename`` or ``skip``."""
     from sqlalchemy import select
 
-    from .models import RefModel
 
     zip_path = Path(zip_path)
     if rename and skip:
@@ -463,8 +461,6 @@ def _plan(incoming, names, shas, result: ImportResult, rename: bool, skip: bool)
 
 
 def _add_rows(s, plan, files: dict, names: set, tmp: Path, folder: Path, result: ImportResult) -> None:
-    from .models import RefModel
-
     with undone_on_failure(s) as created:
         for r in plan:
             base = f"model-{r.name}" if r.name.isdigit() else r.name

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..settings import DEFAULT
-
 from ..errors import SceneReadError
 from ..io._files import MAX_TWIN_BYTES, read_json_doc
+from ..report.plots import pyplot, save_figure
+from ..settings import DEFAULT
 
 LENGTH_BIN = 0.5
 WIDTH_BIN = 0.3
@@ -117,8 +117,6 @@ def _text(g: dict) -> str:
 
 def plot(objects: list[dict], models: np.ndarray, names: list[str], path) -> Path:
     """Object sizes (length x width; got a model or not) over the catalogue's models."""
-    from ..report.plots import pyplot, save_figure
-
     plt = pyplot()
 
     tol, grow = window_of(objects) if objects else (DEFAULT.matching.size_tol, 0.0)

@@ -6,12 +6,15 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import re
+from importlib.resources import files
 from pathlib import Path
 
 from sqlalchemy import create_engine, event, inspect
 from sqlalchemy.engine import Engine
 
 from ..errors import CatalogueError
+from .models import unpack
 
 DB_NAME = "catalogue.sqlite"
 LOCK_NAME = ".lock"
@@ -21,8 +24,6 @@ BUSY_TIMEOUT_S = 60
 def migrations_dir() -> Path:
     """The alembic script folder: the package ``twinreg.migrations`` (the repository's top-level ``migrations/``,
     mapped into the package by pyproject.toml, installed or editable)."""
-    from importlib.resources import files
-
     try:
         here = Path(str(files("twinreg.migrations")))
     except ModuleNotFoundError:
@@ -89,8 +90,6 @@ def current_revision(engine: Engine) -> str | None:
 
 def head_revision() -> str:
     """The newest revision id, read from the revision files (importing alembic costs 0.2 s on every command)."""
-    import re
-
     revs, downs = set(), set()
     for f in (migrations_dir() / "versions").glob("*.py"):
         text = f.read_text(encoding="utf-8")
@@ -130,7 +129,6 @@ def fill_levels(conn) -> int:
 
     from cosco.levels import symmetry_level
 
-    from .models import unpack
 
     rows = conn.execute(text("SELECT id, points FROM ref_models WHERE sym_level IS NULL")).fetchall()
     for mid, blob in rows:

@@ -5,14 +5,17 @@ scale, make, model, unit, up and front; it is someone else's data: read whole an
 
 from __future__ import annotations
 
+import csv
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import CatalogueError, TwinregError
 from ..io.meshes import MESH_SUFFIXES
+from .categories import check_category
 from .duplicates import near_duplicate_report
-from .names import printable
+from .names import check_name, check_text, preferred_stem, printable
 
 
 @dataclass
@@ -87,9 +90,6 @@ def read_manifest(path, folder) -> dict[Path, dict]:
 def _manifest_reader(path: Path):
     """A CSV reader of the manifest's rows and its header (lower case), after its size, encoding and columns are
     checked."""
-    import csv
-    import io
-
     if not path.is_file():
         raise CatalogueError(f"{path}: no such manifest; give a CSV with a header row ({','.join(MANIFEST_COLUMNS)})")
     if path.stat().st_size > MAX_MANIFEST_BYTES:
@@ -128,9 +128,6 @@ def _manifest_file(where: str, rel: str, folder: Path, root: Path, seen: set) ->
 def _check_manifest_values(row: dict) -> None:
     """A row's values checked (names and texts as everywhere, the category known, a scale in 1e-4..1e4, unit, up and
     front among their choices), the category, scale and axes normalised in place."""
-    from .categories import check_category
-    from .names import check_name, check_text
-
     if "name" in row:
         check_name(row["name"])
     for key in ("make", "model"):
@@ -155,8 +152,6 @@ def import_folder(catalogue, files, unit: str = "auto", up: str = "auto", progre
     name takes its folder's when its own is generic or it is its folder's only model file
     (:func:`~twinreg.catalogue.names.preferred_stem`). ``progress(event, path, text)`` is called with "start" and
     "done" around each file, and "warning" or "skipped" with the line to show."""
-    from .names import preferred_stem
-
     result = FolderImport()
     say = progress or (lambda *a: None)
     listed = {p.resolve(): row for p, row in (manifest or {}).items()}

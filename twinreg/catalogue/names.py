@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import unicodedata
+from pathlib import Path
 
 from ..errors import CatalogueError
 
@@ -125,8 +126,6 @@ def preferred_stem(path, root=None, sole: bool = False) -> str:
     >>> preferred_stem("cars/toyota_prius/Hybrid.obj", root="cars", sole=True)
     'toyota_prius'
     """
-    from pathlib import Path
-
     p = Path(path)
     parent = p.parent.name
     below_root = root is not None and p.parent != Path(root) and bool(parent)

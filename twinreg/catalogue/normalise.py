@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import AxisError, UnitError
 from ..io.meshes import LoadedMesh
 from ..io.points import UNIT_SCALES
+from .categories import is_vehicle, size_range
 
 #: the units a mesh file may be in (the scale of each is io.points.UNIT_SCALES', the one table of units)
 UNITS = {k: UNIT_SCALES[k] for k in ("m", "cm", "mm", "in", "ft")}
@@ -185,8 +186,6 @@ def _unit(mesh: LoadedMesh, used: np.ndarray, unit: str, category: str, factor: 
           notes: list) -> tuple[str, float, str]:
     """(unit name, metres per file unit times ``factor``, where the unit came from): ``--unit``, the file's when it
     gives a plausible size, else inferred from the category's sizes; an implausible size is a :class:`UnitError`."""
-    from .categories import size_range
-
     longest = float(np.ptp(mesh.vertices[used], axis=0).max()) * factor
     vehicle = category == "car"
     sizes = (*PLAUSIBLE_LENGTH, 4.5) if vehicle else size_range(category)
@@ -227,8 +226,6 @@ def _axes(verts: np.ndarray, mesh: LoadedMesh, up: str, front: str, category: st
           notes: list) -> tuple[str, str, np.ndarray]:
     """(up axis, front axis, the rotation that turns them to +z and +x): given, stated by the file, or detected
     from the surface (a vehicle's front; another category's is the file's +x)."""
-    from .categories import is_vehicle
-
     samples = surface_samples(verts, mesh.faces)
     up = up.lower()
     if up == "auto":

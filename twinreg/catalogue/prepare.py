@@ -10,11 +10,14 @@ from pathlib import Path
 import numpy as np
 
 import cosco
-from ..settings import DEFAULT, Settings
+from cosco.arrays import check_object
 
 from ..errors import MeshLoadError, UnitError
 from ..io.meshes import load_mesh
+from ..io.points import point_count_bound, read_points
 from ..raycast import MAX_SAMPLING_RAYS, MAX_SAMPLING_SPACING, sampling_spacing, visible_surface
+from ..settings import DEFAULT, Settings
+from .categories import size_range
 from .normalise import NormalisedMesh, normalise
 
 #: spacing (m) of the visible-surface sampling: 400 points per m^2 on a surface facing the rays, the density of a
@@ -118,11 +121,8 @@ def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEF
     and level of symmetry measured as any object's, and, for the exports, the convex hull of its points as its
     mesh. Raises a :class:`~twinreg.errors.TwinregError` subclass on bad input (too few points, an implausible
     size for the kind)."""
-    from cosco.arrays import check_object
     from cosco.levels import symmetry_level
 
-    from .categories import size_range
-    from .normalise import NormalisedMesh
 
     path = Path(path)
     ps, notes = _scan_points(path, unit, factor)
@@ -160,8 +160,6 @@ def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEF
 def _scan_points(path: Path, unit: str, factor: float):
     """A scanned reference's points (refused beyond MAX_REFERENCE_POINTS before reading, thinned beyond
     THIN_REFERENCE_POINTS, scaled by ``factor``) and the notes saying what was done."""
-    from ..io.points import point_count_bound, read_points
-
     bound = point_count_bound(path)
     if bound > MAX_REFERENCE_POINTS:
         raise MeshLoadError(f"{path}: {bound:,} points, more than a scanned reference of one object needs (at most "

@@ -24,15 +24,17 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 import cosco
-from ..settings import DEFAULT
 from cosco.taxonomy import descriptor
 
 from ..errors import CatalogueError, DuplicateModelError, ModelNotFoundError, require_positive
+from ..io.decimate import GE_MAX_TRIANGLES, decimate
 from ..io.outdir import atomic_path
+from ..settings import DEFAULT
+from .categories import check_category
 from .db import DB_NAME, open_engine, writer_lock
 from .models import RefModel, pack, unpack
-from .names import SORT_KEYS, check_name, check_text, preferred_stem, is_sha256, parse_ref, printable, safe_auto_name
-from .prepare import is_scan_file, prepare_scan, PreparedModel, file_sha256, prepare_model
+from .names import SORT_KEYS, check_name, check_text, is_sha256, parse_ref, preferred_stem, printable, safe_auto_name
+from .prepare import PreparedModel, file_sha256, is_scan_file, prepare_model, prepare_scan
 
 EDITABLE = ("name", "make", "model", "body_class", "tags", "category")
 # large columns, loaded only when a model's arrays are needed (a size query over thousands of rows stays light)
@@ -130,8 +132,6 @@ class Catalogue:
         ``Settings.matching.size_tol``) of ``near`` (one indexed query), of ``category`` when given."""
         tol = require_positive("--tol", tol) or DEFAULT.matching.size_tol
         if category is not None:
-            from .categories import check_category
-
             category = check_category(category)
         if not self.exists:
             return []
@@ -259,8 +259,6 @@ class Catalogue:
         """The model's mesh decimated to Google Earth's limit (or to ``max_faces`` triangles), cached beside the
         full mesh (``meshes/<sha>.ge.npz``, ``<sha>.<max_faces>.npz``, written atomically the first time a twin
         uses the model)."""
-        from ..io.decimate import GE_MAX_TRIANGLES, decimate
-
         path = self.mesh_path(row, "ge" if max_faces is None else str(int(max_faces)))
         if path.exists():
             d = np.load(path)
@@ -368,8 +366,6 @@ class Catalogue:
             front="auto", category=None, scale: float = 1.0, name_hint: str | None = None) -> RefModel:
         """Load, normalise, measure and store one mesh file of a ``category`` (``car`` when None; ``scale``: a
         factor after the unit). See :func:`prepare_model`."""
-        from .categories import check_category
-
         category = check_category(category)
         if not (np.isfinite(scale) and 1e-4 <= scale <= 1e4):
             raise CatalogueError(f"--scale {scale:g}: give a factor between 0.0001 and 10000")
@@ -406,8 +402,6 @@ class Catalogue:
                 elif key in ("make", "model", "body_class"):
                     check_text(value, "--" + key.replace("_", "-"))
                 if key == "category":
-                    from .categories import check_category
-
                     value = check_category(value)
                 if key == "tags":
                     row.tags_json = json.dumps(sorted(set(value)))

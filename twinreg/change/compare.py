@@ -11,16 +11,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ..settings import DEFAULT, Settings
-
 from ..io.outdir import check_replaceable, locked, staged_folder
 from ..progress import say as report_progress
+from ..settings import DEFAULT, Settings
 from .align import align
 from .epochs import read_epochs
 from .fragments import merge_pieces
+from .outputs import write_geojson
 from .pairs import pair_objects
+from .report import write_report
 from .status import classify, summary
 from .tracks import occupancy, tracks
+from .viewdata import write_view
 
 
 def changes_document(folders, params: Settings = DEFAULT, say=None) -> tuple[dict, list]:
@@ -66,10 +68,6 @@ def compare(folders, out, params: Settings = DEFAULT, say=None, progress=None, p
 
 
 def _locked_compare(folders, out, params, say, progress, protect) -> dict:
-    from .outputs import write_geojson
-    from .report import write_report
-    from .viewdata import write_view
-
     t0 = time.perf_counter()
     report_progress(progress, f"reading {len(folders)} twins and comparing them")
     doc, epochs = changes_document(folders, params, say)

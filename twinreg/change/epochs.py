@@ -12,11 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CompareError
-from ..geo.georef import Georef
-from ..io._files import MAX_TWIN_BYTES, read_json_doc
-from ..io import observed
 from cosco.levels import LEVELS
+
+from ..errors import CompareError, GeorefError
+from ..geo.georef import Georef
+from ..geo.vertical import vertical_of
+from ..io import observed
+from ..io._files import MAX_TWIN_BYTES, read_json_doc
 
 #: the largest object size (m) a twin may state: a building block is still under this
 MAX_SIZE_M = 500.0
@@ -274,9 +276,6 @@ def _one_datum(epochs: list[Epoch], say) -> None:
     datum is converted (``H + N_own - N_first``, both undulations at the area's centre, as the exports compute
     them; what varies across the area goes into the alignment's height offset); its ``height`` says how. A twin
     whose datum is unknown is said and compared as it is (a difference of datum goes into the height offset)."""
-    from ..errors import GeorefError
-    from ..geo.vertical import vertical_of
-
     stated = [e for e in epochs if e.vertical]
     if not stated:
         return

@@ -12,10 +12,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cosco.footprint import min_area_rectangle
-from ..settings import DEFAULT, Settings
 
+from ..settings import DEFAULT, Settings
 from .epochs import Epoch
 from .footprints import corners, inside, samples
+
 
 def _pieces(whole: Epoch, parts: Epoch, shift: np.ndarray,
             params: Settings = DEFAULT) -> list[tuple[int, list[int]]]:

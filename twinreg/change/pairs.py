@@ -12,11 +12,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 import cosco
-from ..settings import DEFAULT, Settings
 
+from ..settings import DEFAULT, Settings
 from .epochs import Epoch
 from .footprints import overlap, turn
-
 
 
 @dataclass

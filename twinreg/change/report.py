@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io import observed
 from ..report.plots import pyplot, save_figure
 from ..report.scene import text
-from ..io import observed
 from .footprints import record_corners
 
 COLOURS = {"same": "#7f8c8d", "moved": "#e67e22", "replaced": "#8e44ad", "left": "#c0392b", "arrived": "#27ae60",

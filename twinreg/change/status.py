@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..catalogue.categories import VEHICLES
 from ..io import observed
 from .align import Alignment
 from .epochs import Epoch
@@ -105,8 +106,6 @@ def _unpaired(cov: Coverage, arriving: bool) -> tuple[str, float, str]:
 def _noun(e: Epoch, k: int) -> str:
     """What an object is called in a change's reason: "vehicle" for a vehicle (or an object of no known kind, as
     before kinds existed), else its kind's words ("lamp post")."""
-    from ..catalogue.categories import VEHICLES
-
     kind = e.kinds[k] if e.kinds else "unknown"
     return "vehicle" if kind in VEHICLES or kind == "unknown" else kind.replace("_", " ")
 

@@ -5,10 +5,16 @@ leader's ranking: exactly what one call over all objects would give, with the wo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from cosco.taxonomy import pair_distances
+
+from ..catalogue.repository import Catalogue
+from ..matching.match import Evidence, ModelCache, match_objects
 from ..settings import DEFAULT, Settings
+from .cellfile import load_clouds
 
 
 @dataclass(frozen=True)
@@ -22,8 +28,6 @@ class PairBatch:
 
 def compare_pairs(batch: PairBatch) -> np.ndarray:
     """The section dissimilarity (m) of each pair of the batch."""
-    from cosco.taxonomy import pair_distances
-
     index = {k: n for n, k in enumerate(batch.sections)}
     local = np.array([[index[int(i)], index[int(j)]] for i, j in batch.pairs], dtype=np.int64).reshape(-1, 2)
     return pair_distances(list(batch.sections.values()), local, batch.params)
@@ -103,8 +107,6 @@ def batch_clouds(batch: MatchBatch) -> list:
 def read_clouds(clouds: list, samples: list | None) -> list:
     """``clouds`` with each None whose ``samples`` entry says where it is (``(cell file, index of the object in
     it)``) read from that file, each file opened once; the others as they are."""
-    from .cellfile import load_clouds
-
     clouds = list(clouds)
     wanted: dict = {}
     for k, c in enumerate(clouds):
@@ -122,11 +124,6 @@ _CACHES: dict = {}
 
 def _models(folder: str, params: Settings):
     """One catalogue and model cache per worker process and catalogue state (reused by the next batches)."""
-    from pathlib import Path
-
-    from ..catalogue.repository import Catalogue
-    from ..matching.match import ModelCache
-
     db = Path(folder) / "catalogue.sqlite"
     key = (folder, db.stat().st_mtime_ns if db.exists() else 0, repr(params))
     if key not in _CACHES:
@@ -138,8 +135,6 @@ def _models(folder: str, params: Settings):
 
 def match_batch(batch: MatchBatch):
     """``(outcomes, stats)`` of :func:`~twinreg.matching.match.match_objects` on the batch."""
-    from ..matching.match import Evidence, match_objects
-
     cat, cache = _models(batch.folder, batch.params)
     return match_objects(batch.shapes, cat, labels=batch.labels, params=batch.params,
                          evidence=Evidence(batch_clouds(batch), batch.noise, batch.spacings), cache=cache,

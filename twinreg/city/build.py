@@ -14,13 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ..settings import DEFAULT, Settings
-from ..progress import say
+import twinreg
 
 from ..errors import CityError, ParameterError, SceneReadError
+from ..geo.georef import CrsInfo, Georef, GeorefError, crs_info
+from ..io.outdir import check_replaceable, claim, locked
+from ..progress import say
+from ..settings import DEFAULT, Settings
+from ..stages import checked_params, locate, require_models, with_targets
 from .cells import CellJob, process_cell
 from .classified import FOLDER, write_classified_cells
 from .engine import Engine
+from .export import CityRun, export_city
 from .grid import Grid, cell_size_for
 from .resume import CellStore, cell_key
 from .sources import Source, open_sources, split_key, split_tile
@@ -100,19 +105,14 @@ def plan(sources: list[Source], cell: float | None = None, buffer: float = 10.0,
 
 def city_georef(georef, sources: list[Source]):
     """The georeference of a tiled run: the options' when given, else the CRS the headers state."""
-    from ..geo.georef import CrsInfo, Georef, GeorefError
-
     s = sources[0]
     if georef is not None and (georef.crs is not None or georef.lat is not None):
         if georef.crs and georef.crs_source == "--crs":
-            from ..geo.georef import crs_info
-
             return georef.with_crs(crs_info(georef.crs, "--crs", where=f"--crs {georef.crs}"))
         return georef
     if s.crs is None:
         raise GeorefError(f"{s.path}: the tiles state no CRS; georeference them with --crs EPSG:NNNN (their "
                           "projected CRS) or --lat/--lon (the WGS84 position of their origin)")
-    from ..geo.georef import crs_info
 
     info = crs_info(s.crs, "file header", where=s.path)
     base = georef or Georef(None, None, 0.0, (0.0, 0.0), None)  # nothing given, or only --vertical-crs
@@ -137,9 +137,6 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
     (also written to ``out/twin.json``). ``progress(stage, done, total)`` is called as work advances;
     ``classified``: also write the classified scan, a COPC file a cell (:mod:`twinreg.city.classified`);
     ``min_confidence``: the models' confidence floor (None: ``params.min_confidence``)."""
-    from ..io.outdir import check_replaceable, locked
-    from ..stages import checked_params, locate, require_models, with_targets
-
     t_start = time.perf_counter()
     timing: dict = {}
     params = checked_params(params, tol, threshold, min_confidence)
@@ -165,10 +162,6 @@ def build_city_twin(paths, catalogue, georef, out, unit: str = "auto", tol: floa
 
 def _locked_city(sources, georef, p, out, protect, catalogue, params, workers, scheduler, restart, ply, progress,
                  date, classified, t_start, timing) -> dict:
-    import twinreg
-
-    from ..io.outdir import claim
-
     created = not out.exists()
     claim(out, protect)
     store = CellStore(out)
@@ -204,7 +197,6 @@ def _locked_city(sources, georef, p, out, protect, catalogue, params, workers, s
         if created and not any(store.folder.glob("*.npz")):
             shutil.rmtree(out, ignore_errors=True)
         raise
-    from .export import CityRun, export_city
 
     t = time.perf_counter()
     say(progress, "export", 0, 1)

@@ -19,9 +19,9 @@ import numpy as np
 from cosco.sections import Frame, ObjectShape, Sections, Size
 from cosco.symmetry import Symmetry
 
-from ..io.observed import Raster
 from ..errors import CellFileError
 from ..io.npz import read_arrays, read_member
+from ..io.observed import Raster
 from ..io.outdir import atomic_path
 from .cells import CellObject, CellResult
 

@@ -13,8 +13,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..settings import DEFAULT, Settings
+from cosco.arrays import point_spacing
+from cosco.footprint import min_area_rectangle
 
+from ..detect import describe_detected, detect_points, object_ground, object_levels, object_points
+from ..export.scan_tiles import cell_scan_folder, write_cell_scan
+from ..export.tiles3d import scan_sample
+from ..io.observed import raster
+from ..io.points import PointSet
+from ..matching.acceptance import sample_cloud, scene_noise
+from ..memory import release_freed_memory
+from ..settings import DEFAULT, Settings
 from .classified import cell_labels, save_labels
 from .grid import Cell
 from .sources import read_box, read_splits
@@ -90,8 +99,6 @@ def process_cell(job: CellJob, *ready) -> CellResult:
     """Read, ground, detection and description of one cell; the objects whose footprint centre lies in the
     cell's half-open core (see :mod:`twinreg.city.grid`). ``ready``: the results of the tile splits it reads
     (the engine passes them so that the cell starts as soon as its own tiles are split)."""
-    from ..memory import release_freed_memory
-
     try:
         return _process_cell(job)
     finally:  # the worker keeps what it frees while it works on a cell (twinreg.memory), not between cells
@@ -99,11 +106,6 @@ def process_cell(job: CellJob, *ready) -> CellResult:
 
 
 def _process_cell(job: CellJob) -> CellResult:
-    from ..detect import detect_points
-    from ..io.observed import raster
-    from ..io.points import PointSet
-    from ..matching.acceptance import scene_noise
-
     cell, params = job.cell, job.params
     out = CellResult(cell.name, job.key, cell.lo, cell.hi)
     t0 = time.perf_counter()
@@ -142,8 +144,6 @@ def _process_cell(job: CellJob) -> CellResult:
 
 def _empty_cell(job: CellJob, out: CellResult) -> CellResult:
     """A cell of under 100 points: no objects; its empty scan folder and labels say it is done."""
-    from ..export.scan_tiles import cell_scan_folder
-
     if job.scan_dir:  # an empty cell has no tiles: its empty folder says it is done
         cell_scan_folder(Path(job.scan_dir), job.cell.name, job.key).mkdir(parents=True, exist_ok=True)
     if job.labels:
@@ -153,9 +153,6 @@ def _empty_cell(job: CellJob, out: CellResult) -> CellResult:
 
 def _write_scan(job: CellJob, out: CellResult, det, own: np.ndarray) -> None:
     """The core's points as level-of-detail scan tiles, written on the worker."""
-    from ..export.scan_tiles import cell_scan_folder, write_cell_scan
-    from ..export.tiles3d import scan_sample
-
     pts = det.scene.points
     rows, colours = scan_sample(pts, det.hag, det.is_ground, np.flatnonzero(own))
     if len(rows):
@@ -167,8 +164,6 @@ def _write_scan(job: CellJob, out: CellResult, det, own: np.ndarray) -> None:
 def _owned_objects(det, cell, out: CellResult) -> list:
     """The target objects whose footprint centre the cell owns, ordered by that centre (counting every owned
     segment in ``out``)."""
-    from cosco.footprint import min_area_rectangle
-
     pts = det.scene.points
     owned, centres = [], []
     for o in det.segmentation.objects:
@@ -185,11 +180,6 @@ def _owned_objects(det, cell, out: CellResult) -> list:
 
 def _describe_owned(job: CellJob, out: CellResult, det, owned: list, offset: np.ndarray) -> None:
     """Each owned object described (sections, level of symmetry, a sample of its points) into ``out``."""
-    from cosco.arrays import point_spacing
-
-    from ..detect import describe_detected, object_ground, object_levels, object_points
-    from ..matching.acceptance import sample_cloud
-
     params, cell = job.params, job.cell
     shapes = describe_detected(det, params, objects=owned)
     clouds = [object_points(det, o) for o in owned]

@@ -10,12 +10,13 @@ source id is the ``k`` of its object's id ``<cell>-<k>`` (0: no object)."""
 from __future__ import annotations
 
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..export.classified import CAR, GROUND, NO_MODEL, OTHER
+from ..export.classified import CAR, GROUND, NO_MODEL, OTHER, write_classified
 
 FOLDER = "classified"
 PENDING = 0  # an object's points until its outcome is known
@@ -63,8 +64,6 @@ class CopcJob:
 def write_cell_copc(job: CopcJob) -> int:
     """Write one cell's classified COPC as a scene's is written (temp file then rename); returns its number of
     points (0: no file)."""
-    from ..export.classified import write_classified
-
     with np.load(job.labels, allow_pickle=False) as z:
         origin, mm, classes, ids = z["origin"], z["mm"], z["classes"].copy(), z["ids"]
     if not len(mm):
@@ -82,8 +81,6 @@ def write_cell_copc(job: CopcJob) -> int:
 def write_classified_cells(eng, results, objects, outcomes, store, keys, georef, progress=None) -> dict:
     """Write every cell's file into ``store.folder / FOLDER`` (one task a cell on the workers); returns twin.json's
     ``classified_scan`` (the files, relative to OUT, and their points)."""
-    import shutil
-
     folder = store.folder / FOLDER
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)

@@ -15,8 +15,14 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
+import time
 from dataclasses import dataclass
+from urllib.parse import urlsplit
 
+from cosco import kernels
+
+from .. import KERNEL_MODULES
 from ..errors import EngineError
 
 #: memory limit of an embedded worker (bytes); Dask pauses it at 80 % and restarts it at 95 %
@@ -35,9 +41,6 @@ class Failure:
 def _reachable(address: str, timeout: float = 5.0) -> None:
     """Raise OSError when nothing listens at a ``tcp://`` or ``tls://`` HOST:PORT address (other forms: Dask's
     own checks)."""
-    import socket
-    from urllib.parse import urlsplit
-
     u = urlsplit(address)
     if u.scheme not in ("tcp", "tls") or not u.hostname or u.port is None:
         return
@@ -99,12 +102,6 @@ class Engine:
         """The compiled kernels (:mod:`cosco.kernels`) compiled, or loaded from the user's cache, here before the
         workers start (two workers compiling at once may both write one cache file: a known numba crash), and the
         environment that has the workers use them (none where numba is missing)."""
-        import time
-
-        from cosco import kernels
-
-        from .. import KERNEL_MODULES
-
         t = time.perf_counter()
         kernels.enable(*KERNEL_MODULES)
         self.kernels_s = time.perf_counter() - t

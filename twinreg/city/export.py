@@ -17,9 +17,12 @@ from ..export.formats import TwinFiles, write_twin
 from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from ..io import observed
 from ..io.outdir import staged_folder
-from .classified import FOLDER as CLASSIFIED
+from ..report.city import write_city_report
 from ..stages import finish
+from .batches import read_clouds
+from .classified import FOLDER as CLASSIFIED
 from .resume import WORK
+
 
 def _cell_bounds(georef, cell) -> dict:
     corners = np.array([[cell.lo[0], cell.lo[1], 0.0], [cell.hi[0], cell.lo[1], 0.0], [cell.hi[0], cell.hi[1], 0.0],
@@ -66,8 +69,6 @@ def _unmatched_clouds(run: CityRun, outcomes: list) -> list:
     """Each object's point sample (its local frame, as its shape's) for the objects without a model in
     ``outcomes``, read from their cells' files (:func:`~.batches.read_clouds`: each file opened once; the run
     holds no sample beyond these); None for the others."""
-    from .batches import read_clouds
-
     where = [(str(run.store.path(r.name, r.key)), i) for r in run.results for i in range(len(r.objects))]
     return read_clouds([o.cloud for o in run.objects],
                        [w if res.match is None else None for w, res in zip(where, outcomes)])
@@ -129,8 +130,6 @@ def _write_files(run: CityRun, stage: Path, twin: dict, placed: list, by_cell: d
     """Every file of the twin but twin.json into ``stage``: the twin's formats (:func:`~twinreg.export.formats.
     write_twin`: the records' in a forked child, a third of the export at 100M points; a KMZ folder and PLY file a
     cell) and the report; then the classified scan the workers wrote and the observation record."""
-    from ..report.city import write_city_report
-
     results, objects, georef, plan = run.results, run.objects, run.georef, run.plan
     t = time.perf_counter()
     rows: dict = {}

@@ -7,6 +7,9 @@ import time
 
 import numpy as np
 
+from ..errors import EngineError
+from ..matching.match import MatchStats, ModelCache
+from ..stages import taxonomy
 from .batches import compare_pairs, guided_sizes, leader_indices, match_batch, match_batches, pair_batches
 
 #: the most a batch holds: a batch of a 500M-point survey's objects cut in eight was 120 MB of point samples in
@@ -19,9 +22,6 @@ def classify_and_match(eng, results, objects, catalogue, params, progress, timin
     """(taxonomy, outcomes in object order, matching statistics, the client's ModelCache). ``samples``: where each
     object's point sample is, ``(cell file, index in it)``, for objects that do not hold it (the workers read
     them)."""
-    from ..matching.match import ModelCache
-    from ..stages import taxonomy
-
     shapes = [o.shape for o in objects]
     tax = taxonomy(shapes, params, timing, distances_of=_pair_distances(eng, shapes, params, progress),
                    spacing=[o.spacing for o in objects])
@@ -63,9 +63,6 @@ def _pair_distances(eng, shapes: list, params, progress):
 def _match_all(eng, objects: list, tax, noise: np.ndarray, folder: str, params, progress, samples):
     """Every object matched on the workers, the types' leaders first and then their members (who start from their
     leader's models): (outcomes in object order, the statistics)."""
-    from ..errors import EngineError
-    from ..matching.match import MatchStats
-
     if progress:
         progress("matching", 0, len(objects))
     outcomes = [None] * len(objects)

@@ -12,6 +12,8 @@ import json
 import math
 import os
 import re
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +22,9 @@ import numpy as np
 from cosco.arrays import box_rows
 
 from ..errors import CityError, SceneReadError
-from .grid import Grid, in_box
+from ..io._files import checked_input
+from ..io.points import check_las_header, check_point_count, crs_and_units, las_survey_date, same_crs
+from .grid import TARGET_POINTS, Grid, in_box
 
 TILE_SUFFIXES = (".las", ".laz")
 #: points read at a time from a plain LAS/LAZ file
@@ -94,8 +98,6 @@ def _is_copc(header) -> bool:
 def is_tiled(paths, explicit: bool = False) -> bool:
     """Whether build-twin should run cell by cell: several paths, a folder, a glob, one of the tiling options
     (``explicit``), a COPC file, or one LAS/LAZ file holding more than a cell's worth of points."""
-    from .grid import TARGET_POINTS
-
     paths = [str(p) for p in paths]
     if explicit or len(paths) != 1 or Path(paths[0]).is_dir() or any(ch in paths[0] for ch in "*?["):
         return True
@@ -126,8 +128,6 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None, override
     hierarchy walked; at most 10,000 points read, for their GPS times)."""
     import laspy
 
-    from ..io._files import checked_input
-    from ..io.points import check_las_header, check_point_count, crs_and_units, las_survey_date
 
     path, _ = checked_input(path, set(TILE_SUFFIXES), "tile", "LAS, LAZ or COPC (.copc.laz)", SceneReadError)
     try:
@@ -167,8 +167,6 @@ def read_source(path: Path, unit: str = "auto", crs: str | None = None, override
 
 def open_sources(paths, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> list[Source]:
     """Headers of every tile; tiles whose CRS or unit disagree are refused with one line naming two of them."""
-    from ..io.points import same_crs
-
     files = expand_paths(paths)
     bad = [f for f in files if f.suffix.lower() not in TILE_SUFFIXES]
     if bad:
@@ -299,9 +297,6 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     as the file's integer coordinates (:data:`SPLIT_FORMAT`) to ``folder/<cell>.i32``; returns ``{cell name: n}``.
     The folder appears complete (written under a temporary name, then renamed) or not at all, so a killed split is
     redone; a folder whose document does not check (:func:`split_doc`) is removed and the tile split again."""
-    import shutil
-    import tempfile
-
     folder = Path(folder)
     doc = split_doc(folder)
     if doc is not None:

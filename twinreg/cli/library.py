@@ -8,8 +8,18 @@ from typing import Annotated, List, Optional
 
 import typer
 
-from ._common import (Command, JsonOpt, LibraryOpt, command_app, err_console, handled, info, library_folder,
-                      open_catalogue, print_json)
+from ._common import (
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    command_app,
+    err_console,
+    handled,
+    info,
+    library_folder,
+    open_catalogue,
+    print_json,
+)
 
 app = command_app()
 
@@ -110,8 +120,8 @@ def library_report(
 ):
     """A gallery of the models, their taxonomy and near-duplicates, and which of them a scan of the given density
     confuses (library.html, library.json)."""
-    from ..evaluation.library_report import report
     from ..errors import require_positive
+    from ..evaluation.library_report import report
 
     require_positive("--density", density)
     if scans < 1 or workers < 1:

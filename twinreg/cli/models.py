@@ -13,8 +13,19 @@ from rich.text import Text
 from ..catalogue.duplicates import near_duplicate_report
 from ..catalogue.folder import import_folder, mesh_files
 from ..catalogue.names import printable
-from ._common import (OUTPUT, Command, JsonOpt, LibraryOpt, command_app, err_console, handled, info, open_catalogue,
-                      out_console, print_json)
+from ._common import (
+    OUTPUT,
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    command_app,
+    err_console,
+    handled,
+    info,
+    open_catalogue,
+    out_console,
+    print_json,
+)
 
 app = command_app()
 

@@ -7,12 +7,22 @@ from typing import Annotated, Optional
 
 import typer
 
-from ..settings import DEFAULT
-
 from ..errors import require_positive
 from ..given import cluster_objects, inspect_file, shape_json
-from ._common import (Command, JsonOpt, LibraryOpt, PointsUnitOpt, RunProgress, command_app, fail, handled, info,
-                      open_catalogue, print_json)
+from ..settings import DEFAULT
+from ._common import (
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    PointsUnitOpt,
+    RunProgress,
+    command_app,
+    fail,
+    handled,
+    info,
+    open_catalogue,
+    print_json,
+)
 
 app = command_app()
 

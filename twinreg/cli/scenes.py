@@ -8,12 +8,23 @@ from typing import Annotated, Optional
 
 import typer
 
-from ..settings import DEFAULT
-
 from ..detect import detect_file, detection_json, write_detection
 from ..io.outdir import check_replaceable
-from ._common import (Command, JsonOpt, LibraryOpt, PointsUnitOpt, RunProgress, command_app, detail, err_console,
-                      handled, info, open_catalogue, print_json)
+from ..settings import DEFAULT
+from ._common import (
+    Command,
+    JsonOpt,
+    LibraryOpt,
+    PointsUnitOpt,
+    RunProgress,
+    command_app,
+    detail,
+    err_console,
+    handled,
+    info,
+    open_catalogue,
+    print_json,
+)
 
 app = command_app()
 

@@ -24,8 +24,18 @@ from pathlib import Path
 
 import numpy as np
 
+import cosco
+
+from ..catalogue.duplicates import NEAR_DUPLICATE_M, surface_distance
+from ..catalogue.repository import Catalogue
+from ..errors import CatalogueError
+from ..io.outdir import staged_folder
+from ..matching.match import Evidence, ModelCache, match_objects
 from ..progress import say
+from ..report.plots import pyplot
 from ..settings import DEFAULT
+from ..sim.accuracy import density_passes
+from ..sim.scan import pose_matrix, scan_meshes, transform
 
 #: a pair is "cannot be told apart" when either is taken for the other in at least this share of its scans
 CONFUSED_SHARE = 0.2
@@ -33,13 +43,6 @@ CONFUSED_SHARE = 0.2
 
 def _scan_one(folder: str, k: int, density: float, scans: int, seed: int) -> list:
     """The models (names, or None) that ``scans`` simulated scans of model ``k`` were matched to."""
-    import cosco
-
-    from ..matching.match import Evidence, ModelCache, match_objects
-    from ..sim.accuracy import density_passes
-    from ..sim.scan import pose_matrix, scan_meshes, transform
-    from ..catalogue.repository import Catalogue
-
     cat = Catalogue(folder, create=False)
     rows = sorted(cat.list(), key=lambda r: r.id)
     meshes = cat.scan_meshes(rows)
@@ -94,10 +97,6 @@ def confusion(catalogue, density: float, scans: int = 10, seed: int = 0, workers
 
 def taxonomy(catalogue) -> dict:
     """The paper's section dissimilarity between every pair of models, their clusters, and the near-duplicates."""
-    import cosco
-
-    from ..catalogue.duplicates import NEAR_DUPLICATE_M, surface_distance
-
     rows = sorted(catalogue.list(), key=lambda r: r.id)
     geo = [catalogue.geometry(r, with_mesh=False) for r in rows]
     matrix = cosco.dissimilarity_matrix([g.sections for g in geo], DEFAULT)
@@ -135,12 +134,8 @@ def _pairs_confused(conf: dict) -> list[dict]:
 def report(catalogue, out, density: float = 20.0, scans: int = 10, seed: int = 0, workers: int = 2,
            progress=None) -> dict:
     """Write library.json, library.html and the pictures to ``out`` (a staged folder: all or nothing)."""
-    from ..io.outdir import staged_folder
-
     t0 = time.perf_counter()
     if catalogue.count() == 0:
-        from ..errors import CatalogueError
-
         raise CatalogueError(f"{catalogue.folder}: the catalogue is empty; add models first")
     rows = sorted(catalogue.list(), key=lambda r: r.id)
     say(progress, "taxonomy")
@@ -184,8 +179,6 @@ def report(catalogue, out, density: float = 20.0, scans: int = 10, seed: int = 0
 
 def _model_picture(catalogue, row, path) -> None:
     """Top, side and front views of the model's sampled surface, and its two sections."""
-    from ..report.plots import pyplot
-
     plt = pyplot()
 
     g = catalogue.geometry(row, with_mesh=False)
@@ -210,8 +203,6 @@ def _model_picture(catalogue, row, path) -> None:
 
 
 def _heatmap(tax: dict, path) -> None:
-    from ..report.plots import pyplot
-
     plt = pyplot()
     from scipy.cluster.hierarchy import dendrogram
 
@@ -231,8 +222,6 @@ def _heatmap(tax: dict, path) -> None:
 
 
 def _confusion_picture(conf: dict, path) -> None:
-    from ..report.plots import pyplot
-
     plt = pyplot()
 
     names, m = conf["names"], np.array(conf["matrix"], dtype=float)

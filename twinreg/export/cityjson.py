@@ -29,7 +29,9 @@ import numpy as np
 
 from cosco.frames import yaw
 
+from ..geo.georef import ogc_url
 from .geojson import properties
+from .tiles3d import UNIT_BOX
 
 #: CityJSON integer coordinates: tenths of a millimetre (explicit geometry and a template placed by its matrix
 #: then agree within 0.2 mm)
@@ -39,8 +41,6 @@ SCALE = 0.0001
 def _reference_system(georef) -> str | None:
     """The OGC URL of the CRS the file's coordinates are in: the compound CRS when the heights' datum is stated
     and EPSG registers the pair (RD New + NAP: 7415), else the horizontal CRS (its code identified from a WKT)."""
-    from ..geo.georef import ogc_url
-
     return ogc_url(georef.reference)
 
 
@@ -101,8 +101,6 @@ def city_type(kind: str | None) -> tuple[str, str | None]:
 
 
 def _placed(instances, meshes, docs, headings, georef) -> _Placed:
-    from .tiles3d import UNIT_BOX
-
     unit = georef.crs_unit_m if georef.crs else 1.0
     vunit = georef.vertical_unit_m if georef.crs else 1.0
     to_crs = np.diag([1.0 / unit, 1.0 / unit, 1.0 / vunit])

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.copc import write_copc
+
 #: ASPRS user-definable classes (64-255) for the twin's objects
 CAR = 64
 NO_MODEL = 65
@@ -35,6 +37,4 @@ def scan_classes(n_points: int, is_ground: np.ndarray, objects: list, matched: l
 def write_classified(path: Path, points: np.ndarray, classes: np.ndarray, ids: np.ndarray, georef) -> Path:
     """Write the classified scan as COPC: scene points back in the CRS's units (the local frame's metres when the
     twin is placed by --lat/--lon, with no CRS in the file)."""
-    from ..io.copc import write_copc
-
     return write_copc(path, georef.to_crs_units(points), georef.crs, classes=classes, source_ids=ids)

@@ -13,9 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.ply import write_ply
 from ..process.helpers import Forked, Pending
 from .cityjson import write_cityjson
 from .geojson import footprints_lonlat, write_geojson
+from .gpkg import unit_name, write_gpkg
 from .kmz import placemark_fields, write_kmz
 from .sections import write_sections
 from .tiles3d import TILE_MAX_TRIANGLES, instance_of, write_tiles
@@ -105,8 +107,6 @@ def _tiles(f: TwinFiles):
 def _shapes(f: TwinFiles):
     """Each fused shape as ``shapes/type_<T>.ply`` (the type's frame: metres, front +X, the ground at z = 0; what
     ``add-model --from-twin`` promotes), and twin.json's ``shapes``: per type its kind, members, quality, file."""
-    from ..io.ply import write_ply
-
     seen: dict = {}
     for p in f.placed:
         if p.shape_source == "fused":
@@ -201,8 +201,6 @@ def _sections(v: RecordView) -> None:
 
 
 def _gpkg(v: RecordView) -> None:
-    from .gpkg import unit_name, write_gpkg
-
     crs = gpkg_crs(v.georef)
     write_gpkg(v.stage / "twin.gpkg", v.docs, v.lonlat if v.rings is None else v.rings, crs,
                unit_name(v.georef.crs_unit_m if crs is not None else 1.0))

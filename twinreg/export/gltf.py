@@ -9,6 +9,7 @@ then a turn by ``a`` about glTF's +Y (:func:`turn_quaternions`).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import struct
 
@@ -51,8 +52,6 @@ _NORMALS_KEPT = 64
 def vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """(n, 3) unit normals of a triangle mesh's vertices (area-weighted face normals; +Z where undefined); the
     same mesh again (by content) gets the normals computed the first time."""
-    import hashlib
-
     v = np.ascontiguousarray(v, dtype=np.float64)
     f = np.ascontiguousarray(f, dtype=np.int64)
     key = (v.shape, f.shape, hashlib.blake2b(v.tobytes() + f.tobytes(), digest_size=16).digest())

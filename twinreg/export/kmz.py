@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import tempfile
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ import numpy as np
 from ..io.decimate import decimate
 from ..io.outdir import atomic_path
 from .collada import escape, write_collada
+from .twin_json import trust_text
 
 # COLLADA files are authored with the car's front along +Y (north), so a KML heading is the front's bearing
 FRONT_TO_NORTH = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -25,8 +27,6 @@ def _data(name: str, value) -> str:
 def placemark_fields(p) -> dict:
     """A :class:`~twinreg.export.objects.PlacedObject`'s placemark: id, lon, lat, alt, bearing, the mesh's key, a
     description and the ExtendedData fields (from its twin.json record)."""
-    from .twin_json import trust_text
-
     m, size = p.doc["match"], p.size
     description = (f"{m['name']} ({m['make'] or ''} {m['model'] or ''}), RMSE {m['rmse_m'] * 100:.1f} cm"
                    f"{trust_text(m)}" if m else f"unmatched: {p.outcome.reason}")
@@ -57,7 +57,6 @@ def kind_colour(kind: str) -> str:
     """
     if kind in KIND_COLOURS:
         return KIND_COLOURS[kind]
-    import zlib
 
     h = zlib.crc32(kind.encode("utf-8"))
     return "ff" + "".join(f"{64 + (h >> s) % 160:02x}" for s in (0, 8, 16))

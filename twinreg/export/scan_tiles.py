@@ -16,6 +16,8 @@ quadtree, the twin's link to the scan) carry what drawing none of the points bel
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -215,9 +217,6 @@ def write_cell_scan(scan_dir: Path, name: str, key: str, points: np.ndarray, rgb
     metres about the points' centre; the export places it in the twin's frame by an affine ``transform``), into a
     temporary folder renamed when complete. Returns what the export needs: the folder, the centre and the
     quadtree's entry (its box in the cell's frame, error and point count)."""
-    import os
-    import shutil
-
     final = cell_scan_folder(scan_dir, name, key)
     tmp = final.with_name(final.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
@@ -234,9 +233,6 @@ def write_cell_scan(scan_dir: Path, name: str, key: str, points: np.ndarray, rgb
 def link_tree(src: Path, dst: Path) -> None:
     """``dst`` a copy of folder ``src`` made of hard links where the file system allows (no bytes copied: the work
     folder keeps its tiles for a rerun), else of copies."""
-    import os
-    import shutil
-
     for root, _, files in os.walk(src):
         here = dst / Path(root).relative_to(src)
         here.mkdir(parents=True, exist_ok=True)

@@ -7,6 +7,8 @@ import os
 from collections import Counter
 from pathlib import Path
 
+from .twin_json import trust_text
+
 #: how the reason codes read in a summary
 REASON_WORDS = {"no_model_of_this_size": "no catalogue model of their size",
                 "points_unexplained": "the best model leaves their points unexplained",
@@ -69,8 +71,6 @@ def by_kind(objects: list[dict], shown: int = 12) -> list[str]:
 
 def object_lines(twin: dict) -> list[str]:
     """One line an object (what ``-v`` adds): its kind, and its model or why it has none."""
-    from .twin_json import trust_text
-
     lines = []
     for o in twin["objects"]:
         m = o["match"]

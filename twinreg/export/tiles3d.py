@@ -19,6 +19,7 @@ and 3D Tiles viewers turn it back.
 from __future__ import annotations
 
 import json
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +30,15 @@ from cosco.kernels import fast, kernel
 from ..geo.earth import EnuFrame, enu_angles
 from .gltf import Glb
 from .objects import box_mesh
-from .scan_tiles import box_volume, link_error, translation
+from .scan_tiles import (
+    box_volume,
+    link_error,
+    link_tree,
+    prebuilt_entry,
+    translation,
+    write_cell_quadtree,
+    write_scan_tileset,
+)
 from .twin_ply import PALETTE as TAB10
 
 #: triangles of a model in the tiles (a city of thousands of cars must draw in a browser; twin.glb and the KMZ
@@ -76,8 +85,6 @@ PALETTE = [tuple(round(c / 255.0, 3) for c in rgb) for k, rgb in enumerate(TAB10
 
 def model_colour(key: str) -> tuple:
     """The colour a model is drawn in, the same in every tile and file (from a checksum of its key)."""
-    import zlib
-
     return PALETTE[zlib.crc32(key.encode()) % len(PALETTE)]
 
 
@@ -209,8 +216,6 @@ def write_tiles(out: Path, instances: list[Instance], meshes: dict, georef, grou
 
 def _write_scan(folder: Path, frame: EnuFrame, georef, scans, all_lo: list, all_hi: list) -> int:
     """The scan's level-of-detail tileset (:mod:`.scan_tiles`), a quadtree per cell."""
-    from .scan_tiles import link_tree, prebuilt_entry, write_cell_quadtree, write_scan_tileset
-
     folder.mkdir(parents=True, exist_ok=True)
     entries = []
     for k, (name, *data) in enumerate(scans):

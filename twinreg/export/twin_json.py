@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..io.points import DATE_SOURCES
+
 
 @dataclass
 class ScanSummary:
@@ -96,8 +98,6 @@ def survey_date(given: str | None, files: list) -> tuple[str | None, str | None,
     >>> survey_date("2026-05-01", [("2026-03-02", "GPS time", None)])
     ('2026-05-01', '--date', [])
     """
-    from ..io.points import DATE_SOURCES
-
     if given:
         return given, "--date", []
     found = sorted((DATE_SOURCES.index(s), d, s) for d, s, _ in files if d and s in DATE_SOURCES)

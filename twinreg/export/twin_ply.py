@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.outdir import atomic_path
 from ..io.ply import write_ply
 
 #: the colours of clusters: matplotlib's tab10, the one palette of the exports
@@ -67,7 +68,6 @@ def write_prj(path, georef) -> Path | None:
         return None
     from pyproj import CRS
 
-    from ..io.outdir import atomic_path
 
     crs = CRS.from_user_input(georef.crs)
     try:

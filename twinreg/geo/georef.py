@@ -17,11 +17,14 @@ convergence is accounted for.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import GeorefError
+from .earth import enu_axes
+from .vertical import UNKNOWN, vertical_of
 
 
 @dataclass(frozen=True)
@@ -108,8 +111,6 @@ class Georef:
     @property
     def heights(self):
         """The scan's vertical datum (:class:`~twinreg.geo.vertical.Vertical`; unknown when none was stated)."""
-        from .vertical import UNKNOWN
-
         return self.vertical if self.vertical is not None else UNKNOWN
 
     def to_json(self) -> dict:
@@ -156,8 +157,6 @@ class Georef:
         looked for among the projected CRSs used at ``lon``, ``lat``) and the code of the CRS the heights are in
         (the compound CRS of the horizontal one and a stated vertical datum, when EPSG registers one: RD New +
         NAP is EPSG:7415)."""
-        from dataclasses import replace
-
         if not self.crs:
             return self
         code = authority_code(self.crs, round(lon, 2), round(lat, 2))
@@ -168,12 +167,8 @@ class Georef:
         return replace(self, crs_code=code, reference_code=reference)
 
     def with_crs(self, info: CrsInfo) -> "Georef":
-        from dataclasses import replace
-
         vertical = self.vertical
         if info.vertical is not None and (vertical is None or vertical.source != "--vertical-crs"):
-            from .vertical import vertical_of
-
             vertical = vertical_of(info.vertical, "file header" if info.source != "--crs" else "--crs",
                                    f"the CRS {info.name}")
         return replace(self, lat=None, lon=None, anchor=(0.0, 0.0), crs=info.crs, crs_unit_m=info.unit_m,
@@ -186,7 +181,6 @@ class Georef:
         # --alt is the anchor's height in the scan's vertical datum
         alt = self.alt + float(self.heights.undulation(self.lon, self.lat)[0])
         x0, y0, z0 = to_ecef.transform(self.lon, self.lat, alt)
-        from .earth import enu_axes
 
         return np.array([x0, y0, z0]), enu_axes(self.lat, self.lon), to_geo
 
@@ -236,8 +230,6 @@ def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: 
     ``vertical_crs``: the datum of the scan's heights (and of ``alt``), overriding a header's. ``override_crs``:
     ``crs`` replaces a CRS the file's header states (without it, a ``crs`` that differs from the header's is
     refused when the file is read)."""
-    from dataclasses import replace
-
     if override_crs and not crs:
         raise GeorefError("--override-crs says that --crs replaces the CRS the file's header states; give --crs "
                           "EPSG:NNNN with it")
@@ -246,7 +238,6 @@ def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: 
         g = replace(g, override=True)
     if vertical_crs is None:
         return g
-    from .vertical import vertical_of
 
     v = vertical_of(vertical_crs, "--vertical-crs", f"--vertical-crs {vertical_crs}")
     if g is None:  # the file's CRS, with these heights
@@ -255,8 +246,6 @@ def georef_from_options(lat=None, lon=None, alt: float = 0.0, anchor=None, crs: 
 
 
 def _georef_from_options(lat, lon, alt, anchor, crs, required) -> Georef | None:
-    import math
-
     for flag, value in (("--lat", lat), ("--lon", lon), ("--alt", alt)) + tuple(
             (f"--anchor {'XY'[k]}", v) for k, v in enumerate(anchor or ())):
         if value is not None and not (math.isfinite(float(value)) and abs(float(value)) < 1e8):

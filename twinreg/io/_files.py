@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 
@@ -37,8 +38,6 @@ def read_json_doc(path, max_bytes: int, error, fix: str, max_containers: int = M
     than ``max_containers`` or ``max_values`` are refused: parsed, a 100 MB file of empty objects takes 3 GB), its
     nesting bounded by the parser's recursion limit; ``error`` raised with one line naming the file, what was
     wrong and ``fix`` otherwise."""
-    import json
-
     path = Path(path)
     size = path.stat().st_size
     if size > max_bytes:

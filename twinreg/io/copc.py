@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cosco.arrays import column_max, column_min
+
 
 def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, seed: int = 0, classes=None,
                source_ids=None) -> Path:
@@ -17,7 +19,6 @@ def write_copc(path, points: np.ndarray, crs: str, node_points: int = 60_000, se
     import copclib as copc
     import pyproj
 
-    from cosco.arrays import column_max, column_min
 
     rec, offset = _point_record(points, classes, source_ids)
     # the nodes hold the points as stored (millimetre integers), so each lies inside its node's bounds
@@ -57,7 +58,6 @@ def _point_record(points, classes, source_ids):
     """(the points as a LAS 1.4 format 6 record of millimetre integers, its offset: whole kilometres)."""
     import laspy
 
-    from cosco.arrays import column_min
 
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     offset = np.floor(column_min(pts) / 1000.0) * 1000.0

@@ -26,6 +26,7 @@ import numpy as np
 from cosco.sections import Sections
 
 from ..errors import RecordError
+from .npz import member_shapes, nbytes
 
 FILE = "observed.npz"
 FORMAT = "twinreg-observed/1"
@@ -215,8 +216,6 @@ def _check_shapes(zf: zipfile.ZipFile, n_objects: int) -> None:
     """Refuse a record from its members' headers alone, before any array is decompressed: unknown members, wrong
     types or dimensions, sections longer than :data:`MAX_SECTION_POINTS` an object, or arrays that would take more
     than :data:`MAX_ARRAY_BYTES`."""
-    from .npz import member_shapes, nbytes
-
     try:
         shapes = member_shapes(zf)
     except ValueError as exc:

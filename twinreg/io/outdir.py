@@ -12,6 +12,7 @@ lost.
 from __future__ import annotations
 
 import contextlib
+import datetime
 import errno
 import fcntl
 import json
@@ -304,8 +305,6 @@ def locked(target, command: str):
     """Hold OUT for the whole of a run: a second run writing the same OUT is refused at once with one line naming
     the running one (its process id, command and start). The lock is the kernel's (``flock`` on ``.OUT.lock``
     beside OUT): a killed run's lock goes with it, and the file is removed when the run ends."""
-    import datetime
-
     target = real_target(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

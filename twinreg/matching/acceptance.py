@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..raycast import CentredScene
 from ..settings import DEFAULT, Settings
 
 #: bounds of the noise estimate (m): a noise-free simulation still leaves the grid's own error; a very rough
@@ -81,8 +82,6 @@ class SurfaceIndex:
     :class:`twinreg.raycast.CentredScene`."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        from ..raycast import CentredScene
-
         self._scene = CentredScene(vertices, faces)
 
     def distances(self, points: np.ndarray) -> np.ndarray:

@@ -6,9 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 import cosco
-from ..settings import DEFAULT, Settings
+from cosco.footprint import hull_rows
 
 from ..catalogue.repository import Catalogue, ModelGeometry
+from ..settings import DEFAULT, Settings
+from .acceptance import SurfaceIndex
+from .decision import top_surface
+from .prefilter import SizeIndex
 
 
 class ModelCache:
@@ -38,8 +42,6 @@ class ModelCache:
     def size_index(self):
         """Every model's descriptor (:class:`~twinreg.matching.prefilter.SizeIndex`), loaded once."""
         if self._index is None:
-            from .prefilter import SizeIndex
-
             self._index = SizeIndex(self.catalogue)
         return self._index
 
@@ -55,8 +57,6 @@ class ModelCache:
         """The model's top surface (:func:`twinreg.matching.decision.top_surface` of its sampled points), model
         frame."""
         if model_id not in self._tops:
-            from .decision import top_surface
-
             self._tops[model_id] = top_surface(self.geometry(model_id).points)
         return self._tops[model_id]
 
@@ -84,8 +84,6 @@ class ModelCache:
         """(k, 3) the vertices of the model's mesh on its plan's convex hull (model frame): a placed model's
         footprint rectangle is that of these placed (a rectangle of least area lies on the hull)."""
         if model_id not in self._outlines:
-            from cosco.footprint import hull_rows
-
             v = np.asarray(self.mesh(model_id)[0], dtype=np.float64)
             self._outlines[model_id] = v[hull_rows(v[:, :2])]
         return self._outlines[model_id]
@@ -103,8 +101,6 @@ class ModelCache:
             if self.prober is not None:
                 self._surfaces[model_id] = self.prober.surface(model_id, lambda: self.mesh(model_id))
             else:
-                from .acceptance import SurfaceIndex
-
                 self._surfaces[model_id] = SurfaceIndex(*self.mesh(model_id))
         return self._surfaces[model_id]
 

@@ -36,8 +36,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..settings import DEFAULT, Settings
+from cosco.arrays import cell_keys
+from cosco.sorting import stable_argsort
 
+from ..settings import DEFAULT, Settings
 from .acceptance import Verdict, verdict
 
 
@@ -126,9 +128,6 @@ def top_surface(points: np.ndarray, cell: float = 0.1) -> np.ndarray:
     >>> top_surface(np.array([[0.01, 0.0, 1.0], [0.02, 0.01, 2.0], [0.5, 0.5, 0.3]])).tolist()
     [[0.02, 0.01, 2.0], [0.5, 0.5, 0.3]]
     """
-    from cosco.arrays import cell_keys
-    from cosco.sorting import stable_argsort
-
     p = np.asarray(points, dtype=np.float64)
     keys = cell_keys(np.floor(p[:, :2] / cell).astype(np.int64))
     order = stable_argsort(keys)

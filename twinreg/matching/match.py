@@ -24,11 +24,16 @@ from typing import NamedTuple
 import numpy as np
 
 import cosco
+from cosco.arrays import point_spacing
 from cosco.frames import yaw_pose
-from ..settings import DEFAULT, Settings
+from cosco.nearest import BoundedTree
 
 from ..catalogue.repository import Catalogue
+from ..settings import DEFAULT, Settings
+from .acceptance import sample_cloud
 from .cache import ModelCache
+from .decision import decide, evidence
+from .refine import refine
 
 
 class Candidate(NamedTuple):
@@ -188,8 +193,6 @@ class _Matcher:
     model cache, the statistics and the outcomes so far."""
 
     def __init__(self, shapes, catalogue, params: Settings, evidence: Evidence | None, cache: ModelCache):
-        from cosco.arrays import point_spacing
-
         self.shapes, self.params, self.evidence, self.cache = shapes, params, evidence, cache
         self.stats = MatchStats()
         self.pairs = [cosco.SectionPair(s.sections, params) for s in shapes]
@@ -259,10 +262,6 @@ class _Scorer:
     cell) and their KD-tree, the object's measured size, the scan's noise and spacing."""
 
     def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: Settings):
-        from cosco.nearest import BoundedTree
-
-        from .acceptance import sample_cloud
-
         self.shape, self.cache, self.noise, self.spacing, self.params = shape, cache, noise, spacing, params
         self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.matching.accept_max_points)
         # the evidence's bounded look-ups compiled where numba is in use (cosco.kernels), else the KD-tree's
@@ -271,8 +270,6 @@ class _Scorer:
 
     def scored(self, reg, mid, m, points_in_model):
         """The evidence of model ``mid`` placed by ``m`` (4, 4), the object's points in its frame."""
-        from .decision import evidence
-
         cache = self.cache
         top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
         row = cache.row(mid)
@@ -286,8 +283,6 @@ class _Scorer:
     def screened(self, reg, mid):
         """(evidence, the points in the model's frame) as the section registration placed the model, on the
         ``matching.refine_max_points`` points the refinement would use."""
-        from .acceptance import sample_cloud
-
         m = placement(self.shape.frame, self.cache.frame(mid), reg)
         # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
         in_model = (self.sample - m[:3, 3]) @ m[:3, :3]
@@ -296,9 +291,6 @@ class _Scorer:
     def refined(self, reg, mid, screen):
         """The screened pose (its transform, the points in the model's frame) sharpened on the points: a turn
         about the vertical and a shift (twinreg/matching/refine.py), scored on every point."""
-        from .acceptance import sample_cloud
-        from .refine import refine
-
         e, in_model = screen
         m = e.extra["transform"]
         c = refine(sample_cloud(in_model, self.params.matching.refine_max_points), self.cache.tree(mid),
@@ -317,8 +309,6 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
     noise units of the best one's are refined and scored on every point. Refining lowers a score by about one
     noise unit at most, so a candidate further behind can neither win nor come close enough to change the
     confidence: it keeps its screened score (docs/METHOD.md, "Deciding between candidates")."""
-    from .decision import decide
-
     scorer = _Scorer(shape, cache, cloud, noise, spacing, params)
     reach = params.matching.refine_sigma * noise
     candidates = regs[:params.matching.accept_candidates]

@@ -21,8 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..settings import DEFAULT, Settings
 from cosco.taxonomy import descriptor
+
+from ..settings import DEFAULT, Settings
 
 #: scales (m) of the descriptor's parts in the ranking distance: sizes, then the two section tops
 DESCRIPTOR_SCALE = np.array([0.2, 0.1, 0.1, 0.1, 0.1])

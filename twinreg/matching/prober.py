@@ -10,9 +10,14 @@ is missing, stuck or failed, the queries are answered in this process (and the h
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from ..errors import HelperError
+from ..o3d import load
+from ..process.helpers import Painter
+from .acceptance import SurfaceIndex
 
 #: in the helper: model id -> its SurfaceIndex
 _SURFACES: dict = {}
@@ -20,15 +25,11 @@ _SURFACES: dict = {}
 
 def warm_up() -> bool:
     """Import open3d (the helper's first call)."""
-    from ..o3d import load
-
     load()
     return True
 
 
 def _distances(model_id: int, mesh, points: np.ndarray) -> np.ndarray:
-    from .acceptance import SurfaceIndex
-
     if model_id not in _SURFACES:
         if mesh is None:
             raise HelperError(f"model {model_id}: no mesh sent")
@@ -48,10 +49,6 @@ class Prober:
     def start(cls) -> "Prober | None":
         """A started helper, or None where open3d is loaded here already (a second run in one process: its queries
         are then quickest here) or no helper can start."""
-        import sys
-
-        from ..process.helpers import Painter
-
         if "open3d" in sys.modules:
             return None
         helper = Painter.start(warm=warm_up)
@@ -70,8 +67,6 @@ class Prober:
             except HelperError:
                 self.stop()
         if model_id not in self._local:
-            from .acceptance import SurfaceIndex
-
             self._local[model_id] = SurfaceIndex(*mesh_of())
         return self._local[model_id].distances(points)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosco.frames import yaw_pose
+
 from ..settings import DEFAULT, Settings
 
 

@@ -11,19 +11,17 @@ from __future__ import annotations
 
 import gc
 import os
+import signal
 import time
 
 from ..errors import HelperError
+from .lifeline import die_with_parent
 
 #: seconds the main process waits for the helper's pictures before drawing them itself
 HELPER_TIMEOUT_S = 30.0
 
 
 def _die_with_parent() -> None:
-    import signal
-
-    from .lifeline import die_with_parent
-
     die_with_parent(signal.SIGTERM)
 
 

@@ -13,6 +13,7 @@ run.
 from __future__ import annotations
 
 import os
+import signal
 import threading
 import time
 
@@ -37,8 +38,6 @@ def watch_parent(parent: int, poll: float = POLL_S) -> threading.Thread:
 def die_with_parent(sig: int | None = None) -> None:
     """Ask the kernel to send ``sig`` (default SIGKILL) to this process when the thread that started it ends
     (Linux's ``PR_SET_PDEATHSIG``; nothing elsewhere)."""
-    import signal
-
     try:
         import ctypes
 

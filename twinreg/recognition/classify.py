@@ -13,10 +13,14 @@ from pathlib import Path
 import numpy as np
 
 import cosco
+from cosco.arrays import point_spacing
 from cosco.levels import symmetry_level
-from ..settings import DEFAULT, Settings
+from cosco.taxonomy import taxonomy_of
 
 from ..errors import SceneReadError, require_probability
+from ..io.points import POINT_SUFFIXES, read_points
+from ..matching.match import Evidence, ModelCache, match_objects
+from ..settings import DEFAULT, Settings
 from .kinds import UNKNOWN, References, object_types, recognise_kind
 
 #: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
@@ -38,8 +42,6 @@ class GivenObject:
 def object_files(paths) -> list[Path]:
     """The point files of ``paths``: files as given, a folder's point files (not its sub-folders) sorted; a path
     that is neither, or a folder without point files, is refused naming it."""
-    from ..io.points import POINT_SUFFIXES
-
     files: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
@@ -58,8 +60,6 @@ def object_files(paths) -> list[Path]:
 def read_object(path: Path, unit: str = "auto", params: Settings = DEFAULT, warn=None) -> GivenObject:
     """One object's file read and described; a degenerate object is refused naming its file; ``warn(line)`` hears
     what the reader dropped."""
-    from ..io.points import read_points
-
     ps = read_points(path, unit=unit)
     if ps.dropped_note and warn is not None:
         warn(ps.dropped_note)
@@ -74,12 +74,6 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
                      params: Settings = DEFAULT, progress=None) -> list[dict]:
     """Each object's item as ``classify --json`` prints it (docs/CONTRACT.md). ``progress(stage, done, total)``
     as the objects are matched."""
-    from cosco.taxonomy import taxonomy_of
-
-    from ..matching.match import Evidence, ModelCache, match_objects
-
-    from cosco.arrays import point_spacing
-
     floor = (params.min_confidence if min_confidence is None
              else require_probability("--min-confidence", min_confidence))  # build-twin's floor, one default
     refs = References.of_catalogue(catalogue, params)

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cosco.footprint import min_area_rectangle
+
 from ..settings import DEFAULT, Settings
 
 UNKNOWN = "unknown"
@@ -105,8 +107,6 @@ def seen_size(points: np.ndarray, above: float, fallback) -> np.ndarray:
     >>> seen_size(cone, 0.2, (1.8, 1.8)).round(1).tolist()  # the base plate (1.8 m) is the ground's
     [0.9, 0.9]
     """
-    from cosco.footprint import min_area_rectangle
-
     p = np.asarray(points, dtype=np.float64)
     p = p[p[:, 2] > above]
     if len(p) < 10:

@@ -10,7 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
+import cosco
+
 from ..io.observed import heights
+from ..settings import DEFAULT
 from .plots import plot_dendrogram, pyplot, save_figure
 from .scene import STYLE, kinds_table, short_reason
 
@@ -77,8 +80,6 @@ def plot_histograms(twin: dict, path):
 
 def plot_representatives(objects, outcomes, labels, path, params):
     """The dendrogram of the largest clusters' first objects (the paper's taxonomy at the level of kinds)."""
-    import cosco
-
     sizes = Counter(int(x) for x in labels)
     top = [lab for lab, _ in sizes.most_common(MAX_REPRESENTATIVES)]
     if len(top) < 2:
@@ -97,8 +98,6 @@ def plot_representatives(objects, outcomes, labels, path, params):
 def write_city_report(folder, twin: dict, results, objects, outcomes, plan, params=None) -> list[Path]:
     """map.png, histograms.png, taxonomy.png and report.html: the map first, then the cars per model and the
     objects without a model by reason, the pictures, the cells."""
-    from ..settings import DEFAULT
-
     folder = Path(folder)
     labels = [o["cluster"] for o in twin["objects"]]
     pics = [plot_city_map(results, objects, outcomes, plan, folder / "map.png"),

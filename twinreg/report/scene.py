@@ -4,6 +4,10 @@ object's sections against its best model's."""
 from __future__ import annotations
 
 import html
+import io
+import re
+import statistics
+from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -13,8 +17,6 @@ from .plots import plot_dendrogram, plot_heatmap, pyplot, save_figure
 
 def warm_up() -> bool:
     """Import matplotlib and draw a first tiny figure (font set-up): run in the helper process at the start."""
-    import io
-
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(1, 1))
     ax.text(0.5, 0.5, "warm")
@@ -139,8 +141,6 @@ def short_reason(reason: str) -> str:
     >>> short_reason("the best model (uaz_469) fits only 15 cm sunk into the ground (at most 7 cm allowed)")
     'the best model fits only 15 cm sunk into the ground'
     """
-    import re
-
     first = re.split(r"[;:]", reason or "no reason given", maxsplit=1)[0]
     first = re.sub(r"\s*\([^)]*\)", "", first).strip()
     return first if len(first) <= 60 else first[:57].rstrip() + "..."
@@ -175,9 +175,6 @@ def text(x) -> str:
 def kinds_table(objects: list[dict]) -> str:
     """The objects by kind (most common first): how many, how many with a model, with a fused shape (their type's,
     or the kind's template), their median kind confidence."""
-    import statistics
-    from collections import defaultdict
-
     by = defaultdict(list)
     for o in objects:
         by[o.get("kind") or "unknown"].append(o)
@@ -193,8 +190,6 @@ def kinds_table(objects: list[dict]) -> str:
 
 
 def _summary_tables(twin: dict) -> str:
-    from collections import Counter
-
     per_model = Counter((o["match"]["name"], o["match"].get("make") or "") for o in twin["objects"] if o["match"])
     why = Counter(short_reason(o.get("reason", "")) for o in twin["objects"] if not o["match"])
     models = "".join(f"<tr><td>{text(n)}</td><td>{text(m)}</td><td>{c}</td></tr>" for (n, m), c in per_model.most_common())

@@ -16,6 +16,8 @@ import numpy as np
 import cosco
 from cosco.frames import yaw_pose
 from cosco.kernels import fast, kernel
+
+from ..raycast import surface_distances
 from ..settings import DEFAULT, Settings
 
 
@@ -417,7 +419,6 @@ def _quality(v, f, allp, gathered: list, level: str, cell: float, hang, seen_m, 
     the shape's top some member saw."""
     from scipy.spatial import cKDTree
 
-    from ..raycast import surface_distances
 
     rng = np.random.default_rng(0)
     sample = allp if len(allp) <= 20000 else allp[rng.choice(len(allp), 20000, replace=False)]

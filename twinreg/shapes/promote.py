@@ -8,16 +8,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..catalogue.categories import check_category
+from ..catalogue.names import printable
 from ..errors import CatalogueError
-
 from ..io._files import MAX_TWIN_BYTES as MAX_TWIN_JSON
+from ..io._files import read_json_doc
 
 
 def fused_entry(folder: Path, type_: int) -> tuple[dict, Path]:
     """The twin's ``shapes`` entry of type ``type_`` and its shape's file; a :class:`CatalogueError` naming the
     twin and the fix when the twin has no such fused type."""
-    from ..io._files import read_json_doc
-
     folder = Path(folder)
     doc_path = folder / "twin.json"
     if not doc_path.is_file():
@@ -39,9 +39,6 @@ def fused_entry(folder: Path, type_: int) -> tuple[dict, Path]:
 def promote(catalogue, folder: Path, type_: int, name: str, category: str | None = None):
     """Add type ``type_`` of the twin in ``folder`` to ``catalogue`` as model ``name`` of ``category`` (default:
     the type's kind). Returns the catalogue row."""
-    from ..catalogue.categories import check_category
-    from ..catalogue.names import printable
-
     if not isinstance(type_, int) or type_ < 1:
         raise CatalogueError(f"--type {type_}: give a type number (twin.json's objects carry theirs)")
     catalogue.check_free_name(name)  # before the twin is read or its shape measured

@@ -14,7 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..detect import describe_detected, detect_points, object_points
+from ..io.points import PointSet
+from ..matching.acceptance import scene_noise
+from ..matching.match import Evidence, match_objects
 from ..settings import DEFAULT, Settings
+from ..stages import taxonomy
+from .scan import DEFAULT_PASSES, Pass, car_park
 
 #: ground density (pts/m^2) of :data:`twinreg.sim.scan.DEFAULT_PASSES` (counted on a flat ground, 30 x 30 m)
 DEFAULT_DENSITY = 208.0
@@ -36,8 +42,6 @@ def body_class(text: str | None) -> str:
 
 def density_passes(density: float):
     """The default oblique passes with their ray spacings scaled so that the ground gets ``density`` pts/m^2."""
-    from .scan import DEFAULT_PASSES, Pass
-
     k = float(np.sqrt(DEFAULT_DENSITY / density))
     return tuple(Pass(p.azimuth, p.elevation, p.spacing * k) for p in DEFAULT_PASSES)
 
@@ -78,13 +82,6 @@ def park_outcomes(catalogue, density: float, seed: int, n_cars: int = 16, params
                   noise: float = 0.02) -> tuple[list[CarOutcome], dict]:
     """Simulate, detect and match one car park of ``n_cars`` cars of the catalogue's models at ``density``;
     returns each car's outcome and the timings (s)."""
-    from ..detect import describe_detected, detect_points, object_points
-    from ..io.points import PointSet
-    from ..matching.acceptance import scene_noise
-    from ..matching.match import Evidence, match_objects
-    from ..stages import taxonomy
-    from .scan import car_park
-
     rows = sorted(catalogue.list(), key=lambda r: r.name)
     models = catalogue.scan_meshes(rows)
     park = car_park(models, n_cars=n_cars, seed=seed, passes=density_passes(density), noise=noise)

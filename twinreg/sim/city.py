@@ -12,13 +12,20 @@ so tiles meet without gaps or duplicates and the same city comes out whatever th
 
 from __future__ import annotations
 
+import datetime
 import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..catalogue.categories import VEHICLES
+from ..catalogue.db import library_path
+from ..catalogue.repository import Catalogue
+from ..io.copc import write_copc
+from ..io.outdir import atomic_path
 from ..raycast import cast, direction
+from .parametric import LIBRARY, car_mesh
 from .scan import _box, pose_matrix, transform
 
 BLOCK = 25.0
@@ -208,8 +215,6 @@ def scan_block(bx: int, by: int, placed: list[Placed], centres: np.ndarray, dens
 def write_laz(path, points: np.ndarray, crs: str, date: str | None = None):
     """A LAS 1.4 / LAZ file (by its suffix) of (n, 3) metre points, millimetre scale, with ``crs`` in its header
     (and ``date``, ``YYYY-MM-DD``, as its creation date; None: today's)."""
-    import datetime
-
     import laspy
     import pyproj
 
@@ -228,10 +233,6 @@ def write_laz(path, points: np.ndarray, crs: str, date: str | None = None):
 def city_furniture(library=None) -> list[tuple]:
     """The street furniture of a simulated city: ``(category, name, mesh)`` of the catalogue's models of other
     kinds than vehicles (none when it has no such model)."""
-    from ..catalogue.categories import VEHICLES
-    from ..catalogue.db import library_path
-    from ..catalogue.repository import Catalogue
-
     folder = library_path(library)
     if not (Path(folder) / "catalogue.sqlite").exists():
         return []
@@ -243,11 +244,6 @@ def city_furniture(library=None) -> list[tuple]:
 def city_models(library=None) -> tuple[list, list[str], str, np.ndarray]:
     """The cars of a simulated city: the catalogue's vehicle models (their twin meshes) when it has any, else the
     project's parametric cars. Returns (meshes, names, "catalogue" or "parametric", their (n, 3) sizes)."""
-    from ..catalogue.db import library_path
-    from ..catalogue.repository import Catalogue
-
-    from ..catalogue.categories import VEHICLES
-
     folder = library_path(library)
     if (Path(folder) / "catalogue.sqlite").exists():
         cat = Catalogue(folder, create=False)
@@ -255,7 +251,6 @@ def city_models(library=None) -> tuple[list, list[str], str, np.ndarray]:
         if rows:
             return ([cat.ge_mesh(r) for r in rows], [r.name for r in rows], "catalogue",
                     np.array([(r.length, r.width, r.height) for r in rows]))
-    from .parametric import LIBRARY, car_mesh
 
     return ([car_mesh(spec) for spec in LIBRARY], [spec.name for spec in LIBRARY], "parametric",
             np.array([(s.length, s.width, s.height) for s in LIBRARY]))
@@ -303,8 +298,6 @@ def car_truth(placed: list[Placed], names: list[str], origin: np.ndarray) -> lis
 
 
 def write_truth(out: Path, truth: dict) -> None:
-    from ..io.outdir import atomic_path
-
     with atomic_path(out / "truth.json", ".json") as tmp:
         Path(tmp).write_text(json.dumps(truth, indent=1), encoding="utf-8")
 
@@ -326,8 +319,6 @@ class Survey:
 def write_tiles(out: Path, placed: list[Placed], side: float, tile: float, survey: Survey, crs: str,
                 origin: np.ndarray, copc: bool = False, progress=None) -> tuple[list[str], int]:
     """Scan ``placed`` block by block and write the tiles; returns (file names, points)."""
-    from ..io.outdir import atomic_path
-
     n_tiles = max(1, int(round(side / tile)))
     centres = np.array([[p.x, p.y, p.radius] for p in placed]).reshape(-1, 3)
     files, n_points = [], 0
@@ -352,8 +343,6 @@ def write_tiles(out: Path, placed: list[Placed], side: float, tile: float, surve
             name = f"tile_{int(origin[0] + lo[0])}_{int(origin[1] + lo[1])}" + (".copc.laz" if copc else ".laz")
             with atomic_path(out / name, ".laz") as tmp:
                 if copc:
-                    from ..io.copc import write_copc
-
                     write_copc(tmp, pts, crs)
                 else:
                     write_laz(tmp, pts, crs, survey.date)

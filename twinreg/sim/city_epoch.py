@@ -8,6 +8,7 @@ say."""
 
 from __future__ import annotations
 
+import datetime
 import json
 from pathlib import Path
 
@@ -133,8 +134,6 @@ def simulate_later(out, earlier, models: list, names: list[str], sizes, density:
     x0 = round(side * 0.45, 1)
     gap = (x0, x0 + gap_m)
     if date is None and truth0.get("date"):
-        import datetime
-
         date = (datetime.date.fromisoformat(truth0["date"]) + datetime.timedelta(days=91)).isoformat()
     survey = Survey(density or truth0["density"], truth0["seed"] + 1000 + seed, LATER_PASSES, tuple(shift), (gap,),
                     date)

@@ -12,7 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cosco.frames import yaw_pose
+
 from ..raycast import cast, direction, grid_rays
+from .parametric import merge_meshes, prism
 
 
 @dataclass(frozen=True)
@@ -32,8 +35,6 @@ DEFAULT_PASSES = (Pass(np.radians(20), np.radians(70), 0.10), Pass(np.radians(20
 
 def pose_matrix(x: float, y: float, heading: float, z: float = 0.0) -> np.ndarray:
     """(4, 4) transform putting a model (front +X) at (x, y, z) facing ``heading`` (rad from +X)."""
-    from cosco.frames import yaw_pose
-
     return yaw_pose(heading, (x, y, z))
 
 
@@ -218,7 +219,6 @@ def non_car(kind: str, length: float, width: float, height: float):
     """
     import trimesh
 
-    from .parametric import merge_meshes, prism
 
     if kind == "box":
         m = trimesh.creation.box([length, width, height])

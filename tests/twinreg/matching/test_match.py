@@ -42,7 +42,7 @@ def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, m
     """Candidates screened far behind the best (more than matching.refine_sigma noise units) are not refined: fewer
     refinements, and the decision of refining every candidate (the same models, poses and ambiguity; the
     confidences within 0.002)."""
-    import twinreg.matching.refine as refine_module
+    import twinreg.matching.match as match_module
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
     from twinreg.matching import match_objects
@@ -61,13 +61,13 @@ def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, m
     clouds = [object_points(det, o) for o in det.objects]
     noise = scene_noise(det.hag, det.is_ground)
     calls = [0]
-    original = refine_module.refine
+    original = match_module.refine
 
     def counted(*args, **kwargs):
         calls[0] += 1
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(refine_module, "refine", counted)
+    monkeypatch.setattr(match_module, "refine", counted)  # the name match_objects calls
     all_refined, _ = match_objects(shapes, parametric_catalogue, evidence=Evidence(clouds, noise),
                                    params=DEFAULT.with_(matching={"refine_sigma": 1e9}))
     n_all, calls[0] = calls[0], 0
