@@ -18,7 +18,6 @@ import struct
 import subprocess
 import sys
 import tempfile
-import time
 import zipfile
 from pathlib import Path
 
@@ -27,28 +26,17 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
-from common import machine  # noqa: E402
+from common import machine, measured  # noqa: E402
 
 BIN = Path(sys.executable).parent / "twinreg"
 SHARED = HERE.parent.parent / "shared" / "data"
 
 
-def measured(cmd: list[str]) -> tuple[float, float, int, str]:
+def measured_mib(cmd: list[str]) -> tuple[float, float, int, str]:
     """(seconds, peak MiB of the process tree, exit status, last stderr line) of a command."""
-    import psutil
-
-    t = time.monotonic()
-    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    proc, peak = psutil.Process(p.pid), 0
-    while p.poll() is None:
-        try:
-            tree = [proc, *proc.children(recursive=True)]
-            peak = max(peak, sum(q.memory_info().rss for q in tree if q.is_running()))
-        except psutil.Error:
-            pass
-        time.sleep(0.02)
-    err = p.stderr.read().strip().splitlines()
-    return time.monotonic() - t, peak / 2 ** 20, p.returncode, err[-1] if err else ""
+    wall, peak, code, err = measured(cmd)
+    lines = err.strip().splitlines()
+    return wall, peak / 2 ** 20, code, lines[-1] if lines else ""
 
 
 def npz_bomb(twin: Path, dst: Path) -> Path:
@@ -133,7 +121,7 @@ def main() -> None:
     for what, cmd in cases:
         out = work / "out"
         shutil.rmtree(out, ignore_errors=True)
-        s, mib, code, line = measured([str(BIN), "--library", str(lib), *cmd, "--out", str(out)])
+        s, mib, code, line = measured_mib([str(BIN), "--library", str(lib), *cmd, "--out", str(out)])
         assert code == 1 and not out.exists(), (what, code, line)
         print(f"| {what} | `{cmd[0]}` | {s:.2f} s | {mib:.0f} MiB | {line[:90]}... |")
 

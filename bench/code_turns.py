@@ -14,31 +14,19 @@ import argparse
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-import psutil
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import measured  # noqa: E402
 
 
 def timed(cmd: list, env: dict) -> tuple[float, float]:
     """(wall seconds, peak GB of the process tree's resident memory)."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    peak = 0
-    root = psutil.Process(proc.pid)
-    while proc.poll() is None:
-        try:
-            tree = [root, *root.children(recursive=True)]
-            peak = max(peak, sum(p.memory_info().rss for p in tree if p.is_running()))
-        except psutil.Error:
-            pass
-        time.sleep(0.02)
-    wall = time.perf_counter() - t0
-    if proc.returncode:
-        raise SystemExit(f"{' '.join(cmd)}: exit {proc.returncode}: {proc.stderr.read().decode()[-400:]}")
+    wall, peak, code, err = measured(cmd, env)
+    if code:
+        raise SystemExit(f"{' '.join(map(str, cmd))}: exit {code}: {err[-400:]}")
     return wall, peak / 1e9
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import platform
 import statistics
+import subprocess
 import time
 from pathlib import Path
 
@@ -23,6 +24,25 @@ def timed(fn, repeat: int = 5, warmup: int = 1) -> tuple[float, object]:
         out = fn()
         times.append(time.perf_counter() - t)
     return statistics.median(times), out
+
+
+def measured(cmd: list, env: dict | None = None) -> tuple[float, int, int, str]:
+    """Run ``cmd``: (wall seconds, peak bytes of its whole process tree's resident memory, sampled every 20 ms, exit
+    status, its stderr)."""
+    import psutil
+
+    t = time.perf_counter()
+    proc = subprocess.Popen([str(c) for c in cmd], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    root, peak = psutil.Process(proc.pid), 0
+    while proc.poll() is None:
+        try:
+            tree = [root, *root.children(recursive=True)]
+            peak = max(peak, sum(q.memory_info().rss for q in tree if q.is_running()))
+        except psutil.Error:
+            pass
+        time.sleep(0.02)
+    return time.perf_counter() - t, peak, proc.returncode, proc.stderr.read()
 
 
 def machine() -> str:
