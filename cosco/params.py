@@ -263,6 +263,17 @@ class TaxonomyParams:
     neighbours: int = 3  # per object beyond
 
 
+@dataclass(frozen=True)
+class SurfaceParams:
+    """An object's surface at the scale of its point spacing (cosco/surface.py): each point's ``k`` nearest
+    neighbours, on at most ``max_points`` points of an object spread evenly through it; a point is on a horizontal
+    surface when its normal is within ``horizontal_deg`` degrees of vertical."""
+
+    k: int = 12  # neighbours
+    max_points: int = 1500  # points measured
+    horizontal_deg: float = 35.0  # degrees from vertical
+
+
 def with_groups(obj, changes: dict):
     """``obj`` (a frozen dataclass of groups) with some values changed: a group's name maps to a dict of its fields
     to change (or to a whole group); any other name is a field of ``obj`` itself.
@@ -284,7 +295,7 @@ def with_groups(obj, changes: dict):
 @dataclass(frozen=True)
 class CoscoParams:
     """The method's parameters, one group a step: ``ground``, ``segment`` and the cars' ``joins``, ``symmetry``,
-    ``levels``, ``sections``, ``registration`` (the dissimilarity) and ``taxonomy``."""
+    ``levels``, ``sections``, ``registration`` (the dissimilarity), ``taxonomy`` and ``surface``."""
 
     ground: GroundParams = GroundParams()
     segment: SegmentParams = SegmentParams()
@@ -294,6 +305,7 @@ class CoscoParams:
     sections: SectionParams = SectionParams()
     registration: RegistrationParams = RegistrationParams()
     taxonomy: TaxonomyParams = TaxonomyParams()
+    surface: SurfaceParams = SurfaceParams()
 
     def with_(self, **changes):
         """A copy with some values changed (:func:`with_groups`).

@@ -17,6 +17,7 @@ from .arrays import as_points, cell_keys, check_object
 from .footprint import min_area_rectangle
 from .frames import from_frame, to_frame
 from .params import DEFAULT, CoscoParams
+from .surface import Surface, surface_of
 from .symmetry import Symmetry, detect_symmetry, with_footprint
 
 
@@ -91,6 +92,7 @@ class ObjectShape:
     sections: Sections
     size: Size
     centroid: np.ndarray
+    surface: Surface | None = None  # None: not measured (a shape made by hand)
 
     @property
     def heading(self) -> float:
@@ -259,4 +261,5 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
         lo, hi = _robust_range(uvz[:, 1], params.sections.size_quantile)
         v_centre = (lo + hi) / 2
     centre = frame.to_scene(np.array([[0.0, v_centre, size.height / 2]]))[0]
-    return ObjectShape(n_points=len(pts), symmetry=sym, frame=frame, sections=sections, size=size, centroid=centre)
+    return ObjectShape(n_points=len(pts), symmetry=sym, frame=frame, sections=sections, size=size, centroid=centre,
+                       surface=surface_of(pts, params))

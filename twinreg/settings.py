@@ -80,7 +80,17 @@ class KindParams:
     ``unknown_distance``, or more than ``max_height_ratio`` times taller or shorter than every reference, the kind
     is unknown; the kind's confidence is the logistic of its margin over the nearest other kind (or the unknown
     distance) in ``confidence_scale``. A mesh model's plan size is its points' above ``seen_height`` m (what a
-    scan's ground filter leaves). Tuned on the even-numbered DALES objects (docs/PERFORMANCE.md)."""
+    scan's ground filter leaves). Tuned on the even-numbered DALES objects (docs/PERFORMANCE.md).
+
+    The open world (:func:`~twinreg.recognition.kinds.fits`): a kind is given only when the object fits it: its
+    plan no larger than the kind's references' by ``size_margin`` (a share) plus ``plan_margin`` m and its longer
+    side at least ``min_plan_share`` of theirs (a side unseen makes a plan smaller, never larger), its height within
+    theirs widened by ``size_margin`` and ``height_margin`` m; and, unless the kind is ``porous``, its surface a
+    shell (variation at most ``rigid_max_variation``, linearity at most ``rigid_max_linearity`` when measured on
+    ``linearity_min_points`` points or more; a ``curved`` kind's at least ``curved_min_variation``: no flat board). What fits no kind is ``vegetation`` when porous (variation at least
+    ``vegetation_variation``, at least ``vegetation_height`` m tall), ``structure`` when long and thin (at least
+    ``structure_length`` m and ``structure_elongation`` times longer than wide), else unknown. Tuned on the tuning
+    halves of bench/bench_open_kinds.py (KITTI and nuScenes left of the vehicle, DALES even ids)."""
 
     min_size: float = 0.1  # m
     length_weight: float = 1.0  # in the distance
@@ -91,6 +101,20 @@ class KindParams:
     max_height_ratio: float = 2.5  # taller or shorter
     confidence_scale: float = 0.28  # logistic scale
     seen_height: float = 0.2  # m above the ground
+    size_margin: float = 0.15  # share beyond the kind's sizes
+    plan_margin: float = 0.3  # m beyond its plan
+    height_margin: float = 0.15  # m beyond its heights
+    min_plan_share: float = 0.25  # of its shortest length
+    rigid_max_variation: float = 0.05  # surface variation
+    rigid_max_linearity: float = 0.62  # neighbourhoods' linearity
+    linearity_min_points: int = 60  # points, for linearity
+    porous: tuple = ("tree", "vegetation", "hedge", "bush")  # kinds
+    curved: tuple = ("car", "van", "truck", "bus")  # kinds
+    curved_min_variation: float = 0.01  # surface variation
+    vegetation_variation: float = 0.06  # surface variation
+    vegetation_height: float = 0.5  # m, at least
+    structure_length: float = 3.0  # m, at least
+    structure_elongation: float = 3.0  # length / width
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from .export.twin_json import object_record
 from .geo.georef import check_area
 from .progress import say
 from .recognition.classify import near_candidates
-from .recognition.kinds import References, object_types, recognise_kind
+from .recognition.kinds import UNKNOWN, References, kind_of, object_types
 from .settings import Settings
 from .shapes.fuse import FusedShape, fuse_type, generic_solid
 
@@ -91,8 +91,27 @@ def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params
     query for the references, numpy for the rest), and its model kept only at ``params.min_confidence`` or
     above (:func:`apply_floor`). Returns (the matching outcomes, the kinds)."""
     refs = References.of_catalogue(catalogue, params)
-    kinds = [recognise_kind(s.size.as_array(), level, refs, params) for s, level in zip(shapes, levels)]
-    return apply_floor(outcomes, params.min_confidence), kinds
+    kinds = [kind_of(s, level, refs, params) for s, level in zip(shapes, levels)]
+    category = dict(zip(refs.ids.tolist(), refs.kinds.tolist()))
+    return apply_kinds(apply_floor(outcomes, params.min_confidence), kinds, category), kinds
+
+
+def apply_kinds(outcomes: list, kinds: list, category: dict) -> list:
+    """The outcomes with every model withdrawn whose category is not the object's kind (``category``: model id ->
+    its category): a name is a claim, and a hedge of a car's size is no car however near a car model's sections
+    come (reason code ``kind_not_model``; the model stays first among the candidates)."""
+    out = []
+    for res, kind in zip(outcomes, kinds):
+        m = res.match
+        if m is not None and category.get(m.model_id) != kind.kind:
+            others = [c for c in res.candidates if c != m.model_id]
+            what = "fits no catalogued kind" if kind.kind == UNKNOWN else f"is {kind.kind}"
+            res = replace(res, match=None, candidates=[m.model_id, *others],
+                          reason=f"the best model, {m.name}, is a {category.get(m.model_id)}, but the object {what}",
+                          reason_code="kind_not_model",
+                          rejected={"name": m.name, "confidence": round(m.confidence or 0.0, 3)})
+        out.append(res)
+    return out
 
 
 def apply_floor(outcomes: list, floor: float) -> list:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from cosco.sections import Frame, ObjectShape, Sections, Size
+from cosco.surface import Surface
 from cosco.symmetry import Symmetry
 
 from ..errors import CellFileError
@@ -26,10 +27,10 @@ from ..io.outdir import atomic_path
 from .cells import CellObject, CellResult
 
 #: the classes a cell file may hold, by the name it gives them
-CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry, Frame, Sections, Size, Raster)}
+CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry, Frame, Sections, Size, Surface, Raster)}
 #: the largest cell file read back (bytes)
 MAX_BYTES = 4 * 1024 ** 3
-FORMAT = "twinreg-cell/2"
+FORMAT = "twinreg-cell/3"  # 3: shapes carry their surface
 #: what reading a damaged or foreign file can raise (each becomes a CellFileError)
 _UNREADABLE = (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
                zipfile.BadZipFile)

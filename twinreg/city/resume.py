@@ -26,7 +26,7 @@ WORK = ".cells"
 #: it reads from another (the number of each object's points kept for the acceptance test): a cell's key hashes
 #: these alone, so that matching's, kinds', fusion's and change's settings (``--min-confidence``, ``--tol``...)
 #: reuse every finished cell. A test runs cells with recording settings and checks that nothing else is read.
-CELL_GROUPS = ("ground", "segment", "joins", "symmetry", "levels", "sections")
+CELL_GROUPS = ("ground", "segment", "joins", "symmetry", "levels", "sections", "surface")
 CELL_VALUES = (("matching", "accept_max_points"),)
 
 

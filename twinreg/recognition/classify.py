@@ -21,7 +21,7 @@ from ..errors import SceneReadError, require_probability
 from ..io.points import POINT_SUFFIXES, read_points
 from ..matching.match import Evidence, ModelCache, match_objects
 from ..settings import DEFAULT, Settings
-from .kinds import UNKNOWN, References, object_types, recognise_kind
+from .kinds import UNKNOWN, References, kind_of, object_types
 
 #: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
 #: scan's noise on)
@@ -81,7 +81,7 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
     # the threshold at least taxonomy.spacing_k point spacings, as a twin's
     labels = (taxonomy_of(shapes, params, spacing=[point_spacing(o.points) for o in objects]).labels
               if len(shapes) > 1 else np.ones(len(shapes), dtype=int))
-    kinds = [recognise_kind(o.shape.size.as_array(), o.level.level, refs, params) for o in objects]
+    kinds = [kind_of(o.shape, o.level.level, refs, params) for o in objects]
     outcomes = [None] * len(objects)
     cache = None
     if len(refs):

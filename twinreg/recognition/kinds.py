@@ -25,6 +25,10 @@ from cosco.footprint import min_area_rectangle
 from ..settings import DEFAULT, Settings
 
 UNKNOWN = "unknown"
+#: the kinds every scan holds, known from the geometry (and a classified scan's classes), never given a model
+BACKGROUND = ("vegetation", "structure")
+#: the kinds that get no model
+NO_MODEL = (UNKNOWN, *BACKGROUND)
 
 
 @dataclass(frozen=True)
@@ -37,6 +41,11 @@ class References:
     kinds: np.ndarray
     sizes: np.ndarray
     levels: np.ndarray
+    ranges: dict | None = None  # {kind: (lo, hi)}: kind_ranges, computed once
+
+    def __post_init__(self):
+        if self.ranges is None and len(self.ids):
+            object.__setattr__(self, "ranges", kind_ranges(self))
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -126,7 +135,77 @@ def _plan_sorted(sizes) -> np.ndarray:
     return s
 
 
-def recognise_kind(size, level: str, refs: References, params: Settings = DEFAULT) -> KindResult:
+def kind_ranges(refs: References) -> dict:
+    """{kind: ((3,) lo, (3,) hi)}: the smallest and largest plan-sorted L, W, H of each kind's references."""
+    sizes = _plan_sorted(refs.sizes)
+    return {str(k): (sizes[refs.kinds == k].min(axis=0), sizes[refs.kinds == k].max(axis=0))
+            for k in dict.fromkeys(refs.kinds.tolist())}
+
+
+def fits_size(size, lo, hi, params: Settings = DEFAULT) -> bool:
+    """Whether an object of ``size`` (L, W, H m) is of a kind whose references measure ``lo``-``hi`` (plan-sorted):
+    its plan no larger than theirs (a share and metres of margin), its longer side not a small part of theirs, its
+    height within theirs widened by the margins (:class:`~twinreg.settings.KindParams`).
+
+    >>> lo, hi = np.array([3.7, 1.6, 1.4]), np.array([5.0, 2.0, 2.1])
+    >>> fits_size([4.4, 1.8, 1.5], lo, hi), fits_size([2.5, 0.9, 1.4], lo, hi)  # a car seen whole, one seen in part
+    (True, True)
+    >>> fits_size([4.1, 1.4, 2.4], lo, hi), fits_size([7.9, 1.0, 1.6], lo, hi)  # a hedge too tall, a wall too long
+    (False, False)
+    """
+    k = params.kinds
+    s = _plan_sorted(size)
+    grow = 1.0 + k.size_margin
+    if s[0] > hi[0] * grow + k.plan_margin or s[1] > hi[1] * grow + k.plan_margin:
+        return False
+    if s[0] < lo[0] * k.min_plan_share:
+        return False
+    return bool(lo[2] / grow - k.height_margin <= s[2] <= hi[2] + k.height_margin)
+
+
+def fits_surface(surface, kind: str, params: Settings = DEFAULT) -> bool:
+    """Whether an object's :class:`~cosco.surface.Surface` is that of a kind: a shell (neither porous nor strung
+    along lines) unless the kind is porous, and not flat when the kind is ``curved`` (vehicles); True when not
+    measured (the line and flatness tests need ``linearity_min_points`` points)."""
+    k = params.kinds
+    if surface is None or kind in k.porous:
+        return True
+    if surface.variation > k.rigid_max_variation:
+        return False
+    if surface.n < k.linearity_min_points:
+        return True
+    if kind in k.curved and surface.variation < k.curved_min_variation:
+        return False  # a flat board or wall, not a car's rounded shell
+    return surface.linearity <= k.rigid_max_linearity
+
+
+def background_kind(size, surface, params: Settings = DEFAULT) -> str:
+    """What an object that fits no catalogued kind is: ``vegetation`` (porous and tall enough), ``structure`` (long
+    and thin: a wall, a hedge, a fence) or ``unknown``.
+
+    >>> from cosco.surface import Surface
+    >>> background_kind([2.1, 1.3, 2.2], Surface(0.09, 0.5, 0.1, 800))
+    'vegetation'
+    >>> background_kind([7.9, 0.8, 2.2], Surface(0.03, 0.5, 0.0, 800)), background_kind([1.0, 0.8, 1.1], None)
+    ('structure', 'unknown')
+    """
+    k = params.kinds
+    s = _plan_sorted(size)
+    if surface is not None and surface.variation >= k.vegetation_variation and s[2] >= k.vegetation_height:
+        return "vegetation"
+    if s[0] >= k.structure_length and s[0] >= k.structure_elongation * max(s[1], k.min_size):
+        return "structure"
+    return UNKNOWN
+
+
+def kind_of(shape, level: str, refs: References, params: Settings = DEFAULT) -> KindResult:
+    """The kind of one described object (a :class:`~cosco.sections.ObjectShape`, its level of symmetry): the one
+    decision every command makes (:func:`recognise_kind` on its size and surface)."""
+    return recognise_kind(shape.size.as_array(), level, refs, params, getattr(shape, "surface", None))
+
+
+def recognise_kind(size, level: str, refs: References, params: Settings = DEFAULT,
+                   surface=None) -> KindResult:
     """The kind of one object (see the module's text).
 
     >>> refs = References(np.arange(4), list("abcd"), np.array(["car", "car", "pole", "pole"], dtype=object),
@@ -141,7 +220,7 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     'unknown'
     """
     if len(refs) == 0:
-        return KindResult(UNKNOWN, 0.0, {})
+        return KindResult(background_kind(size, surface, params), 0.0, {})
     d = distances(size, level, refs, params)
     height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kinds.min_size)
                            / np.maximum(refs.sizes[:, 2], params.kinds.min_size)))
@@ -149,18 +228,21 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     order = np.argsort(d, kind="stable")[:params.kinds.k]
     order = order[np.isfinite(d[order])]
     if len(order) == 0:
-        return KindResult(UNKNOWN, 0.0, {})
+        return KindResult(background_kind(size, surface, params), 0.0, {})
     weights = 1.0 / (d[order] + params.kinds.vote_floor)
     shares = weights / weights.sum()
     near = tuple(Near(int(refs.ids[j]), str(refs.names[j]), str(refs.kinds[j]), float(d[j]), float(w))
                  for j, w in zip(order, shares))
     if d[order[0]] > params.kinds.unknown_distance:
-        return KindResult(UNKNOWN, 0.0, {}, near)
+        return KindResult(background_kind(size, surface, params), 0.0, {}, near)
     votes: dict = {}
     for n in near:
         votes[n.kind] = votes.get(n.kind, 0.0) + n.share
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
     kind = next(iter(votes))
+    lo, hi = refs.ranges[kind]
+    if not (fits_size(size, lo, hi, params) and fits_surface(surface, kind, params)):
+        return KindResult(background_kind(size, surface, params), 0.0, votes, near)
     mine = refs.kinds == kind
     others = d[~mine].min() if (~mine).any() else np.inf
     margin = float(min(others, params.kinds.unknown_distance) - d[mine].min())

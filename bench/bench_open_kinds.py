@@ -1,0 +1,287 @@
+"""Kinds in an open world, on real scans: the shared 16 cars and 9 street-furniture models catalogued, the twins of
+real vehicle-mounted sweeps (KITTI 000000-000002 and 000008, the nuScenes demo sweep) and of real airborne objects
+(DALES: cars, fences, poles) scored against their labels, everything unlabelled in them (bushes, walls, poles) the
+open world a name must not be claimed in.
+
+    python bench/bench_open_kinds.py [--autzen] [--json out.json]
+
+Every data set is split in two halves, a tuning half and a checking half, and both are printed; the checking half
+is the figure to report. Sweeps: an object's half is the side of the vehicle it stands on (left, y >= 0: tuning;
+right: checking). DALES: even file ids tuning, odd checking. An object a scan puts fewer than 10 points on is not
+scored (a labelled box with fewer than 10 points is no miss; a twin object has 10 or more by construction).
+
+- KITTI: ``car`` precision and recall in the left camera's view within 30 m (label_2 boxes; a twin car is right
+  when its centroid lies in a labelled vehicle box, Car, Van or Truck, grown by 0.5 m in plan); the false cars.
+- nuScenes: ``car`` precision and recall (vehicle boxes: car, truck, bus, construction_vehicle), and whether
+  named kinds are right: a twin object named car, barrier or cone is right inside a box of that class, wrong
+  elsewhere (nuScenes labels every car, barrier and cone); other names are scored only inside labelled boxes.
+- DALES: the share of non-cars (fences, poles) called car, of cars called car, via ``classify``.
+- Autzen (``--autzen``): counts by kind, the cars' sizes (none taller than 2.5 m or longer than 6.5 m).
+The kind confidence's reliability (claimed against right) over the scored objects of both halves is printed too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import REPO, SHARED, machine  # noqa: E402
+
+KITTI = SHARED / "kitti_object" / "training"
+FRAMES = {"000000": "velodyne", "000001": "velodyne", "000002": "velodyne", "000008": "velodyne_reduced"}
+NUSCENES = SHARED / "nuscenes_demo"
+VEHICLES_KITTI = ("Car", "Van", "Truck")
+VEHICLES_NUSCENES = ("car", "truck", "bus", "construction_vehicle")
+NUSCENES_KIND = {"car": "car", "barrier": "barrier", "traffic_cone": "cone"}
+GROW = 0.5  # m a labelled box is grown by in plan
+MIN_POINTS = 10
+
+
+def twinreg(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "twinreg", *map(str, args)], capture_output=True, text=True,
+                          cwd=REPO)
+
+
+def catalogue(folder: Path) -> Path:
+    """The 16 shared cars and 9 furniture models, by their manifests."""
+    for kind in ("cars", "street_furniture"):
+        res = twinreg("--library", folder, "import-models", SHARED / kind, "--manifest",
+                      SHARED / kind / "catalogue.csv", "-q")
+        if res.returncode:
+            raise SystemExit(res.stderr)
+    return folder
+
+
+def twin(lib: Path, scan: Path, out: Path) -> list[dict]:
+    res = twinreg("--library", lib, "build-twin", scan, "--out", out, "--json", "-q", "--lat", 49.0, "--lon", 8.4)
+    if res.returncode:
+        raise SystemExit(f"{scan}: {res.stderr.strip()[-400:]}")
+    return json.loads(res.stdout)["objects"]
+
+
+# --- boxes ---------------------------------------------------------------------------------------------------
+
+def _calib(frame: str) -> dict:
+    out = {}
+    for line in (KITTI / "calib" / f"{frame}.txt").read_text().splitlines():
+        if ":" in line:
+            k, v = line.split(":", 1)
+            out[k.strip()] = np.array(v.split(), dtype=np.float64)
+    return out
+
+
+def kitti_boxes(frame: str) -> list[dict]:
+    """label_2's boxes in the Velodyne frame: class, centre (x, y, z), l, w, h, yaw about +z."""
+    c = _calib(frame)
+    tr = np.vstack([c["Tr_velo_to_cam"].reshape(3, 4), [0, 0, 0, 1]])
+    r0 = np.eye(4)
+    r0[:3, :3] = c["R0_rect"].reshape(3, 3)
+    to_velo = np.linalg.inv(r0 @ tr)
+    boxes = []
+    for line in (KITTI / "label_2" / f"{frame}.txt").read_text().splitlines():
+        w = line.split()
+        if not w or w[0] == "DontCare":
+            continue
+        h, wd, ln, x, y, z, ry = map(float, w[8:15])
+        bottom = to_velo @ [x, y, z, 1.0]
+        boxes.append({"cls": w[0], "centre": bottom[:3] + [0, 0, h / 2], "l": ln, "w": wd, "h": h,
+                      "yaw": -ry - np.pi / 2})
+    return boxes
+
+
+def kitti_in_view(frame: str, xyz: np.ndarray) -> np.ndarray:
+    """Which points the left colour camera sees (image 1242 x 375), within 30 m in plan."""
+    c = _calib(frame)
+    tr = np.vstack([c["Tr_velo_to_cam"].reshape(3, 4), [0, 0, 0, 1]])
+    r0 = np.eye(4)
+    r0[:3, :3] = c["R0_rect"].reshape(3, 3)
+    cam = (c["P2"].reshape(3, 4) @ r0 @ tr @ np.c_[xyz, np.ones(len(xyz))].T).T
+    depth = cam[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v = cam[:, 0] / depth, cam[:, 1] / depth
+    return (depth > 0) & (u >= 0) & (u < 1242) & (v >= 0) & (v < 375) & (np.hypot(xyz[:, 0], xyz[:, 1]) <= 30)
+
+
+def nuscenes_boxes() -> list[dict]:
+    doc = json.loads((NUSCENES / "gt_boxes_lidar.json").read_text())
+    out = []
+    for inst in doc["instances"]:
+        x, y, z, ln, wd, h, yaw = inst["bbox_3d"][:7]
+        out.append({"cls": inst["category"], "centre": np.array([x, y, z]), "l": ln, "w": wd, "h": h, "yaw": yaw})
+    return out
+
+
+def inside(box: dict, xyz: np.ndarray, grow: float = 0.0) -> np.ndarray:
+    d = np.atleast_2d(xyz) - box["centre"]
+    c, s = np.cos(box["yaw"]), np.sin(box["yaw"])
+    u, v = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
+    return ((np.abs(u) <= box["l"] / 2 + grow) & (np.abs(v) <= box["w"] / 2 + grow)
+            & (np.abs(d[:, 2]) <= box["h"] / 2 + grow))
+
+
+def read_bin(path: Path) -> np.ndarray:
+    n = 5 if path.name.endswith(".pcd.bin") else 4
+    return np.fromfile(path, dtype="<f4").reshape(-1, n)[:, :3].astype(np.float64)
+
+
+# --- scoring -------------------------------------------------------------------------------------------------
+
+class Tally:
+    """Counts of one half: true and false cars, found and missed labelled cars, named kinds right and wrong, and
+    (claimed confidence, right) pairs for the reliability table."""
+
+    def __init__(self):
+        self.c = Counter()
+        self.claims: list = []
+        self.false_cars: list = []
+
+    def row(self) -> dict:
+        c = self.c
+        prec = c["tp"] / max(c["tp"] + c["fp"], 1)
+        rec = c["found"] / max(c["found"] + c["missed"], 1)
+        named = c["named_right"] / max(c["named_right"] + c["named_wrong"], 1)
+        return {"cars_claimed": c["tp"] + c["fp"], "false_cars": c["fp"], "precision": round(prec, 3),
+                "labelled_cars": c["found"] + c["missed"], "recall": round(rec, 3),
+                "named": c["named_right"] + c["named_wrong"], "named_right": round(named, 3)}
+
+
+def half_of(xyz) -> str:
+    return "tuning" if xyz[1] >= 0 else "checking"
+
+
+def score_sweep(objs: list[dict], boxes: list[dict], points: np.ndarray, vehicles, kind_of_cls: dict,
+                view, tallies: dict, where: str) -> None:
+    """One sweep's objects against its boxes (``view``: which positions are scored)."""
+    cents = np.array([o["centroid"] for o in objs], dtype=np.float64).reshape(-1, 3)
+    scored = view(cents) if len(cents) else np.zeros(0, bool)
+    for o, xyz, ok in zip(objs, cents, scored):
+        if not ok:
+            continue
+        t = tallies[half_of(xyz)]
+        hits = [b for b in boxes if inside(b, xyz, GROW)[0]]
+        is_vehicle = any(b["cls"] in vehicles for b in hits)
+        if o["kind"] == "car":
+            t.c["tp" if is_vehicle else "fp"] += 1
+            if not is_vehicle:
+                t.false_cars.append(f"{where} at ({xyz[0]:.1f}, {xyz[1]:.1f}) "
+                                    f"{o['size']['length']:.1f} x {o['size']['width']:.1f} x "
+                                    f"{o['size']['height']:.1f} m, {o['n_points']} pts, {o['kind_confidence']:.2f}")
+        named = o["kind"] not in ("unknown", "vegetation", "structure")
+        truth = next((kind_of_cls[b["cls"]] for b in hits if b["cls"] in kind_of_cls), None)
+        if named and (o["kind"] in kind_of_cls.values() or truth is not None):
+            right = o["kind"] == truth or (o["kind"] == "car" and is_vehicle)
+            t.c["named_right" if right else "named_wrong"] += 1
+            t.claims.append((o["kind_confidence"], right))
+    for b in boxes:
+        if b["cls"] != vehicles[0] or not view(b["centre"][None])[0]:
+            continue
+        if int(inside(b, points).sum()) < MIN_POINTS:
+            continue
+        t = tallies[half_of(b["centre"])]
+        found = any(o["kind"] == "car" and inside(b, np.array(o["centroid"]), GROW)[0] for o in objs)
+        t.c["found" if found else "missed"] += 1
+
+
+def dales(lib: Path, tallies: dict) -> None:
+    files = sorted((SHARED / "dales_objects").glob("*/*.xyz"))
+    res = twinreg("--library", lib, "classify", *files, "--json")
+    if res.returncode:
+        raise SystemExit(res.stderr[-400:])
+    for item in json.loads(res.stdout):
+        path = Path(item["file"])
+        if item["n_points"] < MIN_POINTS:
+            continue
+        t = tallies["tuning" if int(path.stem) % 2 == 0 else "checking"]
+        truth = path.parent.name
+        t.c[f"{truth}_n"] += 1
+        t.c[f"{truth}_as_{item['kind']}"] += 1
+
+
+def reliability(claims: list) -> list[str]:
+    bins = [0.0, 0.5, 0.7, 0.8, 0.9, 0.95, 1.01]
+    rows = []
+    for lo, hi in zip(bins, bins[1:]):
+        got = [r for c, r in claims if lo <= c < hi]
+        if got:
+            mid = [c for c, _ in claims if lo <= c < hi]
+            rows.append(f"| {lo:.2f}-{min(hi, 1):.2f} | {len(got)} | {np.mean(mid):.2f} | {np.mean(got):.2f} |")
+    return rows
+
+
+def autzen(lib: Path, work: Path) -> dict:
+    res = twinreg("--library", lib, "build-twin", SHARED / "autzen_parking" / "autzen_parking_north.las", "--out",
+                  work / "autzen", "--json", "-q")
+    if res.returncode:
+        raise SystemExit(res.stderr[-400:])
+    objs = json.loads(res.stdout)["objects"]
+    cars = [o["size"] for o in objs if o["kind"] == "car"]
+    unit = 1.0  # sizes are metres in twin.json
+    return {"objects": len(objs), "kinds": dict(Counter(o["kind"] for o in objs).most_common()),
+            "cars": len(cars), "cars_taller_2_5m": sum(s["height"] * unit > 2.5 for s in cars),
+            "cars_longer_6_5m": sum(max(s["length"], s["width"]) * unit > 6.5 for s in cars)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--autzen", action="store_true", help="also the Autzen car park's counts (a minute)")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args()
+    print(f"machine: {machine()}")
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        lib = catalogue(work / "lib")
+        sweeps = {h: Tally() for h in ("tuning", "checking")}
+        nus = {h: Tally() for h in ("tuning", "checking")}
+        for frame, folder in FRAMES.items():
+            scan = KITTI / folder / f"{frame}.bin"
+            objs = twin(lib, scan, work / f"kitti_{frame}")
+            score_sweep(objs, kitti_boxes(frame), read_bin(scan), VEHICLES_KITTI, {"Car": "car"},
+                        lambda xyz, f=frame: kitti_in_view(f, xyz), sweeps, f"kitti {frame}")
+        scan = next(NUSCENES.glob("*.pcd.bin"))
+        objs = twin(lib, scan, work / "nuscenes")
+        score_sweep(objs, nuscenes_boxes(), read_bin(scan), VEHICLES_NUSCENES, NUSCENES_KIND,
+                    lambda xyz: np.hypot(xyz[..., 0], xyz[..., 1]) <= 30, nus, "nuscenes")
+        air = {h: Tally() for h in ("tuning", "checking")}
+        dales(lib, air)
+        out = {"kitti": {h: t.row() for h, t in sweeps.items()}, "nuscenes": {h: t.row() for h, t in nus.items()},
+               "dales": {h: dict(t.c) for h, t in air.items()}}
+        if args.autzen:
+            out["autzen"] = autzen(lib, work)
+    claims = [c for d in (sweeps, nus) for t in d.values() for c in t.claims]
+    print("\n| data | half | cars claimed | false cars | car precision | labelled cars (10+ pts) | car recall | "
+          "named | named right |\n|---|---|---|---|---|---|---|---|---|")
+    for name in ("kitti", "nuscenes"):
+        for h in ("tuning", "checking"):
+            r = out[name][h]
+            print(f"| {name} | {h} | {r['cars_claimed']} | {r['false_cars']} | {r['precision']:.2f} | "
+                  f"{r['labelled_cars']} | {r['recall']:.2f} | {r['named']} | {r['named_right']:.2f} |")
+    print("\n| DALES half | non-cars called car | cars called car |\n|---|---|---|")
+    for h in ("tuning", "checking"):
+        c = out["dales"][h]
+        non = c.get("fence_n", 0) + c.get("pole_n", 0)
+        print(f"| {h} | {c.get('fence_as_car', 0) + c.get('pole_as_car', 0)} of {non} | "
+              f"{c.get('car_as_car', 0)} of {c.get('car_n', 0)} |")
+    print("\nfalse cars (checking half):")
+    for line in sweeps["checking"].false_cars + nus["checking"].false_cars:
+        print("  " + line)
+    print("\n| claimed | objects | mean claimed | right |\n|---|---|---|---|")
+    print("\n".join(reliability(claims)))
+    if "autzen" in out:
+        print(f"\nautzen: {out['autzen']}")
+    print(f"\n{time.perf_counter() - t0:.0f} s")
+    if args.json:
+        args.json.write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
