@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .params import DEFAULT, CoscoParams
 
@@ -44,6 +43,8 @@ def neighbourhood_shapes(points: np.ndarray, k: int, at: np.ndarray | None = Non
     >>> float(ev[:, 0].max()), float(np.abs(normal[:, 2]).min())
     (0.0, 1.0)
     """
+    from scipy.spatial import cKDTree  # deferred: the catalogue's listing imports the shapes, not scipy
+
     p = np.asarray(points, dtype=np.float64)
     q = p if at is None else np.asarray(at, dtype=np.float64)
     k = min(k, len(p))

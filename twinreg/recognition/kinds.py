@@ -42,6 +42,7 @@ class References:
     sizes: np.ndarray
     levels: np.ndarray
     ranges: dict | None = None  # {kind: (lo, hi)}: kind_ranges, computed once
+    scanned: frozenset = frozenset()  # kinds with scanned exemplars: their surfaces are the scan's own
 
     def __post_init__(self):
         if self.ranges is None and len(self.ids):
@@ -61,7 +62,7 @@ class References:
             if (r.source or "mesh") == "mesh":
                 sizes[k, :2] = seen_size(catalogue.geometry(r, with_mesh=False).points, params.kinds.seen_height,
                                          sizes[k, :2])
-        return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels)
+        return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels, scanned=refs.scanned)
 
     @classmethod
     def of(cls, rows) -> "References":
@@ -69,7 +70,8 @@ class References:
         return cls(np.array([r.id for r in rows], dtype=np.int64), [r.name for r in rows],
                    np.array([r.category or "car" for r in rows], dtype=object),
                    np.array([[r.length, r.width, r.height] for r in rows], dtype=np.float64).reshape(-1, 3),
-                   np.array([r.sym_level or "none" for r in rows], dtype=object))
+                   np.array([r.sym_level or "none" for r in rows], dtype=object),
+                   scanned=frozenset(r.category or "car" for r in rows if (r.source or "mesh") == "scan"))
 
 
 @dataclass(frozen=True)
@@ -220,7 +222,7 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     'unknown'
     """
     if len(refs) == 0:
-        return KindResult(background_kind(size, surface, params), 0.0, {})
+        return KindResult(UNKNOWN, 0.0, {})  # CONTRACT: an empty catalogue names nothing
     d = distances(size, level, refs, params)
     height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kinds.min_size)
                            / np.maximum(refs.sizes[:, 2], params.kinds.min_size)))
@@ -241,7 +243,8 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
     kind = next(iter(votes))
     lo, hi = refs.ranges[kind]
-    if not (fits_size(size, lo, hi, params) and fits_surface(surface, kind, params)):
+    shell = kind in refs.scanned or fits_surface(surface, kind, params)
+    if not (fits_size(size, lo, hi, params) and shell):
         return KindResult(background_kind(size, surface, params), 0.0, votes, near)
     mine = refs.kinds == kind
     others = d[~mine].min() if (~mine).any() else np.inf
