@@ -93,6 +93,7 @@ class ObjectShape:
     size: Size
     centroid: np.ndarray
     surface: Surface | None = None  # None: not measured (a shape made by hand)
+    classes: tuple | None = None  # (vegetation, building) shares of its points a classified scan gives; None: none
 
     @property
     def heading(self) -> float:

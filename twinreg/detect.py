@@ -14,6 +14,7 @@ from cosco.ground import Ground, estimate_ground
 from cosco.segment import Segmentation, far_outliers, segment_objects
 
 from .errors import SceneReadError
+from .io.asprs import class_shares
 from .io.outdir import staged_folder
 from .io.ply import write_ply
 from .io.points import PointSet, read_points
@@ -58,7 +59,7 @@ def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, ke
     if keep is not None:  # the heights only where objects are searched
         inside = np.asarray(keep(scene.points), dtype=bool)
 
-        scene = replace(scene, points=scene.points[inside])
+        scene = scene.subset(inside)
         local = local[inside]
     hag = ground.height(local)
     is_ground = hag < params.ground.tol
@@ -91,8 +92,13 @@ def object_ground(det: Detection, obj) -> float:
 def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) -> list:
     """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
     from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
-    return [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o))
-            for o in (det.objects if objects is None else objects)]
+    shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o))
+              for o in (det.objects if objects is None else objects)]
+    classes = det.scene.classes  # None in a city's cells: the parameter is read only when there are classes
+    if classes is None or not params.open_world.scan_classes:
+        return shapes
+    return [replace(s, classes=class_shares(classes[o.indices]))
+            for s, o in zip(shapes, det.objects if objects is None else objects)]
 
 
 def object_levels(clouds: list, shapes: list, params: Settings = DEFAULT) -> list[str]:

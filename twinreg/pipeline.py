@@ -24,6 +24,7 @@ from .export.tiles3d import scan_sample
 from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from .geo.georef import Georef, scene_georef
 from .io import observed
+from .io.asprs import classes_doc
 from .io.outdir import check_replaceable, locked, staged_folder
 from .io.points import check_point_file
 from .matching.acceptance import scene_noise
@@ -50,7 +51,8 @@ class RunSettings:
     write PLY (None: twin.ply for one scene, none for tiles); the survey's date (``YYYY-MM-DD``; None: the
     LAS/LAZ headers'); a scene's CityJSON with geometry templates instead of explicit geometry (a city's has
     templates, and explicit geometry in its CityJSONSeq); a tiled run's classified scan (a scene always has
-    scan.copc.laz); the models' confidence floor (None: the parameters')."""
+    scan.copc.laz); the models' confidence floor (None: the parameters'); whether the kinds read a classified
+    scan's ASPRS classes (``--no-scan-classes``: not)."""
 
     unit: str = "auto"
     tol: float | None = None
@@ -65,6 +67,7 @@ class RunSettings:
     cityjson_templates: bool = False
     classified_scan: bool = False
     min_confidence: float | None = None
+    scan_classes: bool = True
 
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
@@ -85,9 +88,10 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
                                date=s.date, classified=s.classified_scan, min_confidence=s.min_confidence)
+    params = DEFAULT if s.scan_classes else DEFAULT.with_(open_world={"scan_classes": False})
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
-                      progress=progress, ply=s.ply is not False, date=s.date, templates=s.cityjson_templates,
-                      min_confidence=s.min_confidence)
+                      params=params, progress=progress, ply=s.ply is not False, date=s.date,
+                      templates=s.cityjson_templates, min_confidence=s.min_confidence)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
@@ -242,7 +246,8 @@ def _match_and_export(run: SceneRun) -> dict:
     sc = det.scene
     when, source, warnings = survey_date(run.date, [(sc.survey_date, sc.survey_date_source, sc.survey_date_warning)])
     scan = ScanSummary(scene_path.name, len(sc.points), sc.n_outliers, sc.unit, offset, noise, sc.points,
-                       survey_date=when, survey_date_source=source, warnings=warnings)
+                       survey_date=when, survey_date_source=source, warnings=warnings,
+                       scan_classes=classes_doc(sc.classes, params.open_world.scan_classes))
     twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": [p.footprint() for p in placed],

@@ -74,23 +74,17 @@ class MatchingParams:
 
 @dataclass(frozen=True)
 class KindParams:
-    """Kinds (twinreg/recognition/kinds.py): an object's distance to a reference sums the absolute log ratios of
-    their sizes (each at least ``min_size`` m; the length weighted by ``length_weight``) and ``level_penalty`` when
-    their levels of symmetry differ; the ``k`` nearest vote by 1 / (distance + ``vote_floor``); farther than
+    """Kinds (twinreg/recognition/kinds.py): an object's distance to a reference sums the absolute log ratios of their
+    sizes (each at least ``min_size`` m; the length weighted by ``length_weight``) and ``level_penalty`` when their
+    levels of symmetry differ; the ``k`` nearest vote by 1 / (distance + ``vote_floor``); farther than
     ``unknown_distance``, or more than ``max_height_ratio`` times taller or shorter than every reference, the kind
     is unknown; the kind's confidence is the logistic of its margin over the nearest other kind (or the unknown
-    distance) in ``confidence_scale``. A mesh model's plan size is its points' above ``seen_height`` m (what a
-    scan's ground filter leaves). Tuned on the even-numbered DALES objects (docs/PERFORMANCE.md).
-
-    The open world (:func:`~twinreg.recognition.kinds.fits`): a kind is given only when the object fits it: its
-    plan no larger than the kind's references' by ``size_margin`` (a share) plus ``plan_margin`` m and its longer
-    side at least ``min_plan_share`` of theirs (a side unseen makes a plan smaller, never larger), its height within
-    theirs widened by ``size_margin`` and ``height_margin`` m; and, unless the kind is ``porous``, its surface a
-    shell (variation at most ``rigid_max_variation``, linearity at most ``rigid_max_linearity`` when measured on
-    ``linearity_min_points`` points or more; a ``curved`` kind's at least ``curved_min_variation``: no flat board). What fits no kind is ``vegetation`` when porous (variation at least
-    ``vegetation_variation``, at least ``vegetation_height`` m tall), ``structure`` when long and thin (at least
-    ``structure_length`` m and ``structure_elongation`` times longer than wide), else unknown. Tuned on the tuning
-    halves of bench/bench_open_kinds.py (KITTI and nuScenes left of the vehicle, DALES even ids)."""
+    distance) in ``confidence_scale`` plus ``confidence_offset`` (a Platt fit to the claims of the tuning halves of
+    bench/bench_open_kinds.py: real sweeps and airborne objects), and a kind claimed at less than
+    ``min_kind_confidence`` is not named (the object is vegetation, structure or unknown). A mesh model's plan size
+    is its points' above ``seen_height`` m (what a scan's ground filter leaves). Tuned on the even-numbered DALES
+    objects (docs/PERFORMANCE.md). What fits no kind, and how far beyond its references an object may be:
+    :class:`OpenWorldParams`."""
 
     min_size: float = 0.1  # m
     length_weight: float = 1.0  # in the distance
@@ -99,22 +93,58 @@ class KindParams:
     vote_floor: float = 0.05  # in 1 / (d + floor)
     unknown_distance: float = 3.0  # farther: unknown
     max_height_ratio: float = 2.5  # taller or shorter
-    confidence_scale: float = 0.28  # logistic scale
+    confidence_scale: float = 0.30  # logistic scale
+    confidence_offset: float = -0.65  # logistic offset
+    min_kind_confidence: float = 0.5  # below: not named
     seen_height: float = 0.2  # m above the ground
-    size_margin: float = 0.15  # share beyond the kind's sizes
-    plan_margin: float = 0.3  # m beyond its plan
+
+
+@dataclass(frozen=True)
+class OpenWorldParams:
+    """The open world (twinreg/recognition/kinds.py, :func:`~twinreg.recognition.kinds.fits_kind`): a kind is given only
+    when the object fits it: its plan no larger than the kind's references' by ``size_margin`` (a share) plus
+    ``plan_margin`` m and its longer side at least ``min_plan_share`` of theirs and its narrower at least
+    ``min_width_share`` of their narrowest (a side unseen makes a plan smaller, never larger, but a board or a wall
+    seen edge-on is no barrier), its height within theirs widened by ``height_share`` (below) and ``height_margin``
+    m; and, unless the kind is ``porous``, its surface a shell (variation at most ``rigid_max_variation``, linearity
+    at most ``rigid_max_linearity`` when measured on ``linearity_min_points`` points or more, unless the kind is
+    thin: its references ``thin_ratio`` times taller than their plan is wide, a pole's points are strung along its
+    line; a ``curved`` kind's at least ``curved_min_variation`` unless ``flat_max_horizontal`` or more of it is
+    horizontal: no upright board or wall, while a car seen from the air is mostly its flat roof). What fits no kind
+    is ``vegetation`` when porous (variation at least ``vegetation_variation`` measured on ``vegetation_min_points``
+    points or more, at least ``vegetation_height`` m tall: a dozen points of a hydrant are as scattered as a
+    bush's), ``structure`` when long and thin (at least ``structure_length`` m and ``structure_elongation`` times
+    longer than wide), else unknown. A kind of two or more scanned exemplars is held to their own spread instead:
+    the object's distance to its nearest exemplar at most ``scan_spread`` times the largest distance of an exemplar
+    to its kind's nearest other (at least ``min_spread``: two exemplars of one design are no measure of a kind's
+    spread). When the scan is classified (``scan_classes``, ASPRS classes in LAS/LAZ), an object at least
+    ``class_share`` of whose points are classed vegetation is ``vegetation``, building or bridge ``structure``,
+    whatever its size. Tuned on the tuning halves of bench/bench_open_kinds.py (KITTI and nuScenes left of the
+    vehicle, DALES even ids)."""
+
+    size_margin: float = 0.1  # share beyond the kind's sizes
+    plan_margin: float = 0.25  # m beyond its plan
     height_margin: float = 0.15  # m beyond its heights
+    height_share: float = 0.15  # share below its heights
     min_plan_share: float = 0.25  # of its shortest length
+    min_width_share: float = 0.3  # of its narrowest width
     rigid_max_variation: float = 0.05  # surface variation
     rigid_max_linearity: float = 0.62  # neighbourhoods' linearity
     linearity_min_points: int = 60  # points, for linearity
     porous: tuple = ("tree", "vegetation", "hedge", "bush")  # kinds
     curved: tuple = ("car", "van", "truck", "bus")  # kinds
     curved_min_variation: float = 0.01  # surface variation
+    flat_max_horizontal: float = 0.4  # share horizontal: a board
     vegetation_variation: float = 0.06  # surface variation
     vegetation_height: float = 0.5  # m, at least
+    vegetation_min_points: int = 30  # points, to call it porous
+    thin_ratio: float = 3.0  # height / plan width: a pole
     structure_length: float = 3.0  # m, at least
     structure_elongation: float = 3.0  # length / width
+    scan_spread: float = 1.5  # times the exemplars' own
+    min_spread: float = 0.3  # the least spread of a kind
+    scan_classes: bool = True  # read a classified scan's classes
+    class_share: float = 0.5  # of its points, to take the class
 
 
 @dataclass(frozen=True)
@@ -135,11 +165,13 @@ class FusionParams:
 class ChangeParams:
     """The twin over time (twinreg/change/): a match at least ``sure`` confident counts as evidence of which vehicle
     it is (pairs.py); a piece of one survey's object lies inside the other's when ``piece_inside`` of it is within
-    that object's footprint grown by ``piece_grow`` m (fragments.py)."""
+    that object's footprint grown by ``piece_grow`` m (fragments.py); the heading of an object with no model and
+    fewer than ``heading_min_points`` points is no measurement (a dozen points of a hydrant give its box any axis)."""
 
     sure: float = 0.9  # confidence
     piece_inside: float = 0.6  # of a piece
     piece_grow: float = 0.3  # m around a footprint
+    heading_min_points: int = 60  # points
 
 
 @dataclass(frozen=True)
@@ -150,6 +182,7 @@ class Settings(CoscoParams):
 
     matching: MatchingParams = MatchingParams()
     kinds: KindParams = KindParams()
+    open_world: OpenWorldParams = OpenWorldParams()
     fusion: FusionParams = FusionParams()
     change: ChangeParams = ChangeParams()
     min_confidence: float = 0.3

@@ -92,13 +92,13 @@ def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params
     above (:func:`apply_floor`). Returns (the matching outcomes, the kinds)."""
     refs = References.of_catalogue(catalogue, params)
     kinds = [kind_of(s, level, refs, params) for s, level in zip(shapes, levels)]
-    category = dict(zip(refs.ids.tolist(), refs.kinds.tolist()))
+    category = {i: (None if i in refs.exemplars else k) for i, k in zip(refs.ids.tolist(), refs.kinds.tolist())}
     return apply_kinds(apply_floor(outcomes, params.min_confidence), kinds, category), kinds
 
 
 def apply_kinds(outcomes: list, kinds: list, category: dict) -> list:
     """The outcomes with every model withdrawn whose category is not the object's kind (``category``: model id ->
-    its category): a name is a claim, and a hedge of a car's size is no car however near a car model's sections
+    its category, None for an exemplar ``label`` stored, which is never placed): a name is a claim, and a hedge of a car's size is no car however near a car model's sections
     come (reason code ``kind_not_model``; the model stays first among the candidates)."""
     out = []
     for res, kind in zip(outcomes, kinds):
@@ -106,8 +106,10 @@ def apply_kinds(outcomes: list, kinds: list, category: dict) -> list:
         if m is not None and category.get(m.model_id) != kind.kind:
             others = [c for c in res.candidates if c != m.model_id]
             what = "fits no catalogued kind" if kind.kind == UNKNOWN else f"is {kind.kind}"
-            res = replace(res, match=None, candidates=[m.model_id, *others],
-                          reason=f"the best model, {m.name}, is a {category.get(m.model_id)}, but the object {what}",
+            mine = category.get(m.model_id)
+            why = (f"the best model, {m.name}, is a {mine}, but the object {what}" if mine is not None else
+                   f"the best model, {m.name}, is an exemplar of {kind.kind} (label), never placed")
+            res = replace(res, match=None, candidates=[m.model_id, *others], reason=why,
                           reason_code="kind_not_model",
                           rejected={"name": m.name, "confidence": round(m.confidence or 0.0, 3)})
         out.append(res)

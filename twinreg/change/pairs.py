@@ -108,6 +108,8 @@ def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAU
         la, lb = np.asarray(a.levels, dtype=object)[i], np.asarray(b.levels, dtype=object)[j]
         t = np.where((la == "two_mirrors") | (lb == "two_mirrors"), turn(a.heading[i], b.heading[j], np.pi), t)
         t = np.where((la == "rotational") | (lb == "rotational"), 0.0, t)
+    few = params.change.heading_min_points
+    t = np.where(~both & ((a.n_points[i] < few) | (b.n_points[j] < few)), 0.0, t)
     order = np.lexsort((-iou, -np.round(p_same, 2)))
     used_a, used_b, chosen = set(), set(), []
     for k in order:

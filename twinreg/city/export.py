@@ -16,6 +16,7 @@ import numpy as np
 from ..export.formats import TwinFiles, write_twin
 from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from ..io import observed
+from ..io.asprs import classes_doc
 from ..io.outdir import staged_folder
 from ..report.city import write_city_report
 from ..stages import finish
@@ -118,7 +119,9 @@ def _document(run: CityRun, docs: list[dict], by_cell: dict) -> dict:
                        sum(r.n_points for r in results), sum(r.n_outliers for r in results), sources[0].unit,
                        np.asarray(plan.offset), float(np.median([r.noise for r in results if r.n_points])),
                        np.vstack([lo, hi]), sources=[s.path for s in sources], survey_date=when,
-                       survey_date_source=source, warnings=warnings)
+                       survey_date_source=source, warnings=warnings,
+                       scan_classes=classes_doc(None, reason="a tiled (city) run does not read the tiles' classes "
+                                                       "yet; build-twin on one tile reads them"))
     grid = {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
             "n_cells": plan.n_cells, "n_cells_reused": int(run.reused), "origin": [0.0, 0.0]}
     return twin_document(scan, run.georef, docs, run.tax, run.params,

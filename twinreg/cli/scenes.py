@@ -111,6 +111,10 @@ ClassifiedScanOpt = Annotated[bool, typer.Option(
     "--classified-scan", help="Tiled runs: also write the scan with each point's class and object as COPC, "
                               "classified/<cell>.copc.laz (for QGIS, PDAL, Potree; about 3 bytes a point). "
                               "A scene always writes scan.copc.laz.")]
+ScanClassesOpt = Annotated[bool, typer.Option(
+    "--scan-classes/--no-scan-classes", help="Read a classified scan's ASPRS classes (vegetation 3-5, building 6, "
+                                             "bridge 17) for the objects' kinds; twin.json's scan_classes says "
+                                             "whether they were used.")]
 PlyOpt = Annotated[Optional[bool], typer.Option(
     "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
                            "--ply writes ply/<cell>.ply].", show_default=False)]
@@ -143,6 +147,7 @@ def build_twin_cmd(
     classified_scan: ClassifiedScanOpt = False,
     ply: PlyOpt = None,
     min_confidence: MinConfidenceOpt = None,
+    scan_classes: ScanClassesOpt = True,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -159,7 +164,8 @@ def build_twin_cmd(
     settings = RunSettings(unit=unit, tol=tol, threshold=threshold, cell=cell, buffer=buffer, workers=workers,
                            scheduler=scheduler, restart=restart, ply=ply,
                            date=date.date().isoformat() if date else None, cityjson_templates=cityjson_templates,
-                           classified_scan=classified_scan, min_confidence=min_confidence)
+                           classified_scan=classified_scan, min_confidence=min_confidence,
+                           scan_classes=scan_classes)
     had_twin = (out / "twin.json").is_file()
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)

@@ -27,6 +27,7 @@ class ScanSummary:
     survey_date: str | None = None
     survey_date_source: str | None = None
     warnings: list = field(default_factory=list)
+    scan_classes: dict | None = None  # CONTRACT: {"used": true, "codes": {...}} or {"used": false, "reason": ...}
 
 
 @dataclass
@@ -66,6 +67,7 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
         "georef": georef.to_json() | {"scan_centre": georef.centre_of(scan.extent)},
         "offset": [float(v) for v in scan.offset], "noise_m": round(float(scan.noise), 4),
         "survey_date": scan.survey_date, "survey_date_source": scan.survey_date_source,
+        "scan_classes": scan.scan_classes,
         **({"warnings": list(scan.warnings)} if scan.warnings else {}),
         "objects": objects,
         **taxonomy_json(tax),

@@ -51,10 +51,15 @@ class PointSet:
     survey_date: str | None = None
     survey_date_source: str | None = None
     survey_date_warning: str | None = None
+    classes: np.ndarray | None = None  # (n,) uint8 ASPRS classes, when the file has any beyond 0 and 1
 
     def without(self, drop: np.ndarray) -> "PointSet":
         """The same scene without the points of the (n,) mask ``drop`` (counted as outliers)."""
-        return replace(self, points=self.points[~drop], n_outliers=self.n_outliers + int(drop.sum()))
+        return replace(self.subset(~drop), n_outliers=self.n_outliers + int(drop.sum()))
+
+    def subset(self, keep: np.ndarray) -> "PointSet":
+        """The same scene with only the points of the (n,) mask ``keep`` (and their classes)."""
+        return replace(self, points=self.points[keep], classes=None if self.classes is None else self.classes[keep])
 
     @property
     def crs(self) -> str | None:
@@ -255,7 +260,8 @@ def las_survey_date(path: Path, header, gps_time=None) -> tuple[str | None, str 
 
 
 def _read_las(path: Path):
-    """(points (n, 3) in file units, the header's CRS or None, the error parsing it or None)."""
+    """(points (n, 3) in file units, the header's CRS or None, the error parsing it or None, the survey date,
+    the points' ASPRS classes or None when every point is 0 (never classified) or 1 (unclassified))."""
     import laspy
 
     try:
@@ -274,10 +280,12 @@ def _read_las(path: Path):
                            np.asarray(las.z, dtype=np.float64)])
     has_gps = "gps_time" in las.point_format.dimension_names
     date = las_survey_date(path, las.header, np.asarray(las.gps_time) if has_gps else None)
+    classes = np.asarray(las.classification, dtype=np.uint8)
+    classes = classes if (classes > 1).any() else None
     try:
-        return pts, las.header.parse_crs(), None, date
+        return pts, las.header.parse_crs(), None, date, classes
     except Exception as exc:  # a CRS record is there but broken: the caller decides (error unless told the unit)
-        return pts, None, exc, date
+        return pts, None, exc, date, classes
 
 
 _PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
@@ -414,8 +422,9 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
     path, suffix = check_point_file(path)
     header_crs = header_error = None
     date = (None, None, None)
+    classes = None
     if suffix in (".las", ".laz"):
-        pts, header_crs, header_error, date = _read_las(path)
+        pts, header_crs, header_error, date, classes = _read_las(path)
     elif suffix == ".bin":
         pts = _read_kitti(path)
     elif suffix == ".ply":
@@ -430,6 +439,7 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
     finite = np.isfinite(pts).all(1)
     dropped = int((~finite).sum())
     pts = pts[finite]
+    classes = classes[finite] if classes is not None else None
     if len(pts) == 0:
         raise SceneReadError(f"{path}: no valid points")
     info, unit, scale, z_scale = crs_and_units(path, unit.lower(), crs, header_crs, header_error, override_crs)
@@ -443,4 +453,5 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
     offset = np.floor(pts.min(0) / 100.0) * 100.0
     offset[2] = 0.0
     return PointSet(path=path, points=pts, offset=offset, unit=unit, crs_info=info, n_dropped=dropped, scale=scale,
-                    z_scale=z_scale, survey_date=date[0], survey_date_source=date[1], survey_date_warning=date[2])
+                    z_scale=z_scale, survey_date=date[0], survey_date_source=date[1], survey_date_warning=date[2],
+                    classes=classes)

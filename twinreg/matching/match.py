@@ -111,7 +111,7 @@ class ObjectMatch:
 #: (lower); leaves too much of its top surface unseen; its best model's confidence is under the floor
 #: (:func:`twinreg.stages.apply_floor`)
 REASON_CODES = ("no_model_of_this_size", "points_unexplained", "model_too_tall", "model_too_low", "top_unseen",
-                "under_floor")
+                "under_floor", "kind_not_model")
 
 
 def _rot(a: float) -> np.ndarray:

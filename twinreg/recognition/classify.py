@@ -7,7 +7,7 @@ model is of that kind and its confidence reaches the floor (``--min-confidence``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +18,11 @@ from cosco.levels import symmetry_level
 from cosco.taxonomy import taxonomy_of
 
 from ..errors import SceneReadError, require_probability
+from ..io.asprs import class_shares
 from ..io.points import POINT_SUFFIXES, read_points
 from ..matching.match import Evidence, ModelCache, match_objects
 from ..settings import DEFAULT, Settings
-from .kinds import UNKNOWN, References, kind_of, object_types
+from .kinds import EXEMPLAR, UNKNOWN, References, kind_of, object_types
 
 #: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
 #: scan's noise on)
@@ -67,6 +68,8 @@ def read_object(path: Path, unit: str = "auto", params: Settings = DEFAULT, warn
         shape = cosco.describe_object(ps.points, params)
     except ValueError as exc:
         raise SceneReadError(f"{path}: {exc}; classify takes one object's points a file") from exc
+    if ps.classes is not None and params.open_world.scan_classes:  # a classified file's classes, as build-twin reads them
+        shape = replace(shape, classes=class_shares(ps.classes))
     return GivenObject(path, ps.points, shape, symmetry_level(ps.points, params))
 
 
@@ -99,7 +102,8 @@ def _item(o: GivenObject, kind, label: int, res, cache, floor: float, params: Se
     match = None
     m = res.match if res is not None else None
     if m is not None and kind.kind != UNKNOWN:
-        same_kind = cache.row(m.model_id).category == kind.kind
+        row = cache.row(m.model_id)
+        same_kind = row.category == kind.kind and EXEMPLAR not in (row.tags or ())  # stages.apply_kinds' rule
         if same_kind and m.confidence is not None and m.confidence >= floor:
             match = {"model_id": m.model_id, "name": m.name, "rmse_m": round(m.rmse, 4),
                      "confidence": round(m.confidence, 3), "ambiguous_with": list(m.ambiguous_with)}

@@ -29,6 +29,8 @@ UNKNOWN = "unknown"
 BACKGROUND = ("vegetation", "structure")
 #: the kinds that get no model
 NO_MODEL = (UNKNOWN, *BACKGROUND)
+#: the tag of the scanned exemplars ``twinreg label`` stores: a kind's, never a model to place
+EXEMPLAR = "exemplar"
 
 
 @dataclass(frozen=True)
@@ -43,10 +45,14 @@ class References:
     levels: np.ndarray
     ranges: dict | None = None  # {kind: (lo, hi)}: kind_ranges, computed once
     scanned: frozenset = frozenset()  # kinds with scanned exemplars: their surfaces are the scan's own
+    spreads: dict | None = None  # {kind: distance}: scanned kinds' own spread (kind_spreads), computed once
+    exemplars: frozenset = frozenset()  # ids of the exemplars `label` stored: they teach a kind, never placed
 
     def __post_init__(self):
         if self.ranges is None and len(self.ids):
             object.__setattr__(self, "ranges", kind_ranges(self))
+        if self.spreads is None:
+            object.__setattr__(self, "spreads", kind_spreads(self))
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -62,7 +68,8 @@ class References:
             if (r.source or "mesh") == "mesh":
                 sizes[k, :2] = seen_size(catalogue.geometry(r, with_mesh=False).points, params.kinds.seen_height,
                                          sizes[k, :2])
-        return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels, scanned=refs.scanned)
+        return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels, scanned=refs.scanned,
+                   spreads=kind_spreads(refs, params), exemplars=refs.exemplars)
 
     @classmethod
     def of(cls, rows) -> "References":
@@ -71,7 +78,8 @@ class References:
                    np.array([r.category or "car" for r in rows], dtype=object),
                    np.array([[r.length, r.width, r.height] for r in rows], dtype=np.float64).reshape(-1, 3),
                    np.array([r.sym_level or "none" for r in rows], dtype=object),
-                   scanned=frozenset(r.category or "car" for r in rows if (r.source or "mesh") == "scan"))
+                   scanned=frozenset(r.category or "car" for r in rows if (r.source or "mesh") == "scan"),
+                   exemplars=frozenset(r.id for r in rows if EXEMPLAR in (r.tags or ())))
 
 
 @dataclass(frozen=True)
@@ -144,10 +152,50 @@ def kind_ranges(refs: References) -> dict:
             for k in dict.fromkeys(refs.kinds.tolist())}
 
 
-def fits_size(size, lo, hi, params: Settings = DEFAULT) -> bool:
+def kind_spreads(refs: References, params: Settings = DEFAULT) -> dict:
+    """{kind: distance}: for each kind of two or more references, all scanned, the largest distance of one of them
+    to the nearest other of its kind (leave one out: how far apart the kind's own members are; a scanned kind's
+    exemplars are segments of real scans, a fence as long as its stretch, so their spread is the kind's, not a
+    fixed margin's).
+
+    >>> refs = References(np.arange(3), list("abc"), np.array(["fence"] * 3, dtype=object),
+    ...                   np.array([[9.0, 0.6, 1.5], [12.0, 1.3, 1.3], [20.0, 1.5, 1.6]]),
+    ...                   np.array(["none"] * 3, dtype=object), scanned=frozenset({"fence"}))
+    >>> round(refs.spreads["fence"], 2)
+    1.2
+    """
+    out = {}
+    for kind in sorted(refs.scanned):
+        idx = np.flatnonzero(refs.kinds == kind)
+        if len(idx) < 2:
+            continue
+        sub = References(refs.ids[idx], [refs.names[j] for j in idx], refs.kinds[idx], refs.sizes[idx],
+                         refs.levels[idx], ranges={}, spreads={})
+        nearest = []
+        for j in range(len(idx)):
+            d = distances(sub.sizes[j], sub.levels[j], sub, params)
+            d[j] = np.inf
+            nearest.append(d.min())
+        out[kind] = float(max(nearest))
+    return out
+
+
+def fits_kind(size, d_own: float, kind: str, refs: References, params: Settings = DEFAULT) -> bool:
+    """Whether an object whose nearest reference of ``kind`` is ``d_own`` away fits that kind: within the spread of
+    the kind's scanned exemplars (:func:`kind_spreads`) or, for mesh models, their range of sizes
+    (:func:`fits_size`)."""
+    spread = refs.spreads.get(kind)
+    if spread is not None:
+        return d_own <= params.open_world.scan_spread * max(spread, params.open_world.min_spread)
+    lo, hi = refs.ranges[kind]
+    return fits_size(size, lo, hi, params)
+
+
+def fits_size(size, lo, hi, params: Settings = DEFAULT, sliver: bool = False) -> bool:
     """Whether an object of ``size`` (L, W, H m) is of a kind whose references measure ``lo``-``hi`` (plan-sorted):
-    its plan no larger than theirs (a share and metres of margin), its longer side not a small part of theirs, its
-    height within theirs widened by the margins (:class:`~twinreg.settings.KindParams`).
+    its plan no larger than theirs (a share and metres of margin), its longer side not a small part of theirs nor
+    its narrower (unless ``sliver``: what a kind seen edge-on may be), its height within theirs widened by the
+    margins (:class:`~twinreg.settings.OpenWorldParams`).
 
     >>> lo, hi = np.array([3.7, 1.6, 1.4]), np.array([5.0, 2.0, 2.1])
     >>> fits_size([4.4, 1.8, 1.5], lo, hi), fits_size([2.5, 0.9, 1.4], lo, hi)  # a car seen whole, one seen in part
@@ -155,55 +203,88 @@ def fits_size(size, lo, hi, params: Settings = DEFAULT) -> bool:
     >>> fits_size([4.1, 1.4, 2.4], lo, hi), fits_size([7.9, 1.0, 1.6], lo, hi)  # a hedge too tall, a wall too long
     (False, False)
     """
-    k = params.kinds
+    k = params.open_world
     s = _plan_sorted(size)
     grow = 1.0 + k.size_margin
     if s[0] > hi[0] * grow + k.plan_margin or s[1] > hi[1] * grow + k.plan_margin:
         return False
-    if s[0] < lo[0] * k.min_plan_share:
+    if s[0] < lo[0] * k.min_plan_share or (s[1] < lo[1] * k.min_width_share and not sliver):
         return False
-    return bool(lo[2] / grow - k.height_margin <= s[2] <= hi[2] + k.height_margin)
+    return bool(lo[2] / (1.0 + k.height_share) - k.height_margin <= s[2] <= hi[2] + k.height_margin)
 
 
-def fits_surface(surface, kind: str, params: Settings = DEFAULT) -> bool:
-    """Whether an object's :class:`~cosco.surface.Surface` is that of a kind: a shell (neither porous nor strung
-    along lines) unless the kind is porous, and not flat when the kind is ``curved`` (vehicles); True when not
-    measured (the line and flatness tests need ``linearity_min_points`` points)."""
-    k = params.kinds
+def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = False) -> bool:
+    """Whether an object's :class:`~cosco.surface.Surface` is that of a kind: a shell (neither porous nor, unless
+    the kind is ``thin``, a pole, strung along lines) unless the kind is porous, and not flat when the kind is
+    ``curved`` (vehicles); True when not measured (the line and flatness tests need ``linearity_min_points``
+    points).
+
+    >>> from cosco.surface import Surface
+    >>> pole = Surface(0.02, 0.8, 0.05, 150)
+    >>> fits_surface(pole, "lamp_post"), fits_surface(pole, "lamp_post", thin=True)
+    (False, True)
+    """
+    k = params.open_world
     if surface is None or kind in k.porous:
         return True
     if surface.variation > k.rigid_max_variation:
         return False
     if surface.n < k.linearity_min_points:
         return True
-    if kind in k.curved and surface.variation < k.curved_min_variation:
-        return False  # a flat board or wall, not a car's rounded shell
-    return surface.linearity <= k.rigid_max_linearity
+    if (kind in k.curved and surface.variation < k.curved_min_variation
+            and surface.horizontal < k.flat_max_horizontal):
+        return False  # an upright flat board or wall, not a car's rounded shell (from the air: its flat roof)
+    return thin or surface.linearity <= k.rigid_max_linearity
 
 
-def background_kind(size, surface, params: Settings = DEFAULT) -> str:
+def background_kind(size, surface, params: Settings = DEFAULT, ranges: dict | None = None) -> str:
     """What an object that fits no catalogued kind is: ``vegetation`` (porous and tall enough), ``structure`` (long
-    and thin: a wall, a hedge, a fence) or ``unknown``.
+    and thin: a wall, a hedge, a fence, and of no catalogued kind's size, ``ranges``: a car seen from one side is a
+    long thin sliver too) or ``unknown``.
 
     >>> from cosco.surface import Surface
     >>> background_kind([2.1, 1.3, 2.2], Surface(0.09, 0.5, 0.1, 800))
     'vegetation'
     >>> background_kind([7.9, 0.8, 2.2], Surface(0.03, 0.5, 0.0, 800)), background_kind([1.0, 0.8, 1.1], None)
     ('structure', 'unknown')
+    >>> background_kind([4.4, 0.1, 1.3], None, ranges={"car": ([3.7, 1.6, 1.4], [5.0, 2.0, 2.1])})  # a car's side
+    'unknown'
     """
-    k = params.kinds
+    k = params.open_world
     s = _plan_sorted(size)
-    if surface is not None and surface.variation >= k.vegetation_variation and s[2] >= k.vegetation_height:
+    if (surface is not None and surface.n >= k.vegetation_min_points and surface.variation >= k.vegetation_variation
+            and s[2] >= k.vegetation_height):
         return "vegetation"
-    if s[0] >= k.structure_length and s[0] >= k.structure_elongation * max(s[1], k.min_size):
-        return "structure"
+    if s[0] >= k.structure_length and s[0] >= k.structure_elongation * max(s[1], params.kinds.min_size):
+        if not any(fits_size(s, lo, hi, params, sliver=True) for lo, hi in (ranges or {}).values()):
+            return "structure"
     return UNKNOWN
 
 
 def kind_of(shape, level: str, refs: References, params: Settings = DEFAULT) -> KindResult:
     """The kind of one described object (a :class:`~cosco.sections.ObjectShape`, its level of symmetry): the one
-    decision every command makes (:func:`recognise_kind` on its size and surface)."""
+    decision every command makes: the scan's classes when it has them (:func:`class_kind`), else
+    :func:`recognise_kind` on its size and surface."""
+    shares = getattr(shape, "classes", None)
+    by_class = class_kind(shares, params)
+    if by_class is not None:  # its confidence: the share of its points the scan classes so
+        return KindResult(by_class, float(max(shares)), {})
     return recognise_kind(shape.size.as_array(), level, refs, params, getattr(shape, "surface", None))
+
+
+def class_kind(shares, params: Settings = DEFAULT) -> str | None:
+    """``vegetation`` or ``structure`` when the scan classes ``params.open_world.class_share`` or more of an object's
+    points so (``shares``: (vegetation, building or bridge), :func:`~twinreg.io.asprs.class_shares`), else None.
+
+    >>> class_kind((0.1, 0.8)), class_kind((0.7, 0.0)), class_kind((0.2, 0.3)), class_kind(None)
+    ('structure', 'vegetation', None, None)
+    """
+    if shares is None or not params.open_world.scan_classes:
+        return None
+    vegetation, built = shares
+    if max(vegetation, built) < params.open_world.class_share:
+        return None
+    return "vegetation" if vegetation >= built else "structure"
 
 
 def recognise_kind(size, level: str, refs: References, params: Settings = DEFAULT,
@@ -236,20 +317,24 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     near = tuple(Near(int(refs.ids[j]), str(refs.names[j]), str(refs.kinds[j]), float(d[j]), float(w))
                  for j, w in zip(order, shares))
     if d[order[0]] > params.kinds.unknown_distance:
-        return KindResult(background_kind(size, surface, params), 0.0, {}, near)
+        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, {}, near)
     votes: dict = {}
     for n in near:
         votes[n.kind] = votes.get(n.kind, 0.0) + n.share
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
     kind = next(iter(votes))
-    lo, hi = refs.ranges[kind]
-    shell = kind in refs.scanned or fits_surface(surface, kind, params)
-    if not (fits_size(size, lo, hi, params) and shell):
-        return KindResult(background_kind(size, surface, params), 0.0, votes, near)
     mine = refs.kinds == kind
+    lo, hi = refs.ranges[kind]
+    thin = bool(lo[2] >= params.open_world.thin_ratio * hi[1])
+    shell = kind in refs.scanned or fits_surface(surface, kind, params, thin)
+    if not (fits_kind(size, float(d[mine].min()), kind, refs, params) and shell):
+        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near)
     others = d[~mine].min() if (~mine).any() else np.inf
     margin = float(min(others, params.kinds.unknown_distance) - d[mine].min())
-    confidence = float(1.0 / (1.0 + np.exp(-margin / params.kinds.confidence_scale)))
+    confidence = float(1.0 / (1.0 + np.exp(-(margin / params.kinds.confidence_scale
+                                             + params.kinds.confidence_offset))))
+    if confidence < params.kinds.min_kind_confidence:  # a name is a claim: too near another kind to make
+        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, margin)
     return KindResult(kind, confidence, votes, near, margin)
 
 

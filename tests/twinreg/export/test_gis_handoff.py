@@ -154,8 +154,10 @@ def test_geojson_features_share_their_keys(real_twin):
         p = f["properties"]
         assert p["matched"] is (o["match"] is not None)
         # a model's category when matched; else the kind recognised from the nearest references (the catalogue
-        # holds cars only: a car, or unknown when no reference is near), with its confidence and the object's type
-        assert p["kind"] == o["kind"] and p["kind"] in (("car",) if o["match"] else ("car", "unknown"))
+        # holds cars only: a car, or unknown when none fits, or what every scan holds, vegetation and structure),
+        # with its confidence and the object's type
+        assert p["kind"] == o["kind"] and p["kind"] in (("car",) if o["match"] else
+                                                         ("car", "unknown", "vegetation", "structure"))
         assert p["type"] == o["type"] and p["symmetry_level"] == o["symmetry"]["level"]
         assert p["shape_source"] == o["shape"]["source"] and (p["shape_source"] == "model") == bool(o["match"])
         assert (p["reason_code"] in REASON_CODES) if not p["matched"] else p["reason_code"] is None
