@@ -115,12 +115,13 @@ def is_scan_file(path: Path) -> bool:
 
 
 def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEFAULT,
-                 factor: float = 1.0) -> PreparedModel:
+                 factor: float = 1.0, ground_z: float | None = None) -> PreparedModel:
     """A scanned object (one object's points: XYZ, PLY points, LAS/LAZ) as a catalogue reference: its points
     placed as a model is (footprint centred, lowest point z = 0, its frame's heading along +X), its sections, size
     and level of symmetry measured as any object's, and, for the exports, the convex hull of its points as its
     mesh. Raises a :class:`~twinreg.errors.TwinregError` subclass on bad input (too few points, an implausible
-    size for the kind)."""
+    size for the kind). ``ground_z``: the ground's height under the object in the file's frame (metres; None: its
+    lowest point, as for an object file that holds no ground), so that its height is measured as a twin's is."""
     from cosco.levels import symmetry_level
 
 
@@ -130,9 +131,10 @@ def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEF
         pts = check_object(ps.points, min_points=params.segment.min_points)
     except ValueError as exc:
         raise MeshLoadError(f"{path}: {exc}; a scanned reference needs one object's points") from exc
-    shape = cosco.describe_object(pts, params)
+    shape = cosco.describe_object(pts, params, ground_z=ground_z)
     local = shape.frame.to_local(pts)
-    local[:, 2] -= local[:, 2].min()
+    if ground_z is None or not np.isfinite(ground_z) or ground_z > pts[:, 2].min():
+        local[:, 2] -= local[:, 2].min()
     lo, hi = local[:, :2].min(0), local[:, :2].max(0)
     local[:, :2] -= (lo + hi) / 2
     longest = float(np.ptp(local, axis=0).max())

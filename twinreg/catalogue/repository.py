@@ -363,9 +363,11 @@ class Catalogue:
                 return row
 
     def add(self, path, name=None, make=None, model=None, body_class=None, tags=(), unit="auto", up="auto",
-            front="auto", category=None, scale: float = 1.0, name_hint: str | None = None) -> RefModel:
+            front="auto", category=None, scale: float = 1.0, name_hint: str | None = None,
+            ground_z: float | None = None) -> RefModel:
         """Load, normalise, measure and store one mesh file of a ``category`` (``car`` when None; ``scale``: a
-        factor after the unit). See :func:`prepare_model`."""
+        factor after the unit; ``ground_z``: a scanned object's ground, :func:`prepare_scan`). See
+        :func:`prepare_model`."""
         category = check_category(category)
         if not (np.isfinite(scale) and 1e-4 <= scale <= 1e4):
             raise CatalogueError(f"--scale {scale:g}: give a factor between 0.0001 and 10000")
@@ -378,7 +380,7 @@ class Catalogue:
                 raise DuplicateModelError(f"{path}: same content as model {existing.id} "
                                           f"'{existing.name}' already in the catalogue")
         if path.is_file() and is_scan_file(path):
-            prep = prepare_scan(path, category, unit=unit, factor=float(scale))
+            prep = prepare_scan(path, category, unit=unit, factor=float(scale), ground_z=ground_z)
         else:
             prep = prepare_model(path, unit=unit, up=up, front=front, category=category, factor=float(scale))
         return self.add_prepared(prep, name=name, make=make, model=model, body_class=body_class, tags=tags,

@@ -1,4 +1,4 @@
-"""Catalogue commands: add-model, import-models, list-models, show-model, update-model, remove-model."""
+"""Catalogue commands: add-model, import-models, list-models, show-model, update-model, remove-model, label."""
 
 from __future__ import annotations
 
@@ -71,6 +71,9 @@ def add_model(
     type_: Annotated[Optional[int], typer.Option(
         "--type", help="With --from-twin: the type's number (twin.json's objects carry theirs).",
         show_default=False)] = None,
+    force: Annotated[bool, typer.Option(
+        "--force", help="With --from-twin: add the type as --category even when its members' sizes say it is not "
+                        "one.")] = False,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -87,7 +90,7 @@ def add_model(
         from ..shapes.promote import promote
 
         with err_console.status(f"measuring type {type_} of {from_twin.name}"):
-            row = promote(cat, from_twin, type_, name, category)
+            row = promote(cat, from_twin, type_, name, category, force=force)
             dups, warning = near_duplicate_report(cat, row)
     else:
         with err_console.status(f"measuring {mesh.name}"):
@@ -290,3 +293,30 @@ def remove_model(
         print_json({"removed": row.to_dict()})
     else:
         info(f"removed model {row.id} '{row.name}'")
+
+
+@app.command("label", cls=Command)
+@handled
+def label(
+    twin: Annotated[Path, typer.Argument(help="A twin folder build-twin wrote.", show_default=False)],
+    type_: Annotated[int, typer.Option("--type", help="The type's number (twin.json's objects carry theirs).",
+                                       show_default=False)],
+    kind: Annotated[str, typer.Option("--kind", help="What its members are, lower-case: hedge, bicycle, wall, or a "
+                                                     "negative such as not_a_car.", show_default=False)],
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """Store the members of a twin's type as scanned exemplars of a kind (at most 20, those with most points); the
+    next run recognises the kind. Exemplars teach a kind and are never placed as a model."""
+    from ..label.teach import label_type
+
+    cat = open_catalogue(library)
+    with err_console.status(f"labelling type {type_} of {twin.name} as {kind}"):
+        rows, few = label_type(cat, twin, type_, kind)
+    if json_:
+        print_json({"kind": rows[0].category, "type": type_, "added": [r.to_dict() for r in rows],
+                    "too_few_points": few})
+    else:
+        info(f"type {type_} of {twin.name}: {len(rows)} exemplars of {rows[0].category} added "
+             f"({', '.join(r.name for r in rows[:5])}{', ...' if len(rows) > 5 else ''})"
+             + (f"; {len(few)} members with too few points left out" if few else ""))

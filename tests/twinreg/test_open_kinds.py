@@ -1,0 +1,259 @@
+"""Kinds in an open world (issue 48): on real sweeps a car is claimed only where there is one; real airborne fences
+and poles are not cars; the same points get the same answer whatever else is in the batch; what the user labels is
+recognised by the next run and never placed as a model; ``add-model --from-twin`` refuses a kind its members
+contradict; a classified scan's ASPRS classes name vegetation and structure, and can be turned off."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from tests.conftest import DALES, KITTI, kitti_boxes, need
+from twinreg.cli import app
+
+DUBLIN = ["--lat", "53.35", "--lon", "-6.26"]
+
+
+def _run(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def _dales(kind: str, parity: int, n: int) -> list:
+    files = sorted(need(DALES / kind).glob("*.xyz"), key=lambda p: int(p.stem))
+    return [f for f in files if int(f.stem) % 2 == parity][:n]
+
+
+def _in_view(frame: str, xyz: np.ndarray) -> np.ndarray:
+    """Which velodyne positions the left colour camera sees (its 1242 x 375 image), within 30 m in plan."""
+    calib = {}
+    for line in open(KITTI / "calib" / f"{frame}.txt"):
+        if ":" in line:
+            key, vals = line.split(":", 1)
+            calib[key.strip()] = np.array([float(v) for v in vals.split()])
+    tr = np.vstack([calib["Tr_velo_to_cam"].reshape(3, 4), [0, 0, 0, 1]])
+    r0 = np.eye(4)
+    r0[:3, :3] = calib["R0_rect"].reshape(3, 3)
+    cam = (calib["P2"].reshape(3, 4) @ r0 @ tr @ np.c_[xyz, np.ones(len(xyz))].T).T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v = cam[:, 0] / cam[:, 2], cam[:, 1] / cam[:, 2]
+    return (cam[:, 2] > 0) & (u >= 0) & (u < 1242) & (v >= 0) & (v < 375) & (np.hypot(xyz[:, 0], xyz[:, 1]) <= 30)
+
+
+@pytest.fixture(scope="module")
+def city_catalogue(catalogue16, tmp_path_factory):
+    """The 16 shared cars and the 9 shared street-furniture models (its manifest): what a user starts with."""
+    import shutil
+
+    from tests.conftest import SHARED_DATA
+
+    lib = tmp_path_factory.mktemp("city_catalogue") / "lib"
+    shutil.copytree(catalogue16.folder, lib)
+    folder = need(SHARED_DATA / "street_furniture")
+    res = _run("import-models", folder, "--manifest", folder / "catalogue.csv", "--library", lib, "-q")
+    assert res.exit_code == 0, res.output
+    return lib
+
+
+def test_real_sweeps_claim_a_car_only_where_there_is_one(city_catalogue, tmp_path):
+    """Three KITTI frames (real Velodyne sweeps; their bushes, walls and poles unlabelled), the 16 shared cars and
+    9 street-furniture models catalogued: at most one car claimed in the cameras' views where label_2 has no
+    vehicle, and at least four of the five labelled cars in view with 100 points or more (000008's) found as a car
+    (the fifth, seen at a corner as 1.4 x 0.8 m, is too near the catalogue's furniture to name)."""
+    false, found, labelled = 0, 0, 0
+    for frame, folder in (("000000", "velodyne"), ("000001", "velodyne"), ("000008", "velodyne_reduced")):
+        scan = need(KITTI / folder / f"{frame}.bin")
+        res = _run("build-twin", scan, *DUBLIN, "--library", city_catalogue, "--out", tmp_path / frame,
+                   "--no-ply", "--json", "-q")
+        assert res.exit_code == 0, res.output
+        objs = json.loads(res.stdout)["objects"]
+        boxes = kitti_boxes(frame)
+        vehicles = [b for b in boxes if b["type"] in ("Car", "Van", "Truck")]
+        cents = np.array([o["centroid"] for o in objs]).reshape(-1, 3)
+        seen = _in_view(frame, cents)
+        for o, c, ok in zip(objs, cents, seen):
+            if ok and o["kind"] == "car" and not any(b["inside"](c[None])[0] for b in vehicles):
+                false += 1
+        pts = np.fromfile(scan, dtype="<f4").reshape(-1, 4)[:, :3].astype(np.float64)
+        for b in vehicles:
+            if b["type"] != "Car" or not _in_view(frame, b["centre"][None])[0] or b["inside"](pts).sum() < 100:
+                continue
+            labelled += 1
+            found += any(o["kind"] == "car" and np.hypot(*(c[:2] - b["centre"][:2])) < 2.0
+                         for o, c in zip(objs, cents))
+    assert false <= 1, false
+    assert labelled == 5 and found >= 4, (found, labelled)
+
+
+@pytest.fixture(scope="module")
+def dales_cars(tmp_path_factory):
+    """A catalogue of five scanned DALES cars (even ids): cars alone as exemplars."""
+    lib = tmp_path_factory.mktemp("dales_cars")
+    for f in _dales("car", 0, 5):
+        res = _run("add-model", f, "--category", "car", "--library", lib)
+        assert res.exit_code == 0, res.output
+    return lib
+
+
+def test_real_fences_and_poles_are_not_cars(dales_cars):
+    """DALES objects the exemplars were not drawn from (odd ids): at most 3 % of fences and poles called car, at
+    least 90 % of cars."""
+    others = _dales("fence", 1, 20) + _dales("pole", 1, 20)
+    cars = _dales("car", 1, 20)
+    res = _run("classify", *others, *cars, "--library", dales_cars, "--json")
+    assert res.exit_code == 0, res.output
+    items = json.loads(res.stdout)
+    kinds = [i["kind"] for i in items]
+    assert sum(k == "car" for k in kinds[:len(others)]) <= 0.03 * len(others), kinds[:len(others)]
+    assert sum(k == "car" for k in kinds[len(others):]) >= 0.9 * len(cars), kinds[len(others):]
+
+
+def test_the_same_points_get_the_same_answer_whatever_the_batch(dales_cars):
+    """An object's kind, confidences and model do not depend on what else is classified with it."""
+    files = _dales("car", 1, 3) + _dales("fence", 1, 2) + _dales("pole", 1, 2)
+    together = json.loads(_run("classify", *files, "--library", dales_cars, "--json").stdout)
+    for f, item in zip(files, together):
+        alone = json.loads(_run("classify", f, "--library", dales_cars, "--json").stdout)[0]
+        for key in ("kind", "kind_confidence", "match", "candidates", "size", "symmetry"):
+            assert alone[key] == item[key], (f.name, key, alone[key], item[key])
+
+
+@pytest.fixture(scope="module")
+def park(tmp_path_factory, parametric_catalogue):
+    """A simulated car park of the 8 parametric designs, its twin built with the van taken out of the catalogue:
+    (the catalogue without the van, the scan, the folder of its twin)."""
+    import shutil
+
+    from twinreg.catalogue.repository import Catalogue
+    from twinreg.io.ply import write_ply
+    from twinreg.sim.scan import car_park
+
+    root = tmp_path_factory.mktemp("label")
+    shutil.copytree(parametric_catalogue.folder, root / "lib")
+    cat = Catalogue(root / "lib")
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    park = car_park(cat.scan_meshes(rows), n_cars=16, seed=3)
+    cat.remove("demo_van")
+    scan = write_ply(root / "park.ply", park.points)
+    res = _run("build-twin", scan, *DUBLIN, "--library", root / "lib", "--out", root / "twin", "--no-ply", "-q")
+    assert res.exit_code == 0, res.output
+    return cat, scan, root
+
+
+def _van_type(twin: dict) -> int:
+    """The type of the twin's tallest objects of no model (the vans: 1.97 m, the others at most 1.57 m)."""
+    tall = [o for o in twin["objects"] if o["match"] is None and o["size"]["height"] > 1.8]
+    assert tall, [(o["size"], o["match"]) for o in twin["objects"]]
+    return max({o["type"] for o in tall}, key=lambda t: sum(o["type"] == t for o in tall))
+
+
+def test_a_labelled_type_is_recognised_next_run_and_never_placed(park):
+    cat, scan, root = park
+    twin = json.loads((root / "twin" / "twin.json").read_text())
+    t = _van_type(twin)
+    before = cat.count()
+    res = _run("label", root / "twin", "--type", t, "--kind", "not_a_car", "--library", cat.folder, "--json")
+    assert res.exit_code == 0, res.output
+    added = json.loads(res.stdout)["added"]
+    assert added and all(r["category"] == "not_a_car" and r["source"] == "scan" and "exemplar" in r["tags"]
+                         for r in added)
+    assert cat.count() == before + len(added)
+    # labelling it again: the names are taken, one line, nothing added
+    again = _run("label", root / "twin", "--type", t, "--kind", "not_a_car", "--library", cat.folder)
+    assert again.exit_code != 0 and "taken" in again.output and cat.count() == before + len(added)
+    res = _run("build-twin", scan, *DUBLIN, "--library", cat.folder, "--out", root / "twin2", "--no-ply", "-q")
+    assert res.exit_code == 0, res.output
+    later = json.loads((root / "twin2" / "twin.json").read_text())["objects"]
+    vans = [o for o in later if o["size"]["height"] > 1.8 and 4.0 < o["size"]["length"] < 5.5]
+    assert vans and all(o["kind"] == "not_a_car" and o["match"] is None for o in vans), \
+        [(o["kind"], o["match"]) for o in vans]
+    assert not any(o["match"] and o["match"]["name"] in {r["name"] for r in added} for o in later)
+
+
+def test_label_refuses_bad_input_and_changes_nothing(park, tmp_path):
+    cat, _, root = park
+    before = cat.count()
+    for args, words in ((["--type", 999, "--kind", "hedge"], "no object of type"),
+                        (["--type", 1, "--kind", "Not A Kind!"], "lower-case"),
+                        (["--type", 1, "--kind", "unknown"], "unknown")):
+        res = _run("label", root / "twin", *args, "--library", cat.folder)
+        assert res.exit_code != 0 and words in res.output, res.output
+    res = _run("label", tmp_path, "--type", 1, "--kind", "hedge", "--library", cat.folder)
+    assert res.exit_code != 0 and "no twin.json" in res.output
+    assert cat.count() == before
+
+
+def test_add_model_from_twin_refuses_a_kind_its_members_contradict(park):
+    cat, _, root = park
+    twin = json.loads((root / "twin" / "twin.json").read_text())
+    t = _van_type(twin)
+    # 2 m tall: taller than every car the catalogue holds (the van taken out), so not a car by their measure
+    before = cat.count()
+    res = _run("add-model", "--from-twin", root / "twin", "--type", t, "--name", "tall_one", "--category", "car",
+               "--library", cat.folder)
+    assert res.exit_code != 0 and "--force" in res.output and "tall" in res.output, res.output
+    assert cat.count() == before
+    res = _run("add-model", "--from-twin", root / "twin", "--type", t, "--name", "tall_one", "--category", "car",
+               "--force", "--library", cat.folder)
+    assert res.exit_code == 0, res.output
+    cat.remove("tall_one")
+
+
+def _classified_las(path, with_classes: bool):
+    """A 30 x 20 m patch of ground (class 2) with two car-sized boxes of points: one classed building (6), one 1
+    (unclassified, as AHN classes its cars)."""
+    import laspy
+
+    rng = np.random.default_rng(0)
+    g = np.c_[rng.uniform(0, 30, 30000), rng.uniform(0, 20, 30000), rng.normal(0, 0.01, 30000)]
+
+    def box(lo, hi, n):
+        p = rng.uniform(lo, hi, (n, 3))
+        face = rng.integers(0, 3, n)
+        side = rng.integers(0, 2, n)
+        p[np.arange(n), face] = np.where(side, np.asarray(hi)[face], np.asarray(lo)[face])
+        return p[p[:, 2] > 0.05]
+
+    wall = box([6, 5, 0.2], [10.4, 6.8, 1.5], 3000)
+    car = box([18, 8, 0.2], [22.4, 9.8, 1.5], 3000)
+    pts = np.vstack([g, wall, car])
+    header = laspy.LasHeader(point_format=3, version="1.4")
+    header.scales = [0.001] * 3
+    header.offsets = [0, 0, 0]
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = pts.T
+    cls = np.r_[np.full(len(g), 2), np.full(len(wall), 6), np.full(len(car), 1)] if with_classes else \
+        np.zeros(len(pts))
+    las.classification = cls.astype(np.uint8)
+    las.write(path)
+    return path
+
+
+def test_a_classified_scan_names_its_buildings_structure(parametric_catalogue, tmp_path):
+    scan = _classified_las(tmp_path / "patch.las", True)
+    docs = {}
+    for flag in ("--scan-classes", "--no-scan-classes"):
+        out = tmp_path / flag
+        res = _run("build-twin", scan, *DUBLIN, "--library", parametric_catalogue.folder, "--out", out, "--no-ply",
+                   flag, "-q")
+        assert res.exit_code == 0, res.output
+        docs[flag] = json.loads((out / "twin.json").read_text())
+    on, off = docs["--scan-classes"], docs["--no-scan-classes"]
+    assert on["scan_classes"] == {"used": True, "codes": {"2": "ground", "6": "building"}}
+    assert off["scan_classes"]["used"] is False and "turned off" in off["scan_classes"]["reason"]
+
+    def at(doc, x, y):
+        return next(o for o in doc["objects"] if np.hypot(o["centroid"][0] - x, o["centroid"][1] - y) < 1.0)
+
+    # the same box of points: structure where the scan says building, as its twin unclassed where it does not
+    assert at(on, 8.2, 5.9)["kind"] == "structure" and at(on, 8.2, 5.9)["match"] is None
+    assert at(on, 20.2, 8.9)["kind"] != "structure"
+    assert at(off, 8.2, 5.9)["kind"] == at(off, 20.2, 8.9)["kind"] == at(on, 20.2, 8.9)["kind"]
+    plain = _classified_las(tmp_path / "plain.las", False)
+    res = _run("build-twin", plain, *DUBLIN, "--library", parametric_catalogue.folder, "--out", tmp_path / "plain",
+               "--no-ply", "-q")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "plain" / "twin.json").read_text())
+    assert doc["scan_classes"]["used"] is False and "no ASPRS class" in doc["scan_classes"]["reason"]
