@@ -23,7 +23,7 @@ from .export.twin_json import object_record
 from .geo.georef import check_area
 from .progress import say
 from .recognition.classify import near_candidates
-from .recognition.kinds import UNKNOWN, References, kind_of, object_types
+from .recognition.kinds import UNKNOWN, References, confirmed_by_model, kind_of, object_types
 from .settings import Settings
 from .shapes.fuse import FusedShape, fuse_type, generic_solid
 
@@ -93,13 +93,17 @@ def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params
     refs = References.of_catalogue(catalogue, params)
     kinds = [kind_of(s, level, refs, params) for s, level in zip(shapes, levels)]
     category = {i: (None if i in refs.exemplars else k) for i, k in zip(refs.ids.tolist(), refs.kinds.tolist())}
-    return apply_kinds(apply_floor(outcomes, params.min_confidence), kinds, category), kinds
+    outcomes = apply_floor(outcomes, params.min_confidence)
+    kinds = [confirmed_by_model(k, category.get(r.match.model_id), r.match.confidence) if r.match is not None else k
+             for k, r in zip(kinds, outcomes)]
+    return apply_kinds(outcomes, kinds, category), kinds
 
 
 def apply_kinds(outcomes: list, kinds: list, category: dict) -> list:
     """The outcomes with every model withdrawn whose category is not the object's kind (``category``: model id ->
-    its category, None for an exemplar ``label`` stored, which is never placed): a name is a claim, and a hedge of a car's size is no car however near a car model's sections
-    come (reason code ``kind_not_model``; the model stays first among the candidates)."""
+    its category, None for an exemplar ``label`` stored, which is never placed): a name is a claim, and a hedge of
+    a car's size is no car however near a car model's sections come (reason code ``kind_not_model``; the model
+    stays first among the candidates)."""
     out = []
     for res, kind in zip(outcomes, kinds):
         m = res.match

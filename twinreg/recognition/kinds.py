@@ -16,7 +16,7 @@ Pure numpy: references in, kinds out.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -96,15 +96,16 @@ class Near:
 
 @dataclass(frozen=True)
 class KindResult:
-    """An object's ``kind`` (a category, or ``unknown``), its ``confidence`` (the winner's share of the vote; 0
-    for unknown), its ``votes`` (kind -> share) and the nearest references (``near``, :class:`Near`, nearest
-    first)."""
+    """An object's ``kind`` (a category, ``vegetation``, ``structure`` or ``unknown``), its ``confidence`` (the
+    probability it is right; 0 for unknown), its ``votes`` (kind -> share), the nearest references (``near``,
+    :class:`Near`, nearest first), the vote's ``margin`` and the kind it ``fitted`` but could not name."""
 
     kind: str
     confidence: float
     votes: dict
     near: tuple = ()
     margin: float = 0.0
+    fitted: str | None = None  # the kind it fits but is too near another to name (:func:`confirmed_by_model`)
 
 
 def distances(size, level: str, refs: References, params: Settings = DEFAULT) -> np.ndarray:
@@ -327,15 +328,33 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     lo, hi = refs.ranges[kind]
     thin = bool(lo[2] >= params.open_world.thin_ratio * hi[1])
     shell = kind in refs.scanned or fits_surface(surface, kind, params, thin)
-    if not (fits_kind(size, float(d[mine].min()), kind, refs, params) and shell):
-        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near)
+    sized = fits_kind(size, float(d[mine].min()), kind, refs, params)
+    if not (sized and shell):
+        # a sparse object's surface is its whole shape, not its skin: a model of the kind may still decide it
+        sparse = sized and surface is not None and surface.n < params.open_world.linearity_min_points
+        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near,
+                          fitted=kind if sparse else None)
     others = d[~mine].min() if (~mine).any() else np.inf
     margin = float(min(others, params.kinds.unknown_distance) - d[mine].min())
     confidence = float(1.0 / (1.0 + np.exp(-(margin / params.kinds.confidence_scale
                                              + params.kinds.confidence_offset))))
     if confidence < params.kinds.min_kind_confidence:  # a name is a claim: too near another kind to make
-        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, margin)
+        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, margin, kind)
     return KindResult(kind, confidence, votes, near, margin)
+
+
+def confirmed_by_model(kind: KindResult, category: str | None, confidence: float | None) -> KindResult:
+    """``kind``, or the kind an object fits (its size, its surface) but whose vote was too close to name when the
+    model decided for it (at the floor or above, ``confidence``) is of that kind (``category``): its sections then
+    tell a hydrant from a cone of one size, which the vote by size cannot; its kind's confidence the model's.
+
+    >>> k = KindResult("unknown", 0.0, {"hydrant": 0.6, "cone": 0.4}, fitted="hydrant")
+    >>> confirmed_by_model(k, "hydrant", 0.93).kind, confirmed_by_model(k, "cone", 0.93).kind
+    ('hydrant', 'unknown')
+    """
+    if kind.fitted is not None and category == kind.fitted and confidence is not None:
+        return replace(kind, kind=kind.fitted, confidence=float(confidence))
+    return kind
 
 
 def object_types(labels, kinds: list | None, sizes=None, models: list | None = None, tol: float = 0.4,
