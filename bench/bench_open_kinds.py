@@ -209,6 +209,18 @@ def dales(lib: Path, tallies: dict) -> None:
             t.claims.append((item["kind_confidence"], truth == "car"))
 
 
+def print_reliability(claims: dict) -> list:
+    """Each half's reliability table and the Platt fit on the tuning half; returns the fit's [a, b]."""
+    for h in ("tuning", "checking"):
+        print(f"\nkind confidence, {h} half (sweeps' named kinds, DALES' cars claimed):")
+        print("| claimed | objects | mean claimed | right |\n|---|---|---|---|")
+        print("\n".join(reliability(claims[h])))
+    a, b = platt(claims["tuning"])
+    print(f"\nPlatt fit on the tuning half: right = logistic({a:.3f} * logit(claimed) + {b:.3f}) "
+          f"({len(claims['tuning'])} claims)")
+    return [a, b]
+
+
 def plot_reliability(claims: dict, path: Path) -> None:
     """Claimed kind confidence against the share right, a point a bin (its size the claims in it), each half."""
     import matplotlib
@@ -325,15 +337,8 @@ def main() -> None:
     print("\nfalse cars (checking half):")
     for line in sweeps["checking"].false_cars + nus["checking"].false_cars:
         print("  " + line)
-    for h in ("tuning", "checking"):
-        print(f"\nkind confidence, {h} half (sweeps' named kinds, DALES' cars claimed):")
-        print("| claimed | objects | mean claimed | right |\n|---|---|---|---|")
-        print("\n".join(reliability(claims[h])))
-    a, b = platt(claims["tuning"])
-    print(f"\nPlatt fit on the tuning half: right = logistic({a:.3f} * logit(claimed) + {b:.3f}) "
-          f"({len(claims['tuning'])} claims)")
     out["reliability"] = {h: claims[h] for h in claims}
-    out["platt_tuning"] = [a, b]
+    out["platt_tuning"] = print_reliability(claims)
     if args.plot:
         plot_reliability(claims, args.plot)
     if "autzen" in out:
