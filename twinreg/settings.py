@@ -141,7 +141,7 @@ class OpenWorldParams:
     thin_ratio: float = 3.0  # height / plan width: a pole
     structure_length: float = 3.0  # m, at least
     structure_elongation: float = 3.0  # length / width
-    scan_spread: float = 1.5  # times the exemplars' own
+    scan_spread: float = 2.0  # times the exemplars' own
     min_spread: float = 0.3  # the least spread of a kind
     scan_classes: bool = True  # read a classified scan's classes
     class_share: float = 0.5  # of its points, to take the class
