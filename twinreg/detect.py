@@ -92,13 +92,12 @@ def object_ground(det: Detection, obj) -> float:
 def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) -> list:
     """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
     from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
-    shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o))
-              for o in (det.objects if objects is None else objects)]
+    objects = det.objects if objects is None else objects
+    shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o)) for o in objects]
     classes = det.scene.classes  # None in a city's cells: the parameter is read only when there are classes
     if classes is None or not params.open_world.scan_classes:
         return shapes
-    return [replace(s, classes=class_shares(classes[o.indices]))
-            for s, o in zip(shapes, det.objects if objects is None else objects)]
+    return [replace(s, classes=class_shares(classes[o.indices])) for s, o in zip(shapes, objects)]
 
 
 def object_levels(clouds: list, shapes: list, params: Settings = DEFAULT) -> list[str]:

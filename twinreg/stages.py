@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import replace
 
 import numpy as np
 
@@ -23,7 +22,8 @@ from .export.twin_json import object_record
 from .geo.georef import check_area
 from .progress import say
 from .recognition.classify import near_candidates
-from .recognition.kinds import UNKNOWN, References, confirmed_by_model, kind_of, object_types
+from .recognition.decide import decide
+from .recognition.kinds import References, kind_of, object_types
 from .settings import Settings
 from .shapes.fuse import FusedShape, fuse_type, generic_solid
 
@@ -89,51 +89,11 @@ def recognise(outcomes: list, shapes: list, levels: list[str], catalogue, params
     """The recognition's two steps for every object: its kind (:class:`~twinreg.recognition.kinds.KindResult`)
     from the catalogue's nearest references by size and level of symmetry (:mod:`twinreg.recognition.kinds`; one
     query for the references, numpy for the rest), and its model kept only at ``params.min_confidence`` or
-    above (:func:`apply_floor`). Returns (the matching outcomes, the kinds)."""
+    above, of the object's kind (:func:`~twinreg.recognition.decide.decide`). Returns (the matching outcomes, the
+    kinds)."""
     refs = References.of_catalogue(catalogue, params)
     kinds = [kind_of(s, level, refs, params) for s, level in zip(shapes, levels)]
-    category = {i: (None if i in refs.exemplars else k) for i, k in zip(refs.ids.tolist(), refs.kinds.tolist())}
-    outcomes = apply_floor(outcomes, params.min_confidence)
-    kinds = [confirmed_by_model(k, category.get(r.match.model_id), r.match.confidence) if r.match is not None else k
-             for k, r in zip(kinds, outcomes)]
-    return apply_kinds(outcomes, kinds, category), kinds
-
-
-def apply_kinds(outcomes: list, kinds: list, category: dict) -> list:
-    """The outcomes with every model withdrawn whose category is not the object's kind (``category``: model id ->
-    its category, None for an exemplar ``label`` stored, which is never placed): a name is a claim, and a hedge of
-    a car's size is no car however near a car model's sections come (reason code ``kind_not_model``; the model
-    stays first among the candidates)."""
-    out = []
-    for res, kind in zip(outcomes, kinds):
-        m = res.match
-        if m is not None and category.get(m.model_id) != kind.kind:
-            others = [c for c in res.candidates if c != m.model_id]
-            what = "fits no catalogued kind" if kind.kind == UNKNOWN else f"is {kind.kind}"
-            mine = category.get(m.model_id)
-            why = (f"the best model, {m.name}, is a {mine}, but the object {what}" if mine is not None else
-                   f"the best model, {m.name}, is an exemplar of {kind.kind} (label), never placed")
-            res = replace(res, match=None, candidates=[m.model_id, *others], reason=why,
-                          reason_code="kind_not_model",
-                          rejected={"name": m.name, "confidence": round(m.confidence or 0.0, 3)})
-        out.append(res)
-    return out
-
-
-def apply_floor(outcomes: list, floor: float) -> list:
-    """The outcomes with every model whose confidence is under ``floor`` withdrawn: ``match`` None, the reason
-    code ``under_floor``, the withdrawn model first among the candidates (the scan does not decide it)."""
-    out = []
-    for res in outcomes:
-        m = res.match
-        if m is not None and m.confidence is not None and m.confidence < floor:
-            others = [c for c in res.candidates if c != m.model_id]
-            res = replace(res, match=None, candidates=[m.model_id, *others],
-                          reason=f"the best model, {m.name}, has confidence {m.confidence:.2f}, under the floor "
-                                 f"{floor:g} (--min-confidence)",
-                          reason_code="under_floor", rejected={"name": m.name, "confidence": round(m.confidence, 3)})
-        out.append(res)
-    return out
+    return decide(outcomes, kinds, refs, params.min_confidence)
 
 
 def types_of(labels, outcomes: list, kinds: list | None, params: Settings, spacing=None) -> list[int]:

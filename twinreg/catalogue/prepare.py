@@ -131,9 +131,11 @@ def prepare_scan(path, category: str, unit: str = "auto", params: Settings = DEF
         pts = check_object(ps.points, min_points=params.segment.min_points)
     except ValueError as exc:
         raise MeshLoadError(f"{path}: {exc}; a scanned reference needs one object's points") from exc
+    if ground_z is not None and not (np.isfinite(ground_z) and ground_z <= pts[:, 2].min()):
+        ground_z = None  # a ground above the object's lowest point is none
     shape = cosco.describe_object(pts, params, ground_z=ground_z)
     local = shape.frame.to_local(pts)
-    if ground_z is None or not np.isfinite(ground_z) or ground_z > pts[:, 2].min():
+    if ground_z is None:
         local[:, 2] -= local[:, 2].min()
     lo, hi = local[:, :2].min(0), local[:, :2].max(0)
     local[:, :2] -= (lo + hi) / 2

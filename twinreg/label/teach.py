@@ -125,7 +125,7 @@ def label_type(catalogue, folder: Path, type_: int, kind: str, params: Settings 
         path, number = scan_file(folder, o["id"])
         where.setdefault(path, {})[number] = o["id"]
     base = re.sub(r"[^a-z0-9_]+", "_", folder.resolve().name.lower()).strip("_")[:40] or "twin"
-    names = {oid: f"{kind}-{base}-{oid.lower()}"[:100] for o in members for oid in [o["id"]]}
+    names = {o["id"]: f"{kind}-{base}-{o['id'].lower()}"[:100] for o in members}
     for name in names.values():
         catalogue.check_free_name(name, f"{doc_path}: ")
     points: dict = {}

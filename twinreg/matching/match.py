@@ -109,7 +109,7 @@ class ObjectMatch:
 #: why an object got no model, as GIS tables filter it: no catalogue model of its size; the best model leaves too
 #: many of its points unexplained; fits only sunk into the ground (taller than the object); only floating above it
 #: (lower); leaves too much of its top surface unseen; its best model's confidence is under the floor
-#: (:func:`twinreg.stages.apply_floor`)
+#: (:func:`twinreg.recognition.decide.apply_floor`)
 REASON_CODES = ("no_model_of_this_size", "points_unexplained", "model_too_tall", "model_too_low", "top_unseen",
                 "under_floor", "kind_not_model")
 

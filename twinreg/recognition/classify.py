@@ -22,7 +22,8 @@ from ..io.asprs import class_shares
 from ..io.points import POINT_SUFFIXES, read_points
 from ..matching.match import Evidence, ModelCache, match_objects
 from ..settings import DEFAULT, Settings
-from .kinds import EXEMPLAR, UNKNOWN, References, confirmed_by_model, kind_of, object_types
+from .decide import decide
+from .kinds import UNKNOWN, References, kind_of, object_types
 
 #: the range noise (m) an object given alone is verified with (a file of one object has no ground to measure the
 #: scan's noise on)
@@ -92,24 +93,18 @@ def classify_objects(objects: list[GivenObject], catalogue, min_confidence: floa
         done = (lambda k, n: progress("matching", k, n)) if progress else None
         outcomes, _ = match_objects(shapes, catalogue, labels=labels, params=params,
                                     evidence=Evidence([o.points for o in objects], OBJECT_NOISE_M), cache=cache, done=done)
-    decided = [_decided(k, res, cache, floor) for k, res in zip(kinds, outcomes)]
-    types = object_types(labels, [k.kind for k, _ in decided])
-    return [_item(o, k, t, match, cache, params) for o, (k, match), t in zip(objects, decided, types)]
+        outcomes, kinds = decide(outcomes, kinds, refs, floor)  # build-twin's rules, one function
+    matches = [_match_item(res.match if res is not None else None) for res in outcomes]
+    types = object_types(labels, [k.kind for k in kinds])
+    return [_item(o, k, t, match, cache, params) for o, k, match, t in zip(objects, kinds, matches, types)]
 
 
-def _decided(kind, res, cache, floor: float) -> tuple:
-    """(the object's kind, its model's item or None), by stages.recognise's rules: a model at the floor or above,
-    of the object's kind (which it may confirm: :func:`confirmed_by_model`), never an exemplar."""
-    m = res.match if res is not None else None
-    if m is None or m.confidence is None or m.confidence < floor:
-        return kind, None
-    row = cache.row(m.model_id)
-    category = None if EXEMPLAR in (row.tags or ()) else row.category
-    kind = confirmed_by_model(kind, category, m.confidence)
-    if category != kind.kind:
-        return kind, None
-    return kind, {"model_id": m.model_id, "name": m.name, "rmse_m": round(m.rmse, 4),
-                  "confidence": round(m.confidence, 3), "ambiguous_with": list(m.ambiguous_with)}
+def _match_item(m) -> dict | None:
+    """``classify --json``'s ``match`` of a decided model (None: none)."""
+    if m is None:
+        return None
+    return {"model_id": m.model_id, "name": m.name, "rmse_m": round(m.rmse, 4), "confidence": round(m.confidence, 3),
+            "ambiguous_with": list(m.ambiguous_with)}
 
 
 def _item(o: GivenObject, kind, label: int, match: dict | None, cache, params: Settings) -> dict:

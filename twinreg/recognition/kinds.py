@@ -266,21 +266,21 @@ def kind_of(shape, level: str, refs: References, params: Settings = DEFAULT) -> 
     """The kind of one described object (a :class:`~cosco.sections.ObjectShape`, its level of symmetry): the one
     decision every command makes: the scan's classes when it has them (:func:`class_kind`), else
     :func:`recognise_kind` on its size and surface."""
-    shares = getattr(shape, "classes", None)
-    by_class = class_kind(shares, params)
+    by_class = class_kind(shape.classes, params)
     if by_class is not None:  # its confidence: the share of its points the scan classes so
-        return KindResult(by_class, float(max(shares)), {})
-    return recognise_kind(shape.size.as_array(), level, refs, params, getattr(shape, "surface", None))
+        return KindResult(by_class, float(max(shape.classes)), {})
+    return recognise_kind(shape.size.as_array(), level, refs, params, shape.surface)
 
 
 def class_kind(shares, params: Settings = DEFAULT) -> str | None:
     """``vegetation`` or ``structure`` when the scan classes ``params.open_world.class_share`` or more of an object's
-    points so (``shares``: (vegetation, building or bridge), :func:`~twinreg.io.asprs.class_shares`), else None.
+    points so (``shares``: (vegetation, building or bridge), :func:`~twinreg.io.asprs.class_shares`, which the
+    readers attach only when ``params.open_world.scan_classes``), else None.
 
     >>> class_kind((0.1, 0.8)), class_kind((0.7, 0.0)), class_kind((0.2, 0.3)), class_kind(None)
     ('structure', 'vegetation', None, None)
     """
-    if shares is None or not params.open_world.scan_classes:
+    if shares is None:
         return None
     vegetation, built = shares
     if max(vegetation, built) < params.open_world.class_share:
