@@ -185,6 +185,29 @@ def test_label_refuses_bad_input_and_changes_nothing(park, tmp_path):
     assert cat.count() == before
 
 
+def test_label_takes_no_path_from_a_strangers_twin(park, tmp_path):
+    """A stranger's twin folder: an object id that would name a path, a classified scan that is a link out of the
+    folder, a file that is no LAS: each one line naming the file, a non-zero exit, nothing added."""
+    cat, _, root = park
+    before = cat.count()
+    outside = tmp_path / "outside.copc.laz"
+    outside.write_bytes((root / "twin" / "scan.copc.laz").read_bytes())
+    cases = {"../../etc-1": ("not a twin's", None), "obj1": ("missing or not a file", "link"),
+             "obj2": ("not a readable LAS/LAZ", "junk")}
+    for oid, (words, scan) in cases.items():
+        twin = tmp_path / f"twin_{scan}"
+        twin.mkdir()
+        (twin / "twin.json").write_text(json.dumps({"unit": "m", "objects": [
+            {"id": oid, "type": 3, "n_points": 500, "size": {"length": 4.0, "width": 1.8, "height": 1.5}}]}))
+        if scan == "link":
+            (twin / "scan.copc.laz").symlink_to(outside)
+        elif scan == "junk":
+            (twin / "scan.copc.laz").write_bytes(b"LASF" + b"\0" * 300)
+        res = _run("label", twin, "--type", 3, "--kind", "hedge", "--library", cat.folder)
+        assert res.exit_code != 0 and words in res.output and len(res.output.strip().splitlines()) == 1, res.output
+    assert cat.count() == before
+
+
 def test_add_model_from_twin_refuses_a_kind_its_members_contradict(park):
     cat, _, root = park
     twin = json.loads((root / "twin" / "twin.json").read_text())
