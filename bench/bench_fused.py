@@ -66,24 +66,25 @@ def placed_mesh(twin_dir: Path, doc: dict, models: dict):
 def build(cat, points: np.ndarray, out: Path):
     """build-twin's code on ``points``: (twin.json's document, seconds, the placed objects)."""
     import twinreg.pipeline as pipeline
+    import twinreg.stages as stages
     from twinreg.geo.georef import georef_from_options
     from twinreg.io.ply import write_ply
 
     scan = write_ply(out.with_suffix(".ply"), points)
     captured = {}
-    real_place = pipeline.place
+    real_place = stages.place
 
     def place(*a, **k):
         captured["placed"] = real_place(*a, **k)
         return captured["placed"]
 
-    pipeline.place = place
+    stages.place = place
     try:
         t = time.perf_counter()
         twin = pipeline.build_twin(scan, cat, georef_from_options(53.35, -6.26), out, ply=False)
         seconds = time.perf_counter() - t
     finally:
-        pipeline.place = real_place
+        stages.place = real_place
     return twin, seconds, captured["placed"]
 
 

@@ -99,17 +99,20 @@ def height_solid(points: np.ndarray, cell: float = 0.1, q: float = 0.9, fill: in
     grid.flat[key_s[starts]] = top
     low.flat[key_s[starts]] = z_s[starts]
     occ.flat[key_s[starts]] = True
-    # close small holes: a cell inside the occupied footprint takes its neighbours' mean top (and lowest point)
+    # close small holes: a cell inside the occupied footprint takes its neighbours' mean top (and lowest point).
+    # The neighbours are counted, not averaged by a filter: a float mean's rounding leaves 1e-17 where no
+    # neighbour is, and a top divided by it stood 20 m under the ground
     closed = ndimage.binary_closing(occ, iterations=fill) | occ
     closed = ndimage.binary_fill_holes(closed)
+    ring = np.ones((3, 3))
     for _ in range(4 * fill + 4):
         missing = closed & ~occ
         if not missing.any():
             break
-        n = ndimage.uniform_filter(occ.astype(float), 3)
+        n = ndimage.convolve(occ.astype(np.int64), ring.astype(np.int64), mode="constant")
         grow = missing & (n > 0)
         for g in (grid, low):
-            s = ndimage.uniform_filter(np.where(occ, g, 0.0), 3)
+            s = ndimage.convolve(np.where(occ, g, 0.0), ring, mode="constant")
             g[grow] = s[grow] / n[grow]
         occ = occ | grow
     occ &= closed

@@ -44,6 +44,19 @@ def test_the_height_solid_is_closed_and_holds_the_points():
     assert abs(volume - want) < 0.12 * want
 
 
+def test_filled_holes_stand_between_their_neighbours_never_under_the_ground():
+    """Holes in a car's top filled from their neighbours: every vertex between the ground and the highest point
+    (a filter's rounding once divided a top by 1e-17 and stood columns 2-23 m under the ground in 25 of these 40)."""
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        p = np.c_[rng.uniform(-2.4, 2.4, 3000), rng.uniform(-0.9, 0.9, 3000), rng.uniform(0.2, 1.5, 3000)]
+        keep = rng.random(3000) < 0.5
+        for c in rng.uniform([-2.0, -0.7], [2.0, 0.7], (6, 2)):
+            keep &= np.hypot(*(p[:, :2] - c).T) > 0.25
+        v, _ = height_solid(p[keep], cell=0.1)
+        assert v[:, 2].min() >= 0.0 and v[:, 2].max() <= p[keep, 2].max() + 1e-9, seed
+
+
 def test_a_hanging_column_reaches_down_to_its_lowest_point_not_the_ground():
     """A lamp post seen from above: a pole's columns to the ground, its arm's (no point under 8.8 m) a slab: still
     closed, no wall under the arm, and the volume a pole's and an arm's, not a 9 m wall's."""
