@@ -36,7 +36,9 @@ class MatchingParams:
     ``w_sections``, ``w_size``); candidates within ``ambiguous_sigma`` noise units of the winner are ambiguous with
     it; ``confidence_sigma`` scales the margin into a 0-1 confidence, times ``outside_factor`` for a model outside
     the size window; the fit factor is 1 while every acceptance measure uses at most half its limit, 0.5 at
-    ``poor_fit`` of a limit and 0.25 at the limit.
+    ``poor_fit`` of a limit and 0.25 at the limit; in an open world, times the design factor: 1 while the winner's
+    scan fit stays within ``design_fit_base`` noise units plus ``design_fit_spacing`` times the point spacing in noise
+    units (what a catalogued design's own copies reach), falling to 0 over ``design_fit_ramp`` noise units beyond.
 
     Refining (refine.py): each candidate's pose is refined on at most ``refine_max_points`` points (pairs within
     ``refine_reach`` m), turning at most ``refine_max_turn`` rad and moving at most ``refine_max_shift`` m, unless
@@ -65,6 +67,9 @@ class MatchingParams:
     ambiguous_sigma: float = 0.3  # noise units
     outside_factor: float = 0.5  # outside the window
     poor_fit: float = 0.75  # of a limit
+    design_fit_base: float = 0.714  # noise units
+    design_fit_spacing: float = 0.035  # spacings in noise units
+    design_fit_ramp: float = 0.1  # noise units
     refine_reach: float = 0.3  # m, pairs
     refine_sigma: float = 6.0  # noise units behind
     refine_max_points: int = 500  # points

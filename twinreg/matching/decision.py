@@ -65,7 +65,10 @@ class Evidence:
         return {"score_m": round(self.score, 4), "scan_fit_m": round(self.scan_fit, 4),
                 "model_fit_m": round(self.model_fit, 4), "sections_m": round(self.rmse, 4),
                 "size_m": round(self.size, 4), "unseen_share": round(self.unseen_share, 3),
-                "sink_m": round(self.sink, 4), "fit_ratio": round(self.fit_ratio(), 3)}
+                "sink_m": round(self.sink, 4), "fit_ratio": round(self.fit_ratio(), 3)} | (
+                    {"fit_sigmas": round(self.extra["fit_sigmas"], 3),
+                     "fit_limit_sigmas": round(self.extra["fit_limit_sigmas"], 3)}
+                    if "fit_limit_sigmas" in self.extra else {})
 
     def stands(self) -> bool:
         """Whether the placed model stands on the object's ground (neither sunk nor floating beyond the limits)."""
@@ -175,9 +178,31 @@ class Decision:
     ambiguous_with: list
 
 
-def decide(scored: list[Evidence], noise: float, params: Settings = DEFAULT) -> Decision:
+def design_factor(scan_fit: float, noise: float, spacing: float, params: Settings = DEFAULT) -> tuple:
+    """What a winner's confidence is multiplied by in an open world, and the limit (noise units) it is held to: a
+    model is the object's design only when it explains the points as closely as a catalogued design explains its
+    own copies: its ``scan_fit`` (m) within ``matching.design_fit_base`` noise units plus
+    ``matching.design_fit_spacing`` times the object's point spacing in noise units (a sparse scan's pose is looser),
+    then falling to 0 over ``matching.design_fit_ramp`` noise units. The nearest catalogued design fits an
+    uncatalogued car as well by margin (its runner-up is far behind) but not by distance: set on the tuning half of
+    bench/bench_open_models.py (every design held out in turn). Returns (factor, fit in noise units, limit).
+
+    >>> [round(design_factor(f, 0.02, 0.1)[0], 2) for f in (0.012, 0.0185, 0.03)]
+    [1.0, 0.64, 0.0]
+    """
+    m = params.matching
+    n = max(float(noise), 1e-6)
+    x = float(scan_fit) / n
+    limit = m.design_fit_base + m.design_fit_spacing * float(spacing) / n
+    return float(np.clip(1.0 - (x - limit) / m.design_fit_ramp, 0.0, 1.0)), x, limit
+
+
+def decide(scored: list[Evidence], noise: float, params: Settings = DEFAULT, spacing: float = 0.0,
+           approximate=frozenset()) -> Decision:
     """Pick the lowest score among accepted candidates; the margin to the next candidate (accepted or not), in
-    noise units, gives the confidence, and candidates within ``matching.ambiguous_sigma`` are ambiguous."""
+    noise units, gives the confidence (times the fit factor and the open world's :func:`design_factor`, but for
+    the ``approximate`` models: made from scans, a promoted fused shape or a scanned reference, whose surface is
+    the scan's grid, not a design's), and candidates within ``matching.ambiguous_sigma`` are ambiguous."""
     ranked = sorted(scored, key=lambda e: e.score)
     accepted = [e for e in ranked if e.acceptable()]
     if not accepted:
@@ -191,5 +216,9 @@ def decide(scored: list[Evidence], noise: float, params: Settings = DEFAULT) -> 
     margin = max(float(margin), 0.0)
     confidence = float(1.0 - np.exp(-margin / params.matching.confidence_sigma))
     confidence *= fit_factor(best.fit_ratio(), params)
+    if best.model_id not in approximate:
+        factor, x, limit = design_factor(best.scan_fit, noise, spacing, params)
+        best.extra.update(fit_sigmas=x, fit_limit_sigmas=limit)
+        confidence *= factor
     ambiguous = [e.model_id for e in others if (e.score - best.score) / noise < params.matching.ambiguous_sigma]
     return Decision(best, ranked, margin, confidence, ambiguous)

@@ -332,13 +332,20 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
         turned = scorer.refined(turned_reg, mid, screen) if screen[0].score <= found[k].score + reach else screen[0]
         if turned.score < found[k].score:
             found[k] = turned
+    approximate = frozenset(mid for _, mid in candidates if made_from_scans(cache.row(mid)))
     while True:  # the winner (or, with none acceptable, the best refused) is always one refined
-        decision = decide(found, noise, params)
+        decision = decide(found, noise, params, spacing, approximate)
         top = decision.best if decision.best is not None else (decision.scored[0] if decision.scored else None)
         j = next((i for i, e in enumerate(found) if e is top), None)
         if j is None or found[j].extra["refined"]:
             return decision
         refine_at(j)
+
+
+def made_from_scans(row) -> bool:
+    """Whether a catalogue model's surface comes from scans (a scanned reference, or a type's fused shape promoted
+    by ``add-model --from-twin``): an approximation at the scan's grid, not held to a design's closeness."""
+    return (row.source or "mesh") == "scan" or "fused" in (row.tags or ())
 
 
 def _size_gap_text(gap: np.ndarray) -> str:

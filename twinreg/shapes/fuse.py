@@ -392,10 +392,26 @@ def fuse_type(clouds: list, shapes: list, level: str, params: Settings = DEFAULT
         # overshoots by half a column)
         cell = float(min(np.clip(np.sqrt(area / max(len(full), 1)) * 1.5, 0.1, 0.3), max(extent.min() / 10, 0.03)))
     v, f = height_solid(full, cell=cell, hang=hang)
+    v = within_points(v, full)
     v, f = decimated(v, f, faces)
     quality = _quality(v, f, allp, gathered, level, cell, hang, seen_m, len(shapes))
     poses = np.array([np.linalg.inv(m) for m in to_ref])
+    poses[:, 2, 3] = 0.0  # on each member's own ground: wheels on it, nothing under it, nothing floating
     return FusedShape(v, f, poses, quality, rmse)
+
+
+def within_points(vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The solid's vertices drawn in to its points' extent in plan: a grid's outer columns reach up to a cell (0.1-0.3
+    m) beyond the points they stand for; the mesh keeps its faces (a wall drawn in is still a wall).
+
+    >>> v = np.array([[-1.2, 0.0, 0.0], [0.5, 0.95, 1.0]])
+    >>> within_points(v, np.array([[-1.0, -0.9, 0.2], [1.0, 0.9, 1.4]])).tolist()
+    [[-1.0, 0.0, 0.0], [0.5, 0.9, 1.0]]
+    """
+    out = np.array(vertices, dtype=np.float64)
+    lo, hi = points[:, :2].min(0), points[:, :2].max(0)
+    out[:, :2] = np.clip(out[:, :2], lo, hi)
+    return out
 
 
 def _member_transforms(locals_: list, shapes: list, level: str, params: Settings, ref: int):
