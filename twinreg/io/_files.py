@@ -55,3 +55,18 @@ def read_json_doc(path, max_bytes: int, error, fix: str, max_containers: int = M
         raise error(f"{path}: nested deeper than any such file twinreg writes; {fix}") from exc
     except (ValueError, UnicodeDecodeError) as exc:
         raise error(f"{path}: not valid JSON ({type(exc).__name__}); {fix}") from exc
+
+
+def twin_doc(folder, error, command: str) -> tuple[Path, object]:
+    """(``folder``/twin.json, its document) of a folder someone says build-twin wrote (:func:`read_json_doc`,
+    at most :data:`MAX_TWIN_BYTES`); ``error`` raised with one line naming ``command`` when there is none."""
+    doc_path = Path(folder) / "twin.json"
+    if not doc_path.is_file():
+        raise error(f"{folder}: no twin.json; {command} takes a folder build-twin wrote")
+    return doc_path, read_json_doc(doc_path, MAX_TWIN_BYTES, error, "give a folder build-twin wrote")
+
+
+def file_of(folder, path: Path) -> bool:
+    """Whether ``path`` is a regular file inside ``folder``: no symlink, nothing that resolves out of it (a
+    stranger's twin names no file elsewhere)."""
+    return not path.is_symlink() and path.is_file() and Path(folder).resolve() in path.resolve().parents

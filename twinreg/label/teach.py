@@ -25,7 +25,7 @@ import numpy as np
 from ..catalogue.categories import check_category
 from ..catalogue.names import printable
 from ..errors import CatalogueError
-from ..io._files import MAX_TWIN_BYTES, read_json_doc
+from ..io._files import file_of, twin_doc
 from ..io.points import UNIT_SCALES
 from ..recognition.kinds import EXEMPLAR
 from ..settings import DEFAULT, Settings
@@ -59,7 +59,7 @@ def scan_file(folder: Path, object_id: str) -> tuple[Path, int]:
         if not m:
             raise CatalogueError(f"{folder / 'twin.json'}: object id '{printable(object_id)[:80]}' is not a twin's")
         path, number = folder / "classified" / f"{m.group(1)}.copc.laz", int(m.group(2))
-    if path.is_symlink() or not path.is_file() or folder.resolve() not in path.resolve().parents:
+    if not file_of(folder, path):
         fix = "rerun build-twin" if m.re is _SCENE_ID else "rerun build-twin with --classified-scan"
         raise CatalogueError(f"{path}: missing or not a file of the twin (label reads each member's points "
                              f"there); {fix}")
@@ -111,10 +111,7 @@ def label_type(catalogue, folder: Path, type_: int, kind: str, params: Settings 
     kind = check_category(kind)
     if kind == "unknown":
         raise CatalogueError("--kind unknown: unknown is what fits no kind; give the kind these objects are")
-    doc_path = folder / "twin.json"
-    if not doc_path.is_file():
-        raise CatalogueError(f"{folder}: no twin.json; label takes a folder build-twin wrote")
-    doc = read_json_doc(doc_path, MAX_TWIN_BYTES, CatalogueError, "give a folder build-twin wrote")
+    doc_path, doc = twin_doc(folder, CatalogueError, "label")
     unit = doc.get("unit") if isinstance(doc, dict) else None
     if unit not in UNIT_SCALES:
         raise CatalogueError(f"{doc_path}: its unit '{printable(str(unit))[:20]}' is not one of "

@@ -13,18 +13,14 @@ import numpy as np
 from ..catalogue.categories import check_category, size_range
 from ..catalogue.names import printable
 from ..errors import CatalogueError
-from ..io._files import MAX_TWIN_BYTES as MAX_TWIN_JSON
-from ..io._files import read_json_doc
+from ..io._files import file_of, twin_doc
 
 
 def fused_entry(folder: Path, type_: int) -> tuple[dict, Path, dict]:
     """The twin's ``shapes`` entry of type ``type_``, its shape's file and twin.json's document; a
     :class:`CatalogueError` naming the twin and the fix when the twin has no such fused type."""
     folder = Path(folder)
-    doc_path = folder / "twin.json"
-    if not doc_path.is_file():
-        raise CatalogueError(f"{folder}: no twin.json; --from-twin takes a folder build-twin wrote")
-    doc = read_json_doc(doc_path, MAX_TWIN_JSON, CatalogueError, "give a folder build-twin wrote")
+    doc_path, doc = twin_doc(folder, CatalogueError, "--from-twin")
     shapes = doc.get("shapes") if isinstance(doc, dict) else None
     entries = [s for s in shapes if isinstance(s, dict) and s.get("type") == type_] if isinstance(shapes, list) else []
     if not entries:
@@ -33,7 +29,7 @@ def fused_entry(folder: Path, type_: int) -> tuple[dict, Path, dict]:
         raise CatalogueError(f"{doc_path}: no fused shape of type {type_}; its fused types: "
                              f"{', '.join(map(str, have[:30])) or 'none'} (build-twin fuses the types without a model)")
     path = folder / "shapes" / f"type_{type_}.ply"
-    if path.is_symlink() or not path.is_file() or folder.resolve() not in path.resolve().parents:
+    if not file_of(folder, path):
         raise CatalogueError(f"{path}: missing or not a file of the twin; rerun build-twin")
     return entries[0], path, doc
 
