@@ -104,12 +104,12 @@ def height_solid(points: np.ndarray, cell: float = 0.1, q: float = 0.9, fill: in
     # neighbour is, and a top divided by it stood 20 m under the ground
     closed = ndimage.binary_closing(occ, iterations=fill) | occ
     closed = ndimage.binary_fill_holes(closed)
-    ring = np.ones((3, 3))
+    ring = np.ones((3, 3), dtype=np.int64)
     for _ in range(4 * fill + 4):
         missing = closed & ~occ
         if not missing.any():
             break
-        n = ndimage.convolve(occ.astype(np.int64), ring.astype(np.int64), mode="constant")
+        n = ndimage.convolve(occ.astype(np.int64), ring, mode="constant")
         grow = missing & (n > 0)
         for g in (grid, low):
             s = ndimage.convolve(np.where(occ, g, 0.0), ring, mode="constant")
