@@ -77,7 +77,7 @@ def matched_before_floor(outcomes: list) -> dict:
                       "margin_sigma": round(float(m.margin_sigma or 0.0), 3), **(m.evidence or {}),
                       **({f"v_{a}": b for a, b in m.verdict.as_dict().items()} if m.verdict is not None else {}),
                       "outside_tolerance": bool(m.outside_tolerance), "ambiguous": len(m.ambiguous_with),
-                      "n_points": int(res.shape.n_points) if hasattr(res.shape, "n_points") else None}
+                      "n_points": int(res.shape.n_points)}
     return out
 
 
