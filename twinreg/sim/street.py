@@ -44,6 +44,21 @@ def street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, passes=D
     apart along the street, turned at random. ``absent``: names of the items placed (in ``items``) but not in the
     scan (a later survey where a lamp post was knocked down sees the pavement there); ``scan_seed``: the scan's
     own noise (default ``seed``): two surveys of one street differ by it."""
+    meshes, labels, items, _ = street_meshes(cars, furniture, n_cars, seed, spacing, absent)
+    scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed if scan_seed is None else scan_seed)
+    return Street(scan.points, np.asarray(labels)[scan.labels], items)
+
+
+#: where the van drives (x, m) in :func:`street_meshes`' street: the middle of the road's near lane
+LANE_X = -1.6
+
+
+def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, spacing: tuple = (4.0, 7.0),
+                  absent: frozenset = frozenset(), buildings: bool = False):
+    """The placed meshes of :func:`street` (scene frame), each one's label (the item's index; -1 the ground, -2 a
+    kerb, -3 a facade), the items, and the street's length (m, along +Y). With ``buildings``, the street as a van
+    drives it: a road 7 m wide, a second kerb and pavement across it, and facades 6 m tall behind both
+    pavements."""
     rng = np.random.default_rng(seed)
     meshes, labels, items = [], [], []
 
@@ -75,14 +90,39 @@ def street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, passes=D
     top = max(end, y) + 2.0
     import trimesh
 
-    box = trimesh.creation.box([0.15, top + 2.0, 0.15])
-    box.apply_translation([3.675, (top - 2.0) / 2, float(ground_height(3.675, 0.0)) + 0.075])
-    meshes.append((box.vertices, box.faces))
-    labels.append(-2)
-    meshes.append(_ground_mesh(-4.0, 12.0, -3.0, top))
+    kerbs = (3.675, -5.3) if buildings else (3.675,)
+    for x in kerbs:
+        box = trimesh.creation.box([0.15, top + 2.0, 0.15])
+        box.apply_translation([x, (top - 2.0) / 2, float(ground_height(x, 0.0)) + 0.075])
+        meshes.append((box.vertices, box.faces))
+        labels.append(-2)
+    if buildings:  # facades behind both pavements, following the ground's slope along the street
+        for x in (8.6, -8.0):
+            wall = trimesh.creation.box([0.3, top + 2.0, 6.0])
+            wall.apply_translation([x, (top - 2.0) / 2, float(ground_height(x, (top - 2.0) / 2)) + 3.0 - 0.3])
+            meshes.append((wall.vertices, wall.faces))
+            labels.append(-3)
+    meshes.append(_ground_mesh(-9.0 if buildings else -4.0, 12.0, -3.0, top))
     labels.append(-1)
-    scan = scan_meshes(meshes, passes=passes, noise=noise, seed=seed if scan_seed is None else scan_seed)
-    return Street(scan.points, np.asarray(labels)[scan.labels], items)
+    return meshes, labels, items, top
+
+
+def mobile_street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, speed: float = 8.0,
+                  scanners=None, absent: frozenset = frozenset(), spacing: tuple = (4.0, 7.0),
+                  back: bool = False, scan_seed: int | None = None):
+    """:func:`street` surveyed from a van (:mod:`.mobile`): driven along the near lane (x = :data:`LANE_X`) the
+    street's whole length at ``speed`` m/s (``back``: the other way, in the far lane), ``scanners`` (default the
+    crossed pair) 2.4 m above the road. Returns (:class:`Street`, the :class:`~.mobile.MobileScan`)."""
+    from .mobile import CROSSED, scan_mobile, straight_drive
+
+    meshes, labels, items, top = street_meshes(cars, furniture, n_cars, seed, spacing, absent, buildings=True)
+    scanners = CROSSED if scanners is None else scanners
+    ends = ((LANE_X, -3.0), (LANE_X, top))
+    if back:
+        ends = ((LANE_X - 2.0, top), (LANE_X - 2.0, -3.0))
+    traj = straight_drive(*ends, speed=speed, height=scanners[0].height, ground=ground_height)
+    scan = scan_mobile(meshes, traj, scanners, seed=seed if scan_seed is None else scan_seed)
+    return Street(scan.points, np.asarray(labels)[scan.labels], items), scan
 
 
 def item_objects(st: Street, objects) -> np.ndarray:
