@@ -392,7 +392,7 @@ def fuse_type(clouds: list, shapes: list, level: str, params: Settings = DEFAULT
         # overshoots by half a column)
         cell = float(min(np.clip(np.sqrt(area / max(len(full), 1)) * 1.5, 0.1, 0.3), max(extent.min() / 10, 0.03)))
     v, f = height_solid(full, cell=cell, hang=hang)
-    v = within_points(v, full)
+    v = within_points(v, full, allp if level != "rotational" else None)
     v, f = decimated(v, f, faces)
     quality = _quality(v, f, allp, gathered, level, cell, hang, seen_m, len(shapes))
     poses = np.array([np.linalg.inv(m) for m in to_ref])
@@ -400,16 +400,27 @@ def fuse_type(clouds: list, shapes: list, level: str, params: Settings = DEFAULT
     return FusedShape(v, f, poses, quality, rmse)
 
 
-def within_points(vertices: np.ndarray, points: np.ndarray) -> np.ndarray:
+def within_points(vertices: np.ndarray, points: np.ndarray, seen: np.ndarray | None = None) -> np.ndarray:
     """The solid's vertices drawn in to its points' extent in plan: a grid's outer columns reach up to a cell (0.1-0.3
-    m) beyond the points they stand for; the mesh keeps its faces (a wall drawn in is still a wall).
+    m) beyond the points they stand for; the mesh keeps its faces (a wall drawn in is still a wall). With ``seen``
+    (the members' own points, before the symmetry completed them), to their extent along each axis they cover on
+    both sides of the frame's origin (a symmetry plane a few centimetres off would widen the completed points by
+    twice that), to the completed ``points``' along an axis seen on one side only (the far side of a car seen from
+    the street).
 
     >>> v = np.array([[-1.2, 0.0, 0.0], [0.5, 0.95, 1.0]])
     >>> within_points(v, np.array([[-1.0, -0.9, 0.2], [1.0, 0.9, 1.4]])).tolist()
     [[-1.0, 0.0, 0.0], [0.5, 0.9, 1.0]]
+    >>> seen = np.array([[-1.0, -0.7, 0.2], [1.0, 0.8, 1.4]])
+    >>> within_points(v, np.array([[-1.0, -0.8, 0.2], [1.0, 0.8, 1.4]]), seen).tolist()
+    [[-1.0, 0.0, 0.0], [0.5, 0.8, 1.0]]
     """
     out = np.array(vertices, dtype=np.float64)
     lo, hi = points[:, :2].min(0), points[:, :2].max(0)
+    if seen is not None and len(seen):
+        slo, shi = seen[:, :2].min(0), seen[:, :2].max(0)
+        both = (slo < -0.5 * np.maximum(shi, 0.0)) & (shi > -0.5 * np.minimum(slo, 0.0))
+        lo, hi = np.where(both, np.maximum(lo, slo), lo), np.where(both, np.minimum(hi, shi), hi)
     out[:, :2] = np.clip(out[:, :2], lo, hi)
     return out
 
