@@ -84,6 +84,11 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne") -> li
             row.update(got_kind=kind, got_model=m.name if m is not None else None,
                        confidence=None if m is None else m.confidence, level=levels[k],
                        measured=[round(float(v), 2) for v in shapes[k].size.as_array()])
+            if m is None:
+                res = results[k]
+                row.update(reason=res.reason_code, best=(res.candidates or [{}])[0].get("name")
+                           if res.candidates and isinstance(res.candidates[0], dict) else None,
+                           rejected=res.rejected)
         out.append(row)
     # objects that are no item's: the ground's or the kerb's (unowned), or a second piece of an item (pieces)
     owners = set(owner.tolist())

@@ -94,3 +94,49 @@ def _later(stage, earlier: Path, models, names, sizes, density, seed, date, prog
                               progress=progress, furniture=furniture)
     except ValueError as exc:
         raise SceneReadError(str(exc)) from exc
+
+
+@app.command("simulate-street", cls=Command)
+@handled
+def simulate_street_cmd(
+    out: Annotated[Path, typer.Argument(help="Folder for scan.laz, trajectory.csv and truth.json (replaced as a "
+                                             "whole).")],
+    platform: Annotated[str, typer.Option(
+        "--platform", help="mobile (a van with two profile scanners crossed at 45 degrees, 2.4 m up: GPS time and "
+                           "scan angle per point, the trajectory beside) or airborne (oblique passes).")] = "mobile",
+    cars: Annotated[int, typer.Option("--cars", help="Cars parked along the kerb (the catalogue's in turn).")] = 8,
+    speed: Annotated[float, typer.Option(help="The van's speed (m/s).")] = 8.0,
+    density: Annotated[float, typer.Option(help="Airborne: points per m2 of open ground.")] = 150.0,
+    seed: Annotated[int, typer.Option(help="Seed (the street is deterministic).")] = 0,
+    crs: Annotated[str, typer.Option(help="Projected CRS written in the header.")] = "EPSG:28992",
+    library: LibraryOpt = None,
+    json_: JsonOpt = False,
+):
+    """A simulated street survey: cars parked along a kerb, the catalogue's street furniture on the pavement,
+    facades, scanned from a van (--platform mobile) or from the air; scan.laz, trajectory.csv (mobile) and
+    truth.json (every item's kind, model, position and how many returns it got)."""
+    from ..errors import ParameterError
+    from ..io.outdir import staged_folder
+    from ..sim.city import city_furniture, city_models
+    from ..sim.street import write_street
+
+    if platform not in ("mobile", "airborne"):
+        raise ParameterError(f"--platform must be mobile or airborne (got {platform!r})")
+    if not 1 <= cars <= 200 or not 0.5 <= speed <= 40.0 or not 1.0 <= density <= 2000.0:
+        raise ParameterError("--cars takes 1-200, --speed 0.5-40 m/s, --density 1-2000 pts/m2")
+    models, names, source, _ = city_models(library)
+    if source != "catalogue":
+        info("the catalogue has no vehicles: the street's cars are the project's parametric ones")
+    street_cars = [("car", n, m) for n, m in zip(names, models)]
+    with staged_folder(out, kind="street") as stage:
+        doc = write_street(stage, street_cars, city_furniture(library), platform=platform, n_cars=cars, seed=seed,
+                           speed=speed, density=density, crs=crs)
+    summary = {k: doc.get(k) for k in ("platform", "crs", "n_points", "seconds", "speed_m_s", "density", "seed")}
+    summary |= {"n_items": len(doc["items"]), "scan": str(out / "scan.laz"), "truth": str(out / "truth.json")}
+    if platform == "mobile":
+        summary["trajectory"] = str(out / "trajectory.csv")
+    if json_:
+        print_json(summary)
+    else:
+        info(f"{out}: {doc['n_points']:,} points from the {platform} platform, {len(doc['items'])} items; truth in "
+             f"{out / 'truth.json'}")

@@ -29,7 +29,8 @@ MARKER = ".twinreg-output.json"
 WORK_PREFIX = ".cells/"
 #: what a marked folder holds (the marker's ``kind``), and the command that writes it
 KINDS = {"twin": "build-twin", "comparison": "compare", "detection": "detect --out", "demo": "demo",
-         "library report": "library-report", "city": "simulate-city"}
+         "library report": "library-report", "city": "simulate-city",
+         "street": "simulate-street"}
 
 
 def _umask() -> int:

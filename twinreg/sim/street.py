@@ -139,3 +139,39 @@ def item_objects(st: Street, objects) -> np.ndarray:
             if held > best[c] and held > len(o.indices) / 2:
                 owner[c], best[c] = k, held
     return owner
+
+
+def write_street(out, cars: list, furniture: list, platform: str = "mobile", n_cars: int = 8, seed: int = 0,
+                 speed: float = 8.0, density: float = 150.0, crs: str = "EPSG:28992",
+                 origin=(121000.0, 487000.0, 0.0), date: str | None = None) -> dict:
+    """A simulated street survey in the folder ``out``: ``scan.laz`` (``crs`` in its header), for a ``mobile``
+    platform also ``trajectory.csv`` (:func:`.mobile.write_survey`), and ``truth.json`` (every placed item: kind,
+    model, x, y in the CRS, heading, how many returns it got). ``airborne``: the airborne passes at ``density``
+    pts/m2. ``origin`` moves the scene's local frame into the CRS. Returns the truth document."""
+    import json
+    from pathlib import Path
+
+    out = Path(out)
+    origin = np.asarray(origin, dtype=np.float64)
+    doc = {"platform": platform, "crs": crs, "origin": origin.tolist(), "seed": seed, "date": date}
+    if platform == "mobile":
+        from .mobile import write_survey
+
+        st, scan = mobile_street(cars, furniture, n_cars=n_cars, seed=seed, speed=speed)
+        got = write_survey(out, scan, crs, origin=origin, date=date)
+        doc |= {"scan": "scan.laz", "trajectory": "trajectory.csv", "n_points": got["n_points"],
+                "seconds": got["seconds"], "speed_m_s": speed}
+    elif platform == "airborne":
+        from .accuracy import density_passes
+        from .city import write_laz
+
+        st = street(cars, furniture, n_cars=n_cars, seed=seed, passes=density_passes(density))
+        write_laz(out / "scan.laz", st.points + origin, crs, date=date)
+        doc |= {"scan": "scan.laz", "n_points": len(st.points), "density": density}
+    else:
+        raise ValueError(f"unknown platform {platform!r}: mobile or airborne")
+    hits = np.bincount(st.labels[st.labels >= 0], minlength=len(st.items))
+    doc["items"] = [{"kind": it.kind, "model": it.name, "x": it.x + origin[0], "y": it.y + origin[1],
+                     "heading": it.heading, "points": int(n)} for it, n in zip(st.items, hits)]
+    (out / "truth.json").write_text(json.dumps(doc, indent=1))
+    return doc
