@@ -237,13 +237,14 @@ def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
 
 
 def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | None = None,
-                    front_hint: float | None = None) -> ObjectShape:
+                    front_hint: float | None = None, seen=None) -> ObjectShape:
     """Symmetry, frame, sections, size and footprint centre of one object's points.
 
     points : (n, 3) float, metres (at least 10 distinct points, not all on a line: see
     :func:`~cosco.footprint.check_object`, which raises ``ValueError`` otherwise). ground_z : the ground level under the
     object (m); the lowest point when None. front_hint : direction (rad) the heading should point to when known (see
-    :func:`object_frame`).
+    :func:`object_frame`). seen : where the object's scanners could see (:class:`~cosco.visibility.SeenGrid`, the
+    points' frame; None: everywhere, as from the air), for the symmetry's mirror images.
 
     >>> rng = np.random.default_rng(1)
     >>> box = rng.uniform([-2.2, -0.9, 0], [2.2, 0.9, 1.5], (3000, 3)) + [100.0, 50.0, 3.0]
@@ -252,7 +253,7 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     ([4.4, 1.8, 1.5], [100.0, 50.0])
     """
     pts = check_object(points)
-    sym = with_footprint(detect_symmetry(pts, params), pts, params)
+    sym = with_footprint(detect_symmetry(pts, params, seen), pts, params)
     frame = object_frame(pts, sym, ground_z, params, front_hint)
     sections = cut_sections(pts, frame, sym.found, params)
     size = measure_size(pts, frame, sym.found, params)

@@ -72,11 +72,15 @@ def _median_spacing(tree: cKDTree, pts: np.ndarray) -> float:
 class _Objective:
     """Mirror-correspondence scores of planes against one down-sampled object."""
 
-    def __init__(self, pts: np.ndarray, tol: float, tree: cKDTree | None = None, side_share: float = 0.15):
+    def __init__(self, pts: np.ndarray, tol: float, tree: cKDTree | None = None, side_share: float = 0.15,
+                 known=None):
         from scipy.spatial import cKDTree
 
         self.pts = pts
         self.side_share = side_share
+        # where a scanner could see (a callable on (n, 3) points of this frame, None: everywhere): a mirror image
+        # landing where no scanner could see (behind the object from every scanner position) counts for nothing
+        self.known = known
 
         self.tree = cKDTree(pts) if tree is None else tree
         self.tol = tol
@@ -89,10 +93,18 @@ class _Objective:
 
         return mirror_distances_numpy(self.tree, self.pts, phi, rho, 3 * self.tol)
 
+    def seen(self, phi: float, rho: float) -> np.ndarray | None:
+        """Which probes' mirror images land where a scanner could see (None: all of them)."""
+        return None if self.known is None else self.known(reflect(self.pts, phi, rho))
+
     def soft(self, phi: float, rho: float) -> float:
-        """Smooth PCR: mean of a Gaussian of the mirror distances (1 = perfect)."""
-        d = self.distances(phi, rho)
-        return float(np.mean(np.exp(-0.5 * (d / self.tol) ** 2)))
+        """Smooth PCR: mean of a Gaussian of the mirror distances (1 = perfect); over the images a scanner could
+        see, at least a third of the probes counted (a plane sending every image out of sight scores nothing)."""
+        g = np.exp(-0.5 * (self.distances(phi, rho) / self.tol) ** 2)
+        seen = self.seen(phi, rho)
+        if seen is None:
+            return float(np.mean(g))
+        return float(g[seen].sum() / max(seen.sum(), len(g) / 3, 1))
 
     def hard(self, phi: float, rho: float) -> tuple[float, float]:
         """(PCR, RMSE of the corresponding distances).
@@ -103,10 +115,16 @@ class _Objective:
         side and the well-seen side's images land among the sparse points, while an asymmetric object fails.
         """
         d = self.distances(phi, rho)
+        seen = self.seen(phi, rho)
+        if seen is not None:  # only the images a scanner could see, at least a third of the probes counted
+            floor = max(len(d) / 3, 1)
+            if seen.sum() < floor:
+                return float((d[seen] <= self.tol).sum() / floor), float("inf")
+            d = d[seen]
         ok = d <= self.tol
         pcr = float(ok.mean())
         loose = d <= 2.5 * self.tol
-        side = self.pts[:, :2] @ np.array([np.cos(phi), np.sin(phi)]) > rho
+        side = (self.pts if seen is None else self.pts[seen])[:, :2] @ np.array([np.cos(phi), np.sin(phi)]) > rho
         for mask in (side, ~side):
             if mask.mean() >= self.side_share:
                 # this side's mirror images land on points, and the other side's land near points (sparse ones)
@@ -163,11 +181,12 @@ def _canonical(phi: float, rho: float) -> tuple[float, float]:
     return phi, float(rho)
 
 
-def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
+def detect_symmetry(points, params: CoscoParams = DEFAULT, seen=None) -> Symmetry:
     """Find the vertical reflective symmetry plane of one object.
 
-    points : (n, 3) float, metres, n >= 10. Returns a :class:`Symmetry`; ``found`` is False when the best PCR is
-    below ``params.symmetry.pcr_threshold``.
+    points : (n, 3) float, metres, n >= 10. seen : a :class:`~cosco.visibility.SeenGrid` of the object (where its
+    scanners could see, same frame), None when unknown (an airborne scan: everywhere). Returns a
+    :class:`Symmetry`; ``found`` is False when the best PCR is below ``params.symmetry.pcr_threshold``.
 
     >>> rng = np.random.default_rng(0)
     >>> box = rng.uniform([-2, -0.8, 0], [2, 0.8, 1.4], (2000, 3))
@@ -183,7 +202,8 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     frame_angle = float(np.arctan2(vecs[1, -1], vecs[0, -1]))
     c, s = np.cos(frame_angle), np.sin(frame_angle)
     local = np.column_stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1], pts[:, 2] - offset[2]])
-    pcr, rmse, phi, rho, tol = _best_plane(local, params)
+    known = None if seen is None else _known_in(seen, c, s, offset)
+    pcr, rmse, phi, rho, tol = _best_plane(local, params, known)
     phi, rho = _canonical(phi + frame_angle, rho)
     rho_scene = rho + float(offset[:2] @ np.array([np.cos(phi), np.sin(phi)]))
     return Symmetry(
@@ -197,7 +217,17 @@ def detect_symmetry(points, params: CoscoParams = DEFAULT) -> Symmetry:
     )
 
 
-def _best_plane(local: np.ndarray, params: CoscoParams) -> tuple[float, float, float, float, float]:
+def _known_in(seen, c: float, s: float, offset: np.ndarray):
+    """``seen.known`` of points of the principal frame (turned by (c, s) and moved by ``offset`` from the grid's)."""
+
+    def known(q: np.ndarray) -> np.ndarray:
+        return seen.known(np.column_stack([c * q[:, 0] - s * q[:, 1] + offset[0], s * q[:, 0] + c * q[:, 1] + offset[1],
+                                           q[:, 2] + offset[2]]))
+
+    return known
+
+
+def _best_plane(local: np.ndarray, params: CoscoParams, known=None) -> tuple[float, float, float, float, float]:
     """(pcr, rmse, phi, rho, tolerance) of the best plane of an object in its principal frame: the searches from
     the best start overall and the best along the footprint's long axis, the longitudinal one kept unless the
     other beats it by more than ``symmetry.long_axis_margin``."""
@@ -213,7 +243,7 @@ def _best_plane(local: np.ndarray, params: CoscoParams) -> tuple[float, float, f
         # a surface's voxel count falls with the square of the voxel size
         voxel *= max(1.1, 1.05 * np.sqrt(len(down) / params.symmetry.max_points))
         down, _ = voxel_downsample(local, voxel)
-    obj = _Objective(down, tol, ref_tree, params.symmetry.side_share)
+    obj = _Objective(down, tol, ref_tree, params.symmetry.side_share, known)
 
     rect = min_area_rectangle(down[:, :2])
     scored = []

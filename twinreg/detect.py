@@ -89,11 +89,36 @@ def object_ground(det: Detection, obj) -> float:
     return float(np.median(z - det.hag[obj.indices]))
 
 
+def object_seen(det: Detection, obj):
+    """Where an object's scanners could see it (:func:`cosco.visibility.seen_grid`, scene-local), from its points'
+    scanner positions (a mobile survey's trajectory); None without them (an airborne scan: seen from
+    everywhere)."""
+    origins = det.scene.origins
+    if origins is None:
+        return None
+    from scipy.spatial import cKDTree
+
+    from cosco.visibility import pick_views, seen_grid
+
+    off = det.scene.offset
+    pts = det.scene.points[obj.indices] - off
+    side = float(np.ptp(pts[:, :2], axis=0).min())
+    # voxels of a tenth of the object's narrower side (3-15 cm), and at least two point spacings: an object's points
+    # block a line of sight only where they are denser than its voxels. An object fewer than six voxels across
+    # (a mailbox, a cone, a sparse one) is counted as seen from everywhere, as from the air
+    spacing = float(np.median(cKDTree(pts).query(pts, k=2)[0][:, 1])) if len(pts) > 1 else side
+    voxel = max(float(np.clip(side / 10, 0.03, 0.15)), 2 * spacing)
+    if side < 6 * voxel:
+        return None
+    return seen_grid(pts, pick_views(origins[obj.indices] - off), voxel=voxel)
+
+
 def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) -> list:
     """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
     from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
     objects = det.objects if objects is None else objects
-    shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o)) for o in objects]
+    shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o),
+                                    seen=object_seen(det, o)) for o in objects]
     classes = det.scene.classes  # None in a city's cells: the parameter is read only when there are classes
     if classes is None or not params.open_world.scan_classes:
         return shapes
@@ -109,12 +134,12 @@ def object_levels(clouds: list, shapes: list, params: Settings = DEFAULT) -> lis
 
 
 def detect_file(path, unit: str = "auto", params: Settings = DEFAULT, progress=None,
-                crs: str | None = None, override_crs: bool = False, on_read=None) -> Detection:
+                crs: str | None = None, override_crs: bool = False, on_read=None, trajectory=None) -> Detection:
     """Read a scene (``crs``: its projected CRS; one that differs from a LAS header's only with ``override_crs``)
     and detect its objects; ``on_read(scene)`` is called once the points are read, before the detection (to
-    refuse a scene early)."""
+    refuse a scene early); ``trajectory``: a mobile survey's trajectory file (each point's scanner position)."""
     t = time.perf_counter()
-    scene = read_points(path, unit=unit, crs=crs, override_crs=override_crs)
+    scene = read_points(path, unit=unit, crs=crs, override_crs=override_crs, trajectory=trajectory)
     if on_read is not None:
         on_read(scene)
     if len(scene.points) < 100:

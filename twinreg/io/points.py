@@ -37,6 +37,7 @@ class PointSet:
     offset : (3,) float64, a round local origin; ``points - offset`` is small. unit : the horizontal unit applied.
     crs_info : the projected CRS of the coordinates (``--crs``, else the LAS/LAZ header's), or None. n_dropped :
     non-finite points removed. survey_date : the LAS/LAZ header's creation date (ISO ``YYYY-MM-DD``), or None.
+    origins : (n, 3) each point's scanner position (same frame as ``points``), from a mobile survey's trajectory.
     """
 
     path: Path
@@ -52,6 +53,7 @@ class PointSet:
     survey_date_source: str | None = None
     survey_date_warning: str | None = None
     classes: np.ndarray | None = None  # (n,) uint8 ASPRS classes, when the file has any beyond 0 and 1
+    origins: np.ndarray | None = None  # (n, 3) each point's scanner position (a mobile survey's trajectory), or None
 
     def without(self, drop: np.ndarray) -> "PointSet":
         """The same scene without the points of the (n,) mask ``drop`` (counted as outliers)."""
@@ -59,7 +61,8 @@ class PointSet:
 
     def subset(self, keep: np.ndarray) -> "PointSet":
         """The same scene with only the points of the (n,) mask ``keep`` (and their classes)."""
-        return replace(self, points=self.points[keep], classes=None if self.classes is None else self.classes[keep])
+        return replace(self, points=self.points[keep], classes=None if self.classes is None else self.classes[keep],
+                       origins=None if self.origins is None else self.origins[keep])
 
     @property
     def crs(self) -> str | None:
@@ -261,7 +264,8 @@ def las_survey_date(path: Path, header, gps_time=None) -> tuple[str | None, str 
 
 def _read_las(path: Path):
     """(points (n, 3) in file units, the header's CRS or None, the error parsing it or None, the survey date,
-    the points' ASPRS classes or None when every point is 0 (never classified) or 1 (unclassified))."""
+    the points' ASPRS classes or None when every point is 0 (never classified) or 1 (unclassified), their GPS times
+    or None when the point format has none)."""
     import laspy
 
     try:
@@ -279,13 +283,14 @@ def _read_las(path: Path):
     pts = np.column_stack([np.asarray(las.x, dtype=np.float64), np.asarray(las.y, dtype=np.float64),
                            np.asarray(las.z, dtype=np.float64)])
     has_gps = "gps_time" in las.point_format.dimension_names
-    date = las_survey_date(path, las.header, np.asarray(las.gps_time) if has_gps else None)
+    gps = np.asarray(las.gps_time, dtype=np.float64) if has_gps else None
+    date = las_survey_date(path, las.header, gps)
     classes = np.asarray(las.classification, dtype=np.uint8)
     classes = classes if (classes > 1).any() else None
     try:
-        return pts, las.header.parse_crs(), None, date, classes
+        return pts, las.header.parse_crs(), None, date, classes, gps
     except Exception as exc:  # a CRS record is there but broken: the caller decides (error unless told the unit)
-        return pts, None, exc, date, classes
+        return pts, None, exc, date, classes, gps
 
 
 _PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
@@ -409,22 +414,25 @@ def check_point_file(path) -> tuple[Path, str]:
                          SceneReadError)
 
 
-def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: bool = False) -> PointSet:
+def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: bool = False,
+                trajectory=None) -> PointSet:
     """Read a point file to a :class:`PointSet`.
 
     unit : ``auto`` (the CRS's units when one is known, else metres) or one of m, cm, mm, ft, us-ft, in.
     crs : the file's projected CRS (``--crs``), overriding the one a LAS/LAZ header states. Horizontal and vertical
     units come from the CRS (the vertical part of a compound CRS, else the horizontal unit); a ``crs`` that differs
     from the header's is refused unless ``override_crs``.
+    trajectory : a mobile survey's trajectory file (:mod:`twinreg.io.trajectory`): each point's scanner position
+    from its GPS time (``origins``); a LAS/LAZ with GPS times only.
     Raises :class:`SceneReadError` with one line naming the file for a missing, unreadable, truncated or empty file,
     a geographic CRS, or a CRS record that cannot be parsed (unless ``--unit`` or ``--crs`` say what it meant).
     """
     path, suffix = check_point_file(path)
     header_crs = header_error = None
     date = (None, None, None)
-    classes = None
+    classes = gps = None
     if suffix in (".las", ".laz"):
-        pts, header_crs, header_error, date, classes = _read_las(path)
+        pts, header_crs, header_error, date, classes, gps = _read_las(path)
     elif suffix == ".bin":
         pts = _read_kitti(path)
     elif suffix == ".ply":
@@ -450,8 +458,24 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
         raise SceneReadError(f"{path}: {int(far.sum())} point(s) lie beyond {MAX_COORD:.0e} m (e.g. "
                              f"{pts[np.argmax(far)].tolist()}): corrupt records, not positions; remove them (e.g. "
                              "pdal translate with a range filter) and run again")
+    origins = None
+    if trajectory is not None:
+        origins = _origins(path, trajectory, None if gps is None else gps[finite], info) * [scale, scale, z_scale]
     offset = np.floor(pts.min(0) / 100.0) * 100.0
     offset[2] = 0.0
     return PointSet(path=path, points=pts, offset=offset, unit=unit, crs_info=info, n_dropped=dropped, scale=scale,
                     z_scale=z_scale, survey_date=date[0], survey_date_source=date[1], survey_date_warning=date[2],
-                    classes=classes)
+                    classes=classes, origins=origins)
+
+
+def _origins(path: Path, trajectory, gps, info) -> np.ndarray:
+    """Each point's scanner position (file units, as the points before their unit's scale) from its GPS time and
+    the ``trajectory`` file (in the scan's CRS and time base)."""
+    from .trajectory import read_trajectory
+
+    if gps is None or (len(gps) > 1 and np.ptp(gps) == 0):  # format 6 and up always have the field: all alike is none
+        raise SceneReadError(f"{path}: its points carry no GPS time, so --trajectory cannot place their scanner; "
+                             "give the LAS/LAZ as the survey delivered it (point format 1, 3 or 6-10), or leave "
+                             "--trajectory out")
+    traj = read_trajectory(trajectory, crs=info.crs if info is not None else None)
+    return traj.positions(gps, trajectory)

@@ -127,3 +127,19 @@ def test_a_csv_with_other_names_and_separator(tmp_path):
     assert traj.positions(np.array([0.5])).tolist() == [[1.5, 2.5, 3.5]]
     # heading 0 (north) is +Y: pi/2 from +X; 90 (east) is +X
     assert np.allclose(traj.rpy[:, 2], [np.pi / 2, 0.0])
+
+
+def test_a_van_seen_from_one_side_keeps_its_length_along_its_mirror_plane(scene):
+    """A box-like van scanned from the street: its near side mirrored across its length lands where no scanner
+    could see (behind it), which counts for nothing with the scanner positions known (cosco.visibility); without
+    them the plane across the van wins (its near side mirrors onto itself) and its length and width swap."""
+    import cosco
+    from cosco.visibility import pick_views, seen_grid
+
+    car = scene.labels == 0
+    pts, origins = scene.points[car], scene.origins[car]
+    seen = seen_grid(pts, pick_views(origins), voxel=0.15)
+    assert 0.05 < seen.unseen_share() < 0.9
+    shape = cosco.describe_object(pts, ground_z=0.0, seen=seen)
+    assert shape.size.length > 4.2 and shape.size.width < 2.0
+    assert abs(np.sin(shape.frame.heading - np.pi / 2)) < 0.05
