@@ -38,7 +38,10 @@ class MatchingParams:
     the size window; the fit factor is 1 while every acceptance measure uses at most half its limit, 0.5 at
     ``poor_fit`` of a limit and 0.25 at the limit; in an open world, times the design factor: 1 while the winner's
     scan fit stays within ``design_fit_base`` noise units plus ``design_fit_spacing`` times the point spacing in noise
-    units (what a catalogued design's own copies reach), falling to 0 over ``design_fit_ramp`` noise units beyond.
+    units (what a catalogued design's own copies reach), falling to 0 over ``design_fit_ramp`` noise units beyond;
+    the noise there is the scan's, and at least ``design_fit_model`` (m, what a model's surface deviates from its
+    design's): a mobile scan's sub-centimetre noise is no finer than the mesh it is held to (airborne scans, 1.5 cm
+    and more, are not affected).
 
     Refining (refine.py): each candidate's pose is refined on at most ``refine_max_points`` points (pairs within
     ``refine_reach`` m), turning at most ``refine_max_turn`` rad and moving at most ``refine_max_shift`` m, unless
@@ -70,6 +73,7 @@ class MatchingParams:
     design_fit_base: float = 0.714  # noise units
     design_fit_spacing: float = 0.035  # spacings in noise units
     design_fit_ramp: float = 0.1  # noise units
+    design_fit_model: float = 0.012  # m, the least noise the design test takes: a model's own deviation from its design
     refine_reach: float = 0.3  # m, pairs
     refine_sigma: float = 6.0  # noise units behind
     refine_max_points: int = 500  # points

@@ -191,7 +191,7 @@ def design_factor(scan_fit: float, noise: float, spacing: float, params: Setting
     [1.0, 0.64, 0.0]
     """
     m = params.matching
-    n = max(float(noise), 1e-6)
+    n = max(float(noise), m.design_fit_model, 1e-6)
     x = float(scan_fit) / n
     limit = m.design_fit_base + m.design_fit_spacing * float(spacing) / n
     return float(np.clip(1.0 - (x - limit) / m.design_fit_ramp, 0.0, 1.0)), x, limit
