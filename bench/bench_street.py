@@ -28,6 +28,10 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 
+#: matching parameters set from the command line (``--matching KEY=VALUE``)
+MATCHING: dict = {}
+
+
 def catalogue(folder: Path):
     from tests.conftest import furniture_rows, manifest_rows
     from twinreg.catalogue.repository import Catalogue
@@ -40,7 +44,7 @@ def catalogue(folder: Path):
     return cat
 
 
-def run_street(cat, density: float, seed: int, platform: str = "airborne") -> list[dict]:
+def run_street(cat, density: float, seed: int, platform: str = "airborne", seen: bool = True) -> list[dict]:
     from twinreg.settings import DEFAULT
     from twinreg.detect import describe_detected, detect_points, object_levels, object_points
     from twinreg.io.points import PointSet
@@ -59,11 +63,13 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne") -> li
     if platform == "mobile":
         from twinreg.sim.street import mobile_street
 
-        st = mobile_street(cars, furniture, n_cars=8, seed=seed)[0]
+        st, scan = mobile_street(cars, furniture, n_cars=8, seed=seed)
+        origins = scan.origins if seen else None
     else:
         st = street(cars, furniture, n_cars=8, seed=seed, passes=density_passes(density))
-    params = with_targets(cat, DEFAULT)
-    det = detect_points(PointSet(path=None, points=st.points, offset=np.zeros(3), unit="m"), params)
+        origins = None
+    params = with_targets(cat, DEFAULT.with_(matching=MATCHING) if MATCHING else DEFAULT)
+    det = detect_points(PointSet(path=None, points=st.points, offset=np.zeros(3), unit="m", origins=origins), params)
     shapes = describe_detected(det, params)
     clouds = [object_points(det, o) for o in det.objects]
     levels = object_levels(clouds, shapes, params)
@@ -102,20 +108,28 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne") -> li
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--json", type=Path)
     ap.add_argument("--densities", default="150,50,20", help="pts/m2, comma-separated")
     ap.add_argument("--platform", default="airborne", choices=("airborne", "mobile"),
                     help="mobile: the street surveyed from a van (twinreg/sim/mobile.py: the crossed pair of profile "
                          "scanners at 2.4 m, 8 m/s; facades and both kerbs), scored once a seed (as density 0)")
+    ap.add_argument("--matching", action="append", default=[], metavar="KEY=VALUE",
+                    help="a matching parameter for this run (twinreg/settings.py MatchingParams), to choose one")
+    ap.add_argument("--no-seen", action="store_true", help="mobile: without the scanner positions (as a scan "
+                    "delivered without its trajectory)")
     args = ap.parse_args()
+    for kv in args.matching:
+        key, value = kv.split("=", 1)
+        MATCHING[key] = float(value)
     t0 = time.perf_counter()
     doc = {}
     with tempfile.TemporaryDirectory() as tmp:
         cat = catalogue(Path(tmp) / "cat")
         for density in ([0.0] if args.platform == "mobile" else (float(v) for v in args.densities.split(","))):
             rows, extra = [], []
-            for seed in range(1, args.seeds + 1):
-                got = run_street(cat, density, seed, args.platform)
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
+                got = run_street(cat, density, seed, args.platform, not args.no_seen)
                 rows += got[:-1]
                 extra.append(got[-1])
             by = defaultdict(list)

@@ -16,12 +16,12 @@ from .catalogue.repository import Catalogue
 from .city.build import build_city_twin
 from .city.sources import is_tiled
 from .detect import describe_detected, detect_file, object_levels, object_points
-from .errors import SceneReadError
+from .errors import ParameterError, SceneReadError
 from .export.classified import scan_classes, write_classified
 from .export.formats import TwinFiles, write_twin
 from .export.sections import section_item
 from .export.tiles3d import scan_sample
-from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
+from .export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document, viewpoints_doc
 from .geo.georef import Georef, scene_georef
 from .io import observed
 from .io.asprs import classes_doc
@@ -68,6 +68,7 @@ class RunSettings:
     classified_scan: bool = False
     min_confidence: float | None = None
     scan_classes: bool = True
+    trajectory: Path | None = None
 
     def tiled(self, paths) -> bool:
         """Whether ``paths`` run cell by cell (several paths, a folder, a glob, a COPC or a large LAS/LAZ, or any
@@ -84,6 +85,10 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
     paths = [Path(p) for p in paths]
     s = settings
     if s.tiled(paths):
+        if s.trajectory is not None:
+            raise ParameterError(f"{s.trajectory}: --trajectory is read with one scene file; a tiled run (several "
+                                 "files, a folder, a COPC or a large LAS/LAZ) does not read it yet: run the drive's "
+                                 "file alone")
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
@@ -91,13 +96,13 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
     params = DEFAULT if s.scan_classes else DEFAULT.with_(open_world={"scan_classes": False})
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                       params=params, progress=progress, ply=s.ply is not False, date=s.date,
-                      templates=s.cityjson_templates, min_confidence=s.min_confidence)
+                      templates=s.cityjson_templates, min_confidence=s.min_confidence, trajectory=s.trajectory)
 
 
 def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, unit: str = "auto",
                tol: float | None = None, params: Settings = DEFAULT, progress=None,
                threshold: float | None = None, ply: bool = True, date: str | None = None,
-               templates: bool = False, min_confidence: float | None = None) -> dict:
+               templates: bool = False, min_confidence: float | None = None, trajectory=None) -> dict:
     """Detect, describe, cluster, match and export one scene. Returns the twin JSON (also written to OUT;
     ``ply=False`` leaves out twin.ply; ``date``: the survey's date, ``YYYY-MM-DD``, else the LAS/LAZ header's;
     ``templates``: CityJSON with geometry templates).
@@ -105,7 +110,8 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     georef : from :func:`~twinreg.geo.georef.georef_from_options`, or None to use the CRS the file states. tol,
     threshold : the size tolerance and cluster threshold (m), ``params.matching.size_tol`` and
     ``params.taxonomy.threshold`` when None. progress : :mod:`twinreg.progress`'s ``progress(stage, done, total)``, a
-    message as each stage starts and counts as the objects of the matching are done.
+    message as each stage starts and counts as the objects of the matching are done. trajectory : a mobile
+    survey's trajectory file (:mod:`twinreg.io.trajectory`): what its scanners could not see is unknown, not absent.
     """
     t_start = time.perf_counter()
     timing = {}
@@ -113,14 +119,15 @@ def build_twin(scene_path, catalogue: Catalogue, georef: Georef | None, out, uni
     scene_path = Path(scene_path)
 
     check_point_file(scene_path)
-    check_replaceable(Path(out), protect=[scene_path, catalogue.folder], kind="twin")
+    inputs = [scene_path, catalogue.folder] + ([Path(trajectory)] if trajectory is not None else [])
+    check_replaceable(Path(out), protect=inputs, kind="twin")
     with locked(Path(out), "build-twin"):
         return _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
-                             templates)
+                             templates, trajectory)
 
 
 def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_start, timing, ply, date,
-                  templates) -> dict:
+                  templates, trajectory=None) -> dict:
     require_models(catalogue)
     params = with_targets(catalogue, params)
 
@@ -128,7 +135,7 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
     painter = Painter.start(warm=warm_up)
     try:
         return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply,
-                      date, templates, prober)
+                      date, templates, prober, trajectory)
     finally:
         if painter:
             painter.stop()
@@ -137,7 +144,7 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
 
 
 def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing,
-           ply=True, date=None, templates=False, prober=None) -> dict:
+           ply=True, date=None, templates=False, prober=None, trajectory=None) -> dict:
     say(progress, "reading and detecting")
     given = georef is not None and georef.crs_source == "--crs"
     located = {}
@@ -147,7 +154,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
                                    str(scene_path))
 
     det = detect_file(scene_path, unit=unit, params=params, crs=georef.crs if given else None,
-                      override_crs=given and georef.override, on_read=placed)
+                      override_crs=given and georef.override, on_read=placed, trajectory=trajectory)
     georef = located["georef"]
     timing.update(det.timing_s)
     targets = det.objects
@@ -178,7 +185,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
                            targets=targets, shapes=shapes, clusters=clusters, params=params, progress=progress,
                            timing=timing, t_start=t_start, painter=painter, taxonomy=pictures, ply=ply, date=date,
                            templates=templates, prober=prober, levels=levels, clouds=clouds,
-                           spacing=spacing)
+                           spacing=spacing, trajectory=trajectory)
             twin = _match_and_export(run)
         except BaseException:
             for helper in (painter, prober):  # a helper may be writing into the stage: stopped before it goes
@@ -217,6 +224,7 @@ class SceneRun:
     levels: list | None = None
     clouds: list | None = None
     spacing: list | None = None
+    trajectory: Path | None = None
 
 
 def _match_and_export(run: SceneRun) -> dict:
@@ -247,7 +255,8 @@ def _match_and_export(run: SceneRun) -> dict:
     when, source, warnings = survey_date(run.date, [(sc.survey_date, sc.survey_date_source, sc.survey_date_warning)])
     scan = ScanSummary(scene_path.name, len(sc.points), sc.n_outliers, sc.unit, offset, noise, sc.points,
                        survey_date=when, survey_date_source=source, warnings=warnings,
-                       scan_classes=classes_doc(sc.classes, params.open_world.scan_classes))
+                       scan_classes=classes_doc(sc.classes, params.open_world.scan_classes),
+                       viewpoints=viewpoints_doc(sc, run.trajectory))
     twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": [p.footprint() for p in placed],

@@ -115,6 +115,11 @@ ScanClassesOpt = Annotated[bool, typer.Option(
     "--scan-classes/--no-scan-classes", help="Read a classified scan's ASPRS classes (vegetation 3-5, building 6, "
                                              "bridge 17) for the objects' kinds; twin.json's scan_classes says "
                                              "whether they were used.")]
+TrajectoryOpt = Annotated[Optional[Path], typer.Option(
+    "--trajectory", help="A mobile survey's trajectory (CSV of time, x, y, z[, roll, pitch, heading] in the scan's "
+                         "CRS, or an SBET): each point's scanner position from its GPS time, so that what the "
+                         "scanners could not see (behind a parked car, a van's far side) is unknown, not absent. One "
+                         "LAS/LAZ scene with GPS times.", show_default=False)]
 PlyOpt = Annotated[Optional[bool], typer.Option(
     "--ply/--no-ply", help="Write the placed models as PLY [default: twin.ply for one scene; none for tiles, "
                            "--ply writes ply/<cell>.ply].", show_default=False)]
@@ -148,6 +153,7 @@ def build_twin_cmd(
     ply: PlyOpt = None,
     min_confidence: MinConfidenceOpt = None,
     scan_classes: ScanClassesOpt = True,
+    trajectory: TrajectoryOpt = None,
     library: LibraryOpt = None,
     json_: JsonOpt = False,
 ):
@@ -165,7 +171,7 @@ def build_twin_cmd(
                            scheduler=scheduler, restart=restart, ply=ply,
                            date=date.date().isoformat() if date else None, cityjson_templates=cityjson_templates,
                            classified_scan=classified_scan, min_confidence=min_confidence,
-                           scan_classes=scan_classes)
+                           scan_classes=scan_classes, trajectory=trajectory)
     had_twin = (out / "twin.json").is_file()
     with RunProgress(first.name) as bars:
         twin = build(paths, cat, georef, out, settings, progress=bars.update)

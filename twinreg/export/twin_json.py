@@ -4,6 +4,7 @@ the two can never drift apart. Field by field: docs/OUTPUTS.md; the contract's p
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -28,6 +29,16 @@ class ScanSummary:
     survey_date_source: str | None = None
     warnings: list = field(default_factory=list)
     scan_classes: dict | None = None  # CONTRACT: {"used": true, "codes": {...}} or {"used": false, "reason": ...}
+    viewpoints: dict | None = None  # where the scanners were: viewpoints_doc
+
+
+def viewpoints_doc(scene, trajectory) -> dict:
+    """twin.json's ``viewpoints``: whether each point's scanner position was known (a mobile survey's
+    ``trajectory`` file), so that what no scanner could see is unknown rather than absent."""
+    if getattr(scene, "origins", None) is None:
+        return {"source": "none", "reason": "no --trajectory: every object counted as seen from everywhere, as from "
+                                            "the air"}
+    return {"source": "trajectory", "file": Path(trajectory).name, "n_points": int(len(scene.origins))}
 
 
 @dataclass
@@ -68,6 +79,7 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
         "offset": [float(v) for v in scan.offset], "noise_m": round(float(scan.noise), 4),
         "survey_date": scan.survey_date, "survey_date_source": scan.survey_date_source,
         "scan_classes": scan.scan_classes,
+        **({"viewpoints": scan.viewpoints} if scan.viewpoints is not None else {}),
         **({"warnings": list(scan.warnings)} if scan.warnings else {}),
         "objects": objects,
         **taxonomy_json(tax),
