@@ -46,7 +46,7 @@ def catalogue(folder: Path):
 
 def run_street(cat, density: float, seed: int, platform: str = "airborne", seen: bool = True) -> list[dict]:
     from twinreg.settings import DEFAULT
-    from twinreg.detect import describe_detected, detect_points, object_levels, object_points
+    from twinreg.detect import describe_detected, detect_points, object_levels, object_points, objects_seen
     from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise
     from twinreg.matching.match import Evidence, ModelCache, match_objects
@@ -75,7 +75,8 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne", seen:
     levels = object_levels(clouds, shapes, params)
     tax = taxonomy(shapes, params, {})
     results, _ = match_objects(shapes, cat, labels=tax.labels, params=params, cache=ModelCache(cat, params),
-                               evidence=Evidence(clouds, scene_noise(det.hag, det.is_ground)))
+                               evidence=Evidence(clouds, scene_noise(det.hag, det.is_ground),
+                                                 seen=objects_seen(det, det.objects)))
     results, kinds = recognise(results, shapes, levels, cat, params)
     owner = item_objects(st, det.objects)
     category = {r.name: r.category for r in rows}

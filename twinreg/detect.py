@@ -33,6 +33,7 @@ class Detection:
     ground: Ground
     segmentation: Segmentation
     timing_s: dict = field(default_factory=dict)
+    seen: dict = field(default_factory=dict)  # object index -> its SeenGrid or None (object_seen), built once
 
     @property
     def objects(self):
@@ -96,6 +97,18 @@ def object_seen(det: Detection, obj):
     origins = det.scene.origins
     if origins is None:
         return None
+    key = id(obj)
+    if key not in det.seen:
+        det.seen[key] = _seen(det, obj, origins)
+    return det.seen[key]
+
+
+def objects_seen(det: Detection, objects) -> list | None:
+    """:func:`object_seen` of each of ``objects``, or None for a scan without scanner positions."""
+    return None if det.scene.origins is None else [object_seen(det, o) for o in objects]
+
+
+def _seen(det: Detection, obj, origins):
     from scipy.spatial import cKDTree
 
     from cosco.visibility import pick_views, seen_grid

@@ -15,7 +15,7 @@ from . import KERNEL_MODULES
 from .catalogue.repository import Catalogue
 from .city.build import build_city_twin
 from .city.sources import is_tiled
-from .detect import describe_detected, detect_file, object_levels, object_points
+from .detect import describe_detected, detect_file, object_levels, object_points, objects_seen
 from .errors import ParameterError, SceneReadError
 from .export.classified import scan_classes, write_classified
 from .export.formats import TwinFiles, write_twin
@@ -237,7 +237,8 @@ def _match_and_export(run: SceneRun) -> dict:
     noise = scene_noise(det.hag, det.is_ground)
     models = ModelCache(catalogue, params, prober=run.prober)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
-                                   evidence=Evidence(run.clouds, noise), cache=models,
+                                   evidence=Evidence(run.clouds, noise, seen=objects_seen(det, targets)),
+                                   cache=models,
                                    done=(lambda k, n: say(progress, "matching", k, n)) if progress else None)
     timing["prefilter"] = stats.prefilter_s
     timing["model_prep"] = stats.model_prep_s

@@ -143,10 +143,12 @@ def top_surface(points: np.ndarray, cell: float = 0.1) -> np.ndarray:
 
 def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.ndarray, cloud_tree,
              model_size: np.ndarray, measured: np.ndarray, noise: float, spacing: float,
-             params: Settings = DEFAULT, sink: float = 0.0) -> Evidence:
+             params: Settings = DEFAULT, sink: float = 0.0, top_known: np.ndarray | None = None) -> Evidence:
     """Score one placed candidate. ``distances``: the object's (sampled) points to the placed model's surface;
     ``top_placed``: the model's top surface in the scene; ``cloud_tree`` a cKDTree of the object's points;
-    ``sink`` (m): how far the placed model's lowest point lies below the object's ground."""
+    ``sink`` (m): how far the placed model's lowest point lies below the object's ground; ``top_known``: which of
+    the top surface's cells a scanner could see (None: all): a cell no scanner could see (a pickup's bed floor
+    behind its side from a van's roof) is neither seen nor missed."""
     v = verdict(distances, noise, spacing, params)
     tau = v.tolerance_m
     scan_fit = float(np.mean(np.minimum(distances, tau))) if len(distances) else tau
@@ -156,6 +158,8 @@ def evidence(model_id: int, rmse: float, distances: np.ndarray, top_placed: np.n
         # only distances up to the reach count (farther ones count as the reach, and as unseen): a search bounded
         # there, the reach itself included
         d, _ = cloud_tree.query(top_placed, k=1, distance_upper_bound=np.nextafter(reach, np.inf))
+        if top_known is not None and np.any(top_known):
+            d = d[np.asarray(top_known, dtype=bool)]
         model_fit = float(np.mean(np.minimum(d, reach)))
         unseen = float(np.mean(d > reach))
     shortfall = np.maximum(np.asarray(measured) - np.asarray(model_size) - 2 * noise, 0.0)

@@ -142,11 +142,13 @@ class Evidence:
     """The points an object's best candidates are verified against (:mod:`twinreg.matching.acceptance`):
     ``clouds``, each object's points ((n, 3) metres, the frame of its shape); ``noise``, the scan's range noise (m),
     one value or one per object (a city's tiles); ``spacings``, each object's point spacing (m) when ``clouds``
-    are samples of the objects' points, else None (measured on the clouds)."""
+    are samples of the objects' points, else None (measured on the clouds); ``seen``, where each object's
+    scanners could see (a mobile survey's trajectory), None: everywhere."""
 
     clouds: list
     noise: object
     spacings: list | None = None
+    seen: list | None = None  # each object's cosco.visibility.SeenGrid (or None), the clouds' frame
 
     def noise_of(self, i: int):
         return self.noise if self.noise is None or np.ndim(self.noise) == 0 else float(self.noise[i])
@@ -230,7 +232,8 @@ class _Matcher:
         t_v = time.perf_counter()
         self.results[i] = _outcome(self.shapes[i], regs, self.cache, self.found[i],
                                    ev.clouds[i] if ev is not None else None, ev.noise_of(i) if ev is not None else None,
-                                   self.pairs[i], self.params, self.spacings[i])
+                                   self.pairs[i], self.params, self.spacings[i],
+                                   ev.seen[i] if ev is not None and ev.seen is not None else None)
         self.stats.verification_s += time.perf_counter() - t_v
         self.n_done += 1
         return ranking
@@ -261,8 +264,9 @@ class _Scorer:
     judged (the same sample whether the cloud is all of the object's points, a scene, or already its sample, a city
     cell) and their KD-tree, the object's measured size, the scan's noise and spacing."""
 
-    def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: Settings):
+    def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: Settings, seen=None):
         self.shape, self.cache, self.noise, self.spacing, self.params = shape, cache, noise, spacing, params
+        self.seen = seen  # where the object's scanners could see (the cloud's frame), None: everywhere
         self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.matching.accept_max_points)
         # the evidence's bounded look-ups compiled where numba is in use (cosco.kernels), else the KD-tree's
         self.tree = BoundedTree(self.sample)
@@ -276,7 +280,8 @@ class _Scorer:
         # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
         e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top, self.tree,
                      np.array([row.length, row.width, row.height]), self.measured, self.noise, self.spacing,
-                     self.params, sink=float(self.shape.frame.ground_z - m[2, 3]))
+                     self.params, sink=float(self.shape.frame.ground_z - m[2, 3]),
+                     top_known=None if self.seen is None else self.seen.known(top))
         e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)), refined=False)
         return e
 
@@ -300,7 +305,7 @@ class _Scorer:
         return e
 
 
-def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Settings):
+def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Settings, seen=None):
     """Score the best ``matching.accept_candidates`` registrations on all of the object's evidence
     (:mod:`twinreg.matching.decision`).
 
@@ -309,7 +314,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
     noise units of the best one's are refined and scored on every point. Refining lowers a score by about one
     noise unit at most, so a candidate further behind can neither win nor come close enough to change the
     confidence: it keeps its screened score (docs/METHOD.md, "Deciding between candidates")."""
-    scorer = _Scorer(shape, cache, cloud, noise, spacing, params)
+    scorer = _Scorer(shape, cache, cloud, noise, spacing, params, seen)
     reach = params.matching.refine_sigma * noise
     candidates = regs[:params.matching.accept_candidates]
     screens = [scorer.screened(reg, mid) for reg, mid in candidates]
@@ -360,7 +365,7 @@ def _size_gap_text(gap: np.ndarray) -> str:
 
 
 def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=None, noise=None,
-             obj_pair=None, params: Settings = DEFAULT, spacing=0.0) -> ObjectMatch:
+             obj_pair=None, params: Settings = DEFAULT, spacing=0.0, seen=None) -> ObjectMatch:
     n_candidates = found.n_window
     if not regs:
         near = cache.size_index().nearest_gap(shape.size.as_array(), spacing, params)
@@ -371,7 +376,7 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
         return ObjectMatch(shape, None, reason, [], reason_code="no_model_of_this_size")
     decision = None
     if cloud is not None:
-        decision = _decided(shape, regs, cache, cloud, noise, spacing, params)
+        decision = _decided(shape, regs, cache, cloud, noise, spacing, params, seen)
         if decision.best is None:
             best = decision.scored[0]
             name = cache.row(best.model_id).name
