@@ -30,6 +30,8 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 #: matching parameters set from the command line (``--matching KEY=VALUE``)
 MATCHING: dict = {}
+#: the van's passes of the street (``--passes``)
+PASSES = [1]
 
 
 def catalogue(folder: Path):
@@ -63,7 +65,7 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne", seen:
     if platform == "mobile":
         from twinreg.sim.street import mobile_street
 
-        st, scan = mobile_street(cars, furniture, n_cars=8, seed=seed)
+        st, scan = mobile_street(cars, furniture, n_cars=8, seed=seed, passes=PASSES[0])
         origins = scan.origins if seen else None
     else:
         st = street(cars, furniture, n_cars=8, seed=seed, passes=density_passes(density))
@@ -117,9 +119,11 @@ def main() -> None:
                          "scanners at 2.4 m, 8 m/s; facades and both kerbs), scored once a seed (as density 0)")
     ap.add_argument("--matching", action="append", default=[], metavar="KEY=VALUE",
                     help="a matching parameter for this run (twinreg/settings.py MatchingParams), to choose one")
+    ap.add_argument("--passes", type=int, default=1, choices=(1, 2), help="mobile: 2 drives the street there and back")
     ap.add_argument("--no-seen", action="store_true", help="mobile: without the scanner positions (as a scan "
                     "delivered without its trajectory)")
     args = ap.parse_args()
+    PASSES[0] = args.passes
     for kv in args.matching:
         key, value = kv.split("=", 1)
         MATCHING[key] = float(value)

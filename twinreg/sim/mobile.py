@@ -171,3 +171,12 @@ def write_survey(folder, scan: MobileScan, crs: str, origin=(0.0, 0.0, 0.0), dat
     write_csv(folder / "trajectory.csv", Trajectory(traj.time, traj.xyz + origin, traj.rpy))
     return {"scan": str(folder / "scan.laz"), "trajectory": str(folder / "trajectory.csv"), "n_points": len(pts),
             "seconds": round(float(traj.time[-1] - traj.time[0]), 2)}
+
+
+def merged(first: MobileScan, second: MobileScan) -> MobileScan:
+    """Two scans of one drive (``second`` later), their returns and trajectories one after the other."""
+    a, b = first.trajectory, second.trajectory
+    traj = Trajectory(np.r_[a.time, b.time], np.vstack([a.xyz, b.xyz]), np.vstack([a.rpy, b.rpy]))
+    return MobileScan(np.vstack([first.points, second.points]), np.r_[first.labels, second.labels],
+                      np.r_[first.gps_time, second.gps_time], np.vstack([first.origins, second.origins]),
+                      np.r_[first.scan_angle, second.scan_angle], np.r_[first.scanner, second.scanner], traj)

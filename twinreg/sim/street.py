@@ -109,18 +109,25 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
 
 def mobile_street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, speed: float = 8.0,
                   scanners=None, absent: frozenset = frozenset(), spacing: tuple = (4.0, 7.0),
-                  back: bool = False, scan_seed: int | None = None):
+                  back: bool = False, scan_seed: int | None = None, passes: int = 1, t0: float = 0.0):
     """:func:`street` surveyed from a van (:mod:`.mobile`): driven along the near lane (x = :data:`LANE_X`) the
     street's whole length at ``speed`` m/s (``back``: the other way, in the far lane), ``scanners`` (default the
-    crossed pair) 2.4 m above the road. Returns (:class:`Street`, the :class:`~.mobile.MobileScan`)."""
-    from .mobile import CROSSED, scan_mobile, straight_drive
+    crossed pair) 2.4 m above the road; ``passes=2``: there and back, one drive (the way back starts 5 s after the
+    way there ends, its own range noise). Returns (:class:`Street`, the :class:`~.mobile.MobileScan`)."""
+    from .mobile import CROSSED, merged, scan_mobile, straight_drive
 
+    if passes == 2:
+        st, there = mobile_street(cars, furniture, n_cars, seed, speed, scanners, absent, spacing, back, scan_seed)
+        st2, again = mobile_street(cars, furniture, n_cars, seed, speed, scanners, absent, spacing, not back,
+                                   (seed if scan_seed is None else scan_seed) + 7919,
+                                   t0=float(there.trajectory.time[-1]) + 5.0)
+        return Street(np.vstack([st.points, st2.points]), np.r_[st.labels, st2.labels], st.items), merged(there, again)
     meshes, labels, items, top = street_meshes(cars, furniture, n_cars, seed, spacing, absent, buildings=True)
     scanners = CROSSED if scanners is None else scanners
     ends = ((LANE_X, -3.0), (LANE_X, top))
     if back:
         ends = ((LANE_X - 2.0, top), (LANE_X - 2.0, -3.0))
-    traj = straight_drive(*ends, speed=speed, height=scanners[0].height, ground=ground_height)
+    traj = straight_drive(*ends, speed=speed, height=scanners[0].height, ground=ground_height, t0=t0)
     scan = scan_mobile(meshes, traj, scanners, seed=seed if scan_seed is None else scan_seed)
     return Street(scan.points, np.asarray(labels)[scan.labels], items), scan
 
