@@ -215,6 +215,12 @@ def scan_block(bx: int, by: int, placed: list[Placed], centres: np.ndarray, dens
 def write_laz(path, points: np.ndarray, crs: str, date: str | None = None):
     """A LAS 1.4 / LAZ file (by its suffix) of (n, 3) metre points, millimetre scale, with ``crs`` in its header
     (and ``date``, ``YYYY-MM-DD``, as its creation date; None: today's)."""
+    las_data(points, crs, date).write(str(path))
+
+
+def las_data(points: np.ndarray, crs: str, date: str | None = None):
+    """A LAS 1.4 point format 6 record of (n, 3) metre points (millimetre scale, ``crs`` and ``date`` in its header,
+    every point class 1; GPS times, when set, are GPS week seconds: the header's date stays the survey's)."""
     import laspy
     import pyproj
 
@@ -227,7 +233,7 @@ def write_laz(path, points: np.ndarray, crs: str, date: str | None = None):
     las = laspy.LasData(header)
     las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
     las.classification = np.ones(len(points), dtype=np.uint8)
-    las.write(str(path))
+    return las
 
 
 def city_furniture(library=None) -> list[tuple]:

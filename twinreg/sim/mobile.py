@@ -143,29 +143,16 @@ def write_survey(folder, scan: MobileScan, crs: str, origin=(0.0, 0.0, 0.0), dat
     scan angle, its scanner as the point source id; millimetre scale; ``crs`` in the header) and
     ``trajectory.csv`` (:func:`twinreg.io.trajectory.write_csv`), both moved by ``origin`` (the scene's local frame
     to the CRS). Returns their paths and counts."""
-    import datetime
-
-    import laspy
-    import pyproj
-
     from ..io.trajectory import write_csv
+    from .city import las_data
 
     folder = Path(folder)
     origin = np.asarray(origin, dtype=np.float64)
     pts = scan.points + origin
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    if date:
-        header.creation_date = datetime.date.fromisoformat(date)
-    header.scales = [0.001, 0.001, 0.001]
-    header.offsets = np.floor(pts.min(0) / 1000.0) * 1000.0
-    header.add_crs(pyproj.CRS(crs))
-    header.global_encoding.gps_time_type = laspy.header.GpsTimeType.STANDARD
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = pts[:, 0], pts[:, 1], pts[:, 2]
+    las = las_data(pts, crs, date)  # GPS week seconds: the survey's day is the header's
     las.gps_time = scan.gps_time
     las.scan_angle = np.clip(np.round(scan.scan_angle / 0.006), -30000, 30000).astype(np.int16)
     las.point_source_id = scan.scanner.astype(np.uint16) + 1
-    las.classification = np.ones(len(pts), dtype=np.uint8)
     las.write(str(folder / "scan.laz"))
     traj = scan.trajectory
     write_csv(folder / "trajectory.csv", Trajectory(traj.time, traj.xyz + origin, traj.rpy))
