@@ -78,7 +78,7 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne", seen:
     tax = taxonomy(shapes, params, {})
     results, _ = match_objects(shapes, cat, labels=tax.labels, params=params, cache=ModelCache(cat, params),
                                evidence=Evidence(clouds, scene_noise(det.hag, det.is_ground),
-                                                 seen=objects_seen(det, det.objects)))
+                                                 seen=objects_seen(det, det.objects, params)))
     results, kinds = recognise(results, shapes, levels, cat, params)
     owner = item_objects(st, det.objects)
     category = {r.name: r.category for r in rows}

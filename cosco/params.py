@@ -274,6 +274,24 @@ class SurfaceParams:
     horizontal_deg: float = 35.0  # degrees from vertical
 
 
+@dataclass(frozen=True)
+class VisibilityParams:
+    """What a scanner could see of an object (cosco/visibility.py): voxels of ``voxel_share`` of the object's
+    narrower side in plan, ``voxel_min``-``voxel_max`` m and at least ``voxel_spacings`` point spacings (its points
+    block a line of sight only where denser than its voxels); an object fewer than ``min_across`` voxels across is
+    counted as seen from everywhere; at most ``max_voxels`` voxels (coarser beyond) and ``max_views`` scanner
+    positions, the points' box grown by ``margin`` m."""
+
+    voxel_share: float = 0.1  # of the narrower side
+    voxel_min: float = 0.03  # m
+    voxel_max: float = 0.15  # m
+    voxel_spacings: float = 2.0  # point spacings
+    min_across: float = 6.0  # voxels
+    max_voxels: int = 60_000  # voxels
+    max_views: int = 6  # scanner positions
+    margin: float = 0.3  # m
+
+
 def with_groups(obj, changes: dict):
     """``obj`` (a frozen dataclass of groups) with some values changed: a group's name maps to a dict of its fields
     to change (or to a whole group); any other name is a field of ``obj`` itself.
@@ -295,7 +313,7 @@ def with_groups(obj, changes: dict):
 @dataclass(frozen=True)
 class CoscoParams:
     """The method's parameters, one group a step: ``ground``, ``segment`` and the cars' ``joins``, ``symmetry``,
-    ``levels``, ``sections``, ``registration`` (the dissimilarity), ``taxonomy`` and ``surface``."""
+    ``levels``, ``sections``, ``registration`` (the dissimilarity), ``taxonomy``, ``surface`` and ``visibility``."""
 
     ground: GroundParams = GroundParams()
     segment: SegmentParams = SegmentParams()
@@ -306,6 +324,7 @@ class CoscoParams:
     registration: RegistrationParams = RegistrationParams()
     taxonomy: TaxonomyParams = TaxonomyParams()
     surface: SurfaceParams = SurfaceParams()
+    visibility: VisibilityParams = VisibilityParams()
 
     def with_(self, **changes):
         """A copy with some values changed (:func:`with_groups`).

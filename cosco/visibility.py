@@ -13,10 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: the most voxels a grid holds (its voxel grows to keep under it: a 100 m facade costs what a car does)
-MAX_VOXELS = 60_000
-#: the most viewpoints a grid is built from (spread along the scanner positions given)
-MAX_VIEWS = 6
+from .params import DEFAULT, CoscoParams
 
 
 @dataclass
@@ -43,7 +40,7 @@ class SeenGrid:
         return float(1.0 - self.seen.mean()) if self.seen.size else 0.0
 
 
-def pick_views(origins: np.ndarray, k: int = MAX_VIEWS) -> np.ndarray:
+def pick_views(origins: np.ndarray, k: int = DEFAULT.visibility.max_views) -> np.ndarray:
     """At most ``k`` scanner positions spread along ``origins`` (n, 3; a drive's positions in time order): evenly
     by index, duplicates dropped."""
     o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
@@ -52,9 +49,32 @@ def pick_views(origins: np.ndarray, k: int = MAX_VIEWS) -> np.ndarray:
     return np.unique(o[np.linspace(0, len(o) - 1, k).round().astype(int)], axis=0)
 
 
-def seen_grid(points: np.ndarray, viewpoints: np.ndarray, voxel: float = 0.1, margin: float = 0.3) -> SeenGrid:
+def object_grid(points: np.ndarray, origins: np.ndarray, params: CoscoParams = DEFAULT) -> SeenGrid | None:
+    """The :class:`SeenGrid` of an object's ``points`` (n, 3) from its points' scanner positions ``origins`` (n, 3,
+    in scan order), on voxels as ``params.visibility`` says; None for an object too small or too sparse for its
+    points to hide anything (counted as seen from everywhere).
+
+    >>> rng = np.random.default_rng(0)
+    >>> cone = rng.uniform([-0.15, -0.15, 0.0], [0.15, 0.15, 1.0], (300, 3))
+    >>> object_grid(cone, np.tile([-3.0, 0.0, 2.4], (300, 1))) is None
+    True
+    """
+    from scipy.spatial import cKDTree
+
+    v = params.visibility
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    side = float(np.ptp(p[:, :2], axis=0).min()) if len(p) else 0.0
+    spacing = float(np.median(cKDTree(p).query(p, k=2)[0][:, 1])) if len(p) > 1 else side
+    voxel = max(float(np.clip(side * v.voxel_share, v.voxel_min, v.voxel_max)), v.voxel_spacings * spacing)
+    if side < v.min_across * voxel:
+        return None
+    return seen_grid(p, pick_views(origins, v.max_views), voxel=voxel, margin=v.margin, max_voxels=v.max_voxels)
+
+
+def seen_grid(points: np.ndarray, viewpoints: np.ndarray, voxel: float = 0.1, margin: float = 0.3,
+              max_voxels: int = DEFAULT.visibility.max_voxels) -> SeenGrid:
     """The :class:`SeenGrid` of an object's ``points`` (n, 3) scanned from ``viewpoints`` (k, 3): its box (plus
-    ``margin``) in voxels of ``voxel`` m (coarser when the box would hold more than :data:`MAX_VOXELS`); a voxel is
+    ``margin``) in voxels of ``voxel`` m (coarser when the box would hold more than ``max_voxels``); a voxel is
     seen when a point lies in it or the segment from some viewpoint to its centre crosses no voxel holding a
     point (sampled every half voxel, up to a voxel and a half short of the centre: a surface's own voxel and its
     neighbour do not hide it).
@@ -65,10 +85,10 @@ def seen_grid(points: np.ndarray, viewpoints: np.ndarray, voxel: float = 0.1, ma
     [True, False, True]
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    views = np.asarray(viewpoints, dtype=np.float64).reshape(-1, 3)[:MAX_VIEWS]
+    views = np.asarray(viewpoints, dtype=np.float64).reshape(-1, 3)
     lo, hi = p.min(0) - margin, p.max(0) + margin
     ext = hi - lo
-    voxel = float(max(voxel, (np.prod(ext) / MAX_VOXELS) ** (1 / 3)))
+    voxel = float(max(voxel, (np.prod(ext) / max_voxels) ** (1 / 3)))
     shape = np.maximum(np.ceil(ext / voxel).astype(np.int64), 1)
     occ = np.zeros(shape, dtype=bool)
     ip = np.minimum(np.floor((p - lo) / voxel).astype(np.int64), shape - 1)

@@ -90,40 +90,25 @@ def object_ground(det: Detection, obj) -> float:
     return float(np.median(z - det.hag[obj.indices]))
 
 
-def object_seen(det: Detection, obj):
-    """Where an object's scanners could see it (:func:`cosco.visibility.seen_grid`, scene-local), from its points'
-    scanner positions (a mobile survey's trajectory); None without them (an airborne scan: seen from
-    everywhere)."""
+def object_seen(det: Detection, obj, params: Settings = DEFAULT):
+    """Where an object's scanners could see it (:func:`cosco.visibility.object_grid`, scene-local), from its
+    points' scanner positions (a mobile survey's trajectory); None without them (an airborne scan: seen from
+    everywhere) or for an object too small to hide anything; built once an object."""
     origins = det.scene.origins
     if origins is None:
         return None
     key = id(obj)
     if key not in det.seen:
-        det.seen[key] = _seen(det, obj, origins)
+        from cosco.visibility import object_grid
+
+        off = det.scene.offset
+        det.seen[key] = object_grid(det.scene.points[obj.indices] - off, origins[obj.indices] - off, params)
     return det.seen[key]
 
 
-def objects_seen(det: Detection, objects) -> list | None:
+def objects_seen(det: Detection, objects, params: Settings = DEFAULT) -> list | None:
     """:func:`object_seen` of each of ``objects``, or None for a scan without scanner positions."""
-    return None if det.scene.origins is None else [object_seen(det, o) for o in objects]
-
-
-def _seen(det: Detection, obj, origins):
-    from scipy.spatial import cKDTree
-
-    from cosco.visibility import pick_views, seen_grid
-
-    off = det.scene.offset
-    pts = det.scene.points[obj.indices] - off
-    side = float(np.ptp(pts[:, :2], axis=0).min())
-    # voxels of a tenth of the object's narrower side (3-15 cm), and at least two point spacings: an object's points
-    # block a line of sight only where they are denser than its voxels. An object fewer than six voxels across
-    # (a mailbox, a cone, a sparse one) is counted as seen from everywhere, as from the air
-    spacing = float(np.median(cKDTree(pts).query(pts, k=2)[0][:, 1])) if len(pts) > 1 else side
-    voxel = max(float(np.clip(side / 10, 0.03, 0.15)), 2 * spacing)
-    if side < 6 * voxel:
-        return None
-    return seen_grid(pts, pick_views(origins[obj.indices] - off), voxel=voxel)
+    return None if det.scene.origins is None else [object_seen(det, o, params) for o in objects]
 
 
 def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) -> list:
@@ -131,7 +116,7 @@ def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) 
     from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
     objects = det.objects if objects is None else objects
     shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o),
-                                    seen=object_seen(det, o)) for o in objects]
+                                    seen=object_seen(det, o, params)) for o in objects]
     classes = det.scene.classes  # None in a city's cells: the parameter is read only when there are classes
     if classes is None or not params.open_world.scan_classes:
         return shapes

@@ -237,7 +237,7 @@ def _match_and_export(run: SceneRun) -> dict:
     noise = scene_noise(det.hag, det.is_ground)
     models = ModelCache(catalogue, params, prober=run.prober)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
-                                   evidence=Evidence(run.clouds, noise, seen=objects_seen(det, targets)),
+                                   evidence=Evidence(run.clouds, noise, seen=objects_seen(det, targets, params)),
                                    cache=models,
                                    done=(lambda k, n: say(progress, "matching", k, n)) if progress else None)
     timing["prefilter"] = stats.prefilter_s

@@ -134,11 +134,11 @@ def test_a_van_seen_from_one_side_keeps_its_length_along_its_mirror_plane(scene)
     could see (behind it), which counts for nothing with the scanner positions known (cosco.visibility); without
     them the plane across the van wins (its near side mirrors onto itself) and its length and width swap."""
     import cosco
-    from cosco.visibility import pick_views, seen_grid
+    from cosco.visibility import object_grid
 
     car = scene.labels == 0
     pts, origins = scene.points[car], scene.origins[car]
-    seen = seen_grid(pts, pick_views(origins), voxel=0.15)
+    seen = object_grid(pts, origins)
     assert 0.05 < seen.unseen_share() < 0.9
     shape = cosco.describe_object(pts, ground_z=0.0, seen=seen)
     assert shape.size.length > 4.2 and shape.size.width < 2.0
