@@ -33,7 +33,7 @@ class Detection:
     ground: Ground
     segmentation: Segmentation
     timing_s: dict = field(default_factory=dict)
-    seen: dict = field(default_factory=dict)  # object index -> its SeenGrid or None (object_seen), built once
+    seen: dict = field(default_factory=dict)  # id of an object -> its SeenGrid or None (object_seen), built once
 
     @property
     def objects(self):

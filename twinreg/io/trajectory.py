@@ -57,6 +57,10 @@ class Trajectory:
                 "base (GPS week seconds or adjusted standard time, as the LAS header's global encoding says)")
         return np.column_stack([np.interp(t, self.time, self.xyz[:, k]) for k in range(3)])
 
+    def headings(self, t: np.ndarray) -> np.ndarray:
+        """(n,) the heading (rad from +X) at times ``t``, linear between records (unwrapped across +-pi)."""
+        return np.interp(np.asarray(t, dtype=np.float64), self.time, np.unwrap(self.rpy[:, 2]))
+
 
 def _checked(path: Path, time, xyz, rpy) -> Trajectory:
     time = np.asarray(time, dtype=np.float64)
@@ -154,8 +158,8 @@ def read_trajectory(path, crs=None) -> Trajectory:
     return read_sbet(path, crs)
 
 
-def write_csv(path, traj) -> None:
-    """Write ``traj`` (a :class:`Trajectory` or :class:`twinreg.sim.mobile.Trajectory`) as a trajectory CSV: time,
+def write_csv(path, traj: Trajectory) -> None:
+    """Write ``traj`` as a trajectory CSV: time,
     x, y, z (m, 3 decimals), roll, pitch, heading (degrees; heading clockwise from grid north)."""
     rpy = np.degrees(np.nan_to_num(np.asarray(traj.rpy, dtype=np.float64)))
     nav = np.mod(90.0 - rpy[:, 2], 360.0)

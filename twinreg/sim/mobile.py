@@ -15,8 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.trajectory import Trajectory
 from ..o3d import load
 from ..raycast import raycasting_scene
+from .scan import joined_meshes
 
 
 @dataclass(frozen=True)
@@ -35,23 +37,6 @@ class ProfileScanner:
 
 #: the crossed pair of a two-scanner van
 CROSSED = (ProfileScanner(yaw_deg=45.0), ProfileScanner(yaw_deg=-45.0))
-
-
-@dataclass
-class Trajectory:
-    """The van's path: ``time`` (n,) s, ``xyz`` (n, 3) m (the scanners' reference point), ``rpy`` (n, 3) roll, pitch,
-    heading (rad; heading from +X, counter-clockwise, as the scene's frame)."""
-
-    time: np.ndarray
-    xyz: np.ndarray
-    rpy: np.ndarray
-
-    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(positions (m, 3), headings (m,)) at times ``t``, linear between records (the heading unwrapped)."""
-        t = np.asarray(t, dtype=np.float64)
-        pos = np.column_stack([np.interp(t, self.time, self.xyz[:, k]) for k in range(3)])
-        heading = np.interp(t, self.time, np.unwrap(self.rpy[:, 2]))
-        return pos, heading
 
 
 def straight_drive(start, end, speed: float = 8.0, height: float = 2.4, ground=None, rate: float = 200.0,
@@ -90,17 +75,7 @@ def scan_mobile(meshes, trajectory: Trajectory, scanners=CROSSED, seed: int = 0,
     ``max_rays`` at a time (memory stays bounded however long the drive). The scanners sit on the trajectory's
     point (its z is the mounting height's). Glass gives no return but blocks the beam."""
     rng = np.random.default_rng(seed)
-    verts, faces, owner, glass = [], [], [], []
-    offset = 0
-    for k, mesh in enumerate(meshes):
-        v, f = np.asarray(mesh[0], dtype=np.float64), np.asarray(mesh[1], dtype=np.int64)
-        verts.append(v)
-        faces.append(f + offset)
-        owner.append(np.full(len(f), k))
-        glass.append(np.asarray(mesh[2], dtype=bool) if len(mesh) > 2 and mesh[2] is not None
-                     else np.zeros(len(f), dtype=bool))
-        offset += len(v)
-    v_all, f_all, owner, glass = np.vstack(verts), np.vstack(faces), np.concatenate(owner), np.concatenate(glass)
+    v_all, f_all, owner, glass = joined_meshes(meshes)
     centre = (v_all.min(0) + v_all.max(0)) / 2
     o3d = load()
     scene = raycasting_scene(v_all - centre, f_all)
@@ -115,7 +90,7 @@ def scan_mobile(meshes, trajectory: Trajectory, scanners=CROSSED, seed: int = 0,
             tp = profiles[b0:b0 + per_batch]
             # each beam fires at its own time within the profile
             t = (tp[:, None] + theta[None, :] / (2 * np.pi * sc.rate_hz)).ravel()
-            pos, heading = trajectory.at(t)
+            pos, heading = trajectory.positions(t), trajectory.headings(t)
             side = heading - np.pi / 2 + np.radians(sc.yaw_deg)  # the van's right, turned by the scanner's yaw
             th = np.tile(theta, len(tp))
             d = np.column_stack([np.sin(th) * np.cos(side), np.sin(th) * np.sin(side), np.cos(th)])

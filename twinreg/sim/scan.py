@@ -52,13 +52,9 @@ class Scan:
     labels: np.ndarray
 
 
-def scan_meshes(meshes, passes=DEFAULT_PASSES, noise: float = 0.02, seed: int = 0, margin: float = 1.0) -> Scan:
-    """Airborne scan of several placed meshes.
-
-    meshes : list of ``(vertices (n, 3), faces (m, 3))`` or ``(vertices, faces, glass (m,) bool)`` already in the
-    scene frame (metres, Z up; keep the coordinates local: open3d casts in float32). Returns a :class:`Scan`.
-    """
-    rng = np.random.default_rng(seed)
+def joined_meshes(meshes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One triangle soup of placed ``meshes`` (``(vertices, faces)`` or ``(vertices, faces, glass)``): (vertices
+    (n, 3) float64, faces (m, 3) int64, each face's mesh index (m,), each face's glass flag (m,) bool)."""
     verts, faces, owner, glass = [], [], [], []
     offset = 0
     for k, mesh in enumerate(meshes):
@@ -69,8 +65,17 @@ def scan_meshes(meshes, passes=DEFAULT_PASSES, noise: float = 0.02, seed: int = 
         glass.append(np.asarray(mesh[2], dtype=bool) if len(mesh) > 2 and mesh[2] is not None
                      else np.zeros(len(f), dtype=bool))
         offset += len(v)
-    v_all, f_all, owner = np.vstack(verts), np.vstack(faces), np.concatenate(owner)
-    glass = np.concatenate(glass)
+    return np.vstack(verts), np.vstack(faces), np.concatenate(owner), np.concatenate(glass)
+
+
+def scan_meshes(meshes, passes=DEFAULT_PASSES, noise: float = 0.02, seed: int = 0, margin: float = 1.0) -> Scan:
+    """Airborne scan of several placed meshes.
+
+    meshes : list of ``(vertices (n, 3), faces (m, 3))`` or ``(vertices, faces, glass (m,) bool)`` already in the
+    scene frame (metres, Z up; keep the coordinates local: open3d casts in float32). Returns a :class:`Scan`.
+    """
+    rng = np.random.default_rng(seed)
+    v_all, f_all, owner, glass = joined_meshes(meshes)
     lo, hi = v_all.min(0) - margin, v_all.max(0) + margin
     centre = (lo + hi) / 2
     radius = float(np.linalg.norm(hi - lo) / 2)

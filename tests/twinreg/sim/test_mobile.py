@@ -50,7 +50,7 @@ def test_what_the_van_cannot_see_gets_no_point(scene):
 def test_gps_time_orders_the_returns_and_places_the_scanner(scene):
     t = scene.gps_time
     assert np.all(np.diff(t) >= 0)
-    pos, _ = scene.trajectory.at(t)
+    pos = scene.trajectory.positions(t)
     assert np.abs(pos - scene.origins).max() < 1e-9
     assert set(np.unique(scene.scanner)) == {0, 1}
 
