@@ -91,7 +91,7 @@ def read_csv(path: Path) -> Trajectory:
         raise SceneReadError(f"{path}: {size / 1e9:.1f} GB is more than a trajectory of {MAX_RECORDS:,} records; "
                              "give one drive's trajectory")
     with open(path, newline="", encoding="utf-8", errors="replace") as fh:
-        head = fh.readline()
+        head = fh.readline(4097)  # a header, not a whole file without a newline
         if len(head) > 4096:
             raise SceneReadError(f"{path}: its first line is {len(head):,} characters: not a trajectory CSV header")
         dialect = max((",", ";", "\t"), key=head.count)

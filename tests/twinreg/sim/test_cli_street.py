@@ -75,6 +75,10 @@ def test_a_trajectory_the_scan_cannot_use_is_refused_in_one_line(parametric_cata
     air = tmp_path / "air"
     assert CliRunner().invoke(app, [*lib, "simulate-street", str(air), "--cars", "2", "--platform", "airborne",
                                     "--density", "50"]).exit_code == 0
+    tiled = CliRunner().invoke(app, [*lib, "build-twin", str(street / "scan.laz"), str(air / "scan.laz"),
+                                     "--trajectory", str(street / "trajectory.csv"), "--out", str(tmp_path / "t")])
+    assert tiled.exit_code != 0 and "a tiled run" in tiled.output.strip().splitlines()[-1]
+    assert not (tmp_path / "t").exists()
     cases = [(street / "scan.laz", other, "outside the trajectory"),
              (air / "scan.laz", street / "trajectory.csv", "no GPS time"),
              (street / "scan.laz", tmp_path / "none.csv", "no such trajectory")]

@@ -106,8 +106,10 @@ def test_a_strangers_trajectory_is_refused_with_one_line(scene, tmp_path):
     back.write_text("time,x,y,z\n0,1,2,3\n2,1,2,3\n1,1,2,3\n")
     words = tmp_path / "words.csv"
     words.write_text("time,x,y,z\n0,1,2,3\nfoo,1,2,3\n")
+    one_line = tmp_path / "one_line.csv"
+    one_line.write_text("time," + "x" * 200_000)
     for path, what in ((cut, "whole number of SBET records"), (bad_lat, "radians"), (no_z, "no z column"),
-                       (back, "times go back"), (words, "not numbers")):
+                       (back, "times go back"), (words, "not numbers"), (one_line, "not a trajectory CSV header")):
         with pytest.raises(SceneReadError, match=what) as exc:
             read_trajectory(path, crs="EPSG:28992")
         assert str(path) in str(exc.value) and "\n" not in str(exc.value)
