@@ -46,6 +46,30 @@ def catalogue(folder: Path):
     return cat
 
 
+def time_twin(cat, seed: int, folder: Path) -> dict:
+    """The van's street of ``seed`` written as a survey delivers it (``simulate-street``'s code: scan.laz,
+    trajectory.csv), then ``twinreg build-twin --trajectory`` on it as a whole process: wall seconds and the peak
+    resident memory of its whole process tree (bench/common.measured), after one warm-up run."""
+    from common import measured
+
+    from twinreg.sim.street import write_street
+
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
+    cars = [("car", r.name, meshes[r.name]) for r in rows if r.category == "car"]
+    furniture = [(r.category, r.name, meshes[r.name]) for r in rows if r.category != "car"]
+    cars = [cars[k] for k in np.random.default_rng(seed).permutation(len(cars))]
+    folder.mkdir(parents=True, exist_ok=True)
+    doc = write_street(folder, cars, furniture, n_cars=8, seed=seed)
+    cmd = [sys.executable, "-m", "twinreg", "--library", str(cat.folder), "build-twin", str(folder / "scan.laz"),
+           "--trajectory", str(folder / "trajectory.csv"), "--out", str(folder / "twin")]
+    measured(cmd)  # the model cache filled once
+    seconds, peak, status, err = measured(cmd)
+    if status:
+        raise SystemExit(err.strip().splitlines()[-1])
+    return {"n_points": doc["n_points"], "seconds": round(seconds, 2), "peak_gib": round(peak / 2**30, 2)}
+
+
 def run_street(cat, density: float, seed: int, platform: str = "airborne", seen: bool = True) -> list[dict]:
     from twinreg.settings import DEFAULT
     from twinreg.detect import describe_detected, detect_points, object_levels, object_points, objects_seen
@@ -120,6 +144,8 @@ def main() -> None:
     ap.add_argument("--matching", action="append", default=[], metavar="KEY=VALUE",
                     help="a matching parameter for this run (twinreg/settings.py MatchingParams), to choose one")
     ap.add_argument("--passes", type=int, default=1, choices=(1, 2), help="mobile: 2 drives the street there and back")
+    ap.add_argument("--time-twin", action="store_true", help="mobile: also time build-twin --trajectory on the first "
+                    "seed's street as a whole process (wall seconds, peak memory of the process tree)")
     ap.add_argument("--no-seen", action="store_true", help="mobile: without the scanner positions (as a scan "
                     "delivered without its trajectory)")
     args = ap.parse_args()
@@ -160,6 +186,9 @@ def main() -> None:
                                    "missed": missed, "objects": extra, "rows": rows}
             print(f"{density:g} pts/m2: {json.dumps(summary)} missed {missed} ({time.perf_counter() - t0:.0f} s)",
                   file=sys.stderr)
+        if args.time_twin and args.platform == "mobile":
+            doc["twin"] = time_twin(cat, args.first_seed, Path(tmp) / "timed")
+            print(f"build-twin --trajectory, whole process: {doc['twin']}", file=sys.stderr)
     doc["total_s"] = round(time.perf_counter() - t0, 1)
     print(json.dumps({k: (v if k == "total_s" else {kk: vv for kk, vv in v.items() if kk != "rows"})
                       for k, v in doc.items()}, indent=1))
