@@ -175,12 +175,18 @@ class ChangeParams:
     """The twin over time (twinreg/change/): a match at least ``sure`` confident counts as evidence of which vehicle
     it is (pairs.py); a piece of one survey's object lies inside the other's when ``piece_inside`` of it is within
     that object's footprint grown by ``piece_grow`` m (fragments.py); the heading of an object with no model and
-    fewer than ``heading_min_points`` points is no measurement (a dozen points of a hydrant give its box any axis)."""
+    fewer than ``heading_min_points`` points is no measurement (a dozen points of a hydrant give its box any axis),
+    nor is that of one with no mirror plane found whose footprint is less than ``heading_min_elongation`` times
+    longer than wide (a mailbox seen from one side: its box may take either axis); the turn within which an object
+    has not moved is the one that moves a ``turn_length`` m object's ends as far as a car's (status.tolerances):
+    a mailbox's ends move less for a given turn, and its heading is measured on fewer points."""
 
     sure: float = 0.9  # confidence
     piece_inside: float = 0.6  # of a piece
     piece_grow: float = 0.3  # m around a footprint
     heading_min_points: int = 60  # points
+    heading_min_elongation: float = 2.0  # length / width
+    turn_length: float = 4.0  # m
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ def changes_document(folders, params: Settings = DEFAULT, say=None) -> tuple[dic
         b, b_pieces = merge_pieces(a, b, -al.shift[:2], params)
         a, a_pieces = merge_pieces(b, a, al.shift[:2], params)
         pairs = pair_objects(a, b, al.shift, params, pieces=(a_pieces, b_pieces))
-        step = classify(a, b, k, al, pairs)
+        step = classify(a, b, k, al, pairs, params)
         alignments.append(al.as_json(k))
         changes += step
         summaries.append(summary(step, k))

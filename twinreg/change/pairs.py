@@ -47,16 +47,23 @@ def _footprint(e: Epoch, idx: np.ndarray, shift: np.ndarray = np.zeros(2)) -> tu
     return (e.centre[idx, :2] + shift, e.heading[idx], e.size[idx, 0], e.size[idx, 1])
 
 
+def _sides(size: np.ndarray) -> np.ndarray:
+    """(k, 3) sizes as (long side, short side, height): which side a box calls its length depends on the axis its
+    heading took (a barrier's box may run across it in one survey), not on the object."""
+    size = np.asarray(size, dtype=np.float64).reshape(-1, 3)
+    return np.c_[size[:, :2].max(axis=1), size[:, :2].min(axis=1), size[:, 2]]
+
+
 def _same_vehicle(a: Epoch, b: Epoch, i, j, section_m, params) -> tuple[np.ndarray, np.ndarray]:
-    """(size_z, p_same) of pairs. Sizes in units of :func:`size_sigma`, compared as measured, or as placed when
+    """(size_z, p_same) of pairs. Sizes in units of :func:`size_sigma` (long side with long side), compared as measured, or as placed when
     both have a model if that is closer (a model's size is exact, and two models of one size are no evidence of
     another vehicle); differences within one sigma are free, beyond it the likelihood falls as a Gaussian. The
     sections' dissimilarity is weighed the same way against COSCO's cluster threshold widened by the scans'
     spacing and noise; two sure matches to different models divide the odds by four."""
     sigma = size_sigma(a, b)
     both = np.array([a.models[p] is not None and b.models[q] is not None for p, q in zip(i, j)], dtype=bool)
-    measured = np.abs(a.measured[i] - b.measured[j]) / sigma
-    placed = np.abs(a.size[i] - b.size[j]) / sigma
+    measured = np.abs(_sides(a.measured[i]) - _sides(b.measured[j])) / sigma
+    placed = np.abs(_sides(a.size[i]) - _sides(b.size[j])) / sigma
     z = np.where(both[:, None], np.minimum(measured, placed), measured)
     p_size = np.exp(-0.5 * np.sum(np.maximum(z - 1.0, 0.0) ** 2, axis=1))
     theta = params.taxonomy.threshold + 0.5 * max(a.spacing, b.spacing) + 2 * np.hypot(a.noise, b.noise)
@@ -68,6 +75,30 @@ def _same_vehicle(a: Epoch, b: Epoch, i, j, section_m, params) -> tuple[np.ndarr
     other = both & sure & ~np.array([a.models[p] == b.models[q] for p, q in zip(i, j)], dtype=bool)
     p_model = np.where(other, 0.25, 1.0)
     return z.max(axis=1) if len(z) else np.zeros(0), np.clip(p_size * p_sec * p_model, 0.0, 1.0)
+
+
+#: a footprint whose sides differ by less than this ratio has no long axis to speak of
+SQUARE = 1.2
+
+
+def _long_axis(e: Epoch, idx: np.ndarray) -> np.ndarray:
+    """(k,) the direction of the long side of each footprint (rad, modulo a half turn)."""
+    return e.heading[idx] + np.where(e.size[idx, 0] < e.size[idx, 1], np.pi / 2, 0.0)
+
+
+def _square(e: Epoch, idx: np.ndarray) -> np.ndarray:
+    sides = np.sort(e.size[idx, :2], axis=1)
+    return sides[:, 1] < SQUARE * np.maximum(sides[:, 0], 1e-6)
+
+
+def _no_axis(e: Epoch, idx: np.ndarray, params: Settings) -> np.ndarray:
+    """(k,) whether each of ``e``'s objects ``idx`` has a heading that is no measurement: no model, no mirror plane
+    found (level ``none``) and a footprint less than ``heading_min_elongation`` times longer than wide."""
+    if not e.levels or not len(idx):
+        return np.zeros(len(idx), dtype=bool)
+    plain = np.array([e.models[k] is None and e.levels[k] == "none" for k in idx], dtype=bool)
+    sides = np.sort(e.size[idx, :2], axis=1)
+    return plain & (sides[:, 1] < params.change.heading_min_elongation * np.maximum(sides[:, 0], 1e-6))
 
 
 def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAULT,
@@ -103,13 +134,22 @@ def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAU
     both = np.array([a.models[p] is not None and b.models[q] is not None for p, q in zip(i, j)], dtype=bool)
     # a model fixes the front; a measured box only its axis; an object with two mirror planes only its axis too,
     # and one turned about its axis (a pole, a hydrant, a bin) none: its heading is no measurement
-    t = np.where(both, turn(a.heading[i], b.heading[j]), turn(a.heading[i], b.heading[j], np.pi))
+    # without a model on both sides, the footprints' long axes are compared (a shelter's measured box may run
+    # along its back wall where its model's front faces the road), and a square footprint's only modulo a quarter
+    axes = turn(_long_axis(a, i), _long_axis(b, j), np.pi)
+    square = _square(a, i) | _square(b, j)
+    axes = np.where(square, turn(_long_axis(a, i), _long_axis(b, j), np.pi / 2), axes)
+    t = np.where(both, turn(a.heading[i], b.heading[j]), axes)
     if a.levels and b.levels:
         la, lb = np.asarray(a.levels, dtype=object)[i], np.asarray(b.levels, dtype=object)[j]
-        t = np.where((la == "two_mirrors") | (lb == "two_mirrors"), turn(a.heading[i], b.heading[j], np.pi), t)
+        t = np.where(both & ((la == "two_mirrors") | (lb == "two_mirrors")), turn(a.heading[i], b.heading[j], np.pi),
+                     t)
         t = np.where((la == "rotational") | (lb == "rotational"), 0.0, t)
     few = params.change.heading_min_points
     t = np.where(~both & ((a.n_points[i] < few) | (b.n_points[j] < few)), 0.0, t)
+    # an object with no model and no mirror plane found has the axis of its box, which a squat footprint does not
+    # fix: its heading is no measurement either
+    t = np.where(_no_axis(a, i, params) | _no_axis(b, j, params), 0.0, t)
     order = np.lexsort((-iou, -np.round(p_same, 2)))
     used_a, used_b, chosen = set(), set(), []
     for k in order:

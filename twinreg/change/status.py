@@ -17,6 +17,7 @@ import numpy as np
 
 from ..catalogue.categories import VEHICLES
 from ..io import observed
+from ..settings import DEFAULT, Settings
 from .align import Alignment
 from .epochs import Epoch
 from .footprints import ring, samples
@@ -77,6 +78,17 @@ def tolerances(a: Epoch, b: Epoch) -> tuple[float, float]:
     return 0.1 + 0.5 * s + 2 * noise, np.radians(2.0 + 15.0 * s)
 
 
+def turn_tolerance(t_tol: float, a: Epoch, b: Epoch, i: np.ndarray, j: np.ndarray,
+                   params: Settings = DEFAULT) -> np.ndarray:
+    """(k,) the turn tolerance of each pair: ``t_tol`` is a car's; an object shorter than ``turn_length`` m (the
+    shorter of the pair's lengths) gets it widened in proportion, so that the turn moves its ends as far as a
+    car's (a mailbox's heading is measured on a side of 30 cm)."""
+    if not len(i):
+        return np.zeros(0)
+    length = np.minimum(a.size[i, :2].max(axis=1), b.size[j, :2].max(axis=1))
+    return t_tol * np.maximum(1.0, params.change.turn_length / np.maximum(length, 0.05))
+
+
 def _maybe(v) -> float | None:
     return None if np.isnan(v) else round(float(v), 4)
 
@@ -110,10 +122,11 @@ def _noun(e: Epoch, k: int) -> str:
     return "vehicle" if kind in VEHICLES or kind == "unknown" else kind.replace("_", " ")
 
 
-def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[dict]:
+def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs, params: Settings = DEFAULT) -> list[dict]:
     """The change records from epoch ``k`` (``a``) to ``k + 1`` (``b``), the contract's shape."""
     shift = al.shift[:2]
-    d_tol, t_tol = tolerances(a, b)
+    d_tol, car_turn = tolerances(a, b)
+    turns = turn_tolerance(car_turn, a, b, pairs.i, pairs.j, params)
     out = []
     z = np.zeros(2)
     whole = np.min([around(b.record, a, pairs.i, shift), around(a.record, a, pairs.i, z),
@@ -121,6 +134,7 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs) -> list[di
         if len(pairs.i) else np.zeros(0)
     for n, (i, j) in enumerate(zip(pairs.i, pairs.j)):
         p, d, t = float(pairs.p_same[n]), float(pairs.displacement[n]), float(pairs.turn[n])
+        t_tol = float(turns[n])
         rec = {"from": k, "to": k + 1, "before": _object(a, i), "after": _object(b, j), "displacement_m": round(d, 3),
                "turn_rad": round(t, 4), "same_vehicle": round(p, 3), "section_m": _maybe(pairs.section_m[n]),
                "overlap": round(float(pairs.iou[n]), 3)}

@@ -131,6 +131,16 @@ def pose(res) -> tuple[np.ndarray, float]:
     return np.asarray(res.shape.centroid, dtype=np.float64), float(res.shape.heading)
 
 
+def placed_size(row) -> dict:
+    """A placed model's size along its heading (``length``) and across it (``width``). The catalogue measures a
+    model in its symmetry frame, which for some designs lies across the model's front (a bus shelter faces the
+    road and is long across it; a lamp post's arm reaches sideways): there length and width trade places, so that
+    the footprint twin.json states (centroid, heading, length, width) is the one drawn."""
+    across = row.frame_heading is not None and abs(np.sin(row.frame_heading)) > abs(np.cos(row.frame_heading))
+    length, width = (row.width, row.length) if across else (row.length, row.width)
+    return {"length": length, "width": width, "height": row.height}
+
+
 def fused_pose(shape, member_pose: np.ndarray) -> np.ndarray:
     """(4, 4) a type's fused shape (its frame) into one member's local frame: the member's pose in the type's
     frame, then the member's object frame to the scene."""
@@ -158,7 +168,7 @@ def place_object(oid: str, n_points: int, res, label: int, offset: np.ndarray, w
                             mesh=(mv, mf, tuple(cluster_color(label) / 255.0)),
                             pose=np.asarray(m.transform, dtype=np.float64), centre=np.asarray(m.centre),
                             heading=float(m.heading),
-                            size={"length": row.length, "width": row.width, "height": row.height},
+                            size=placed_size(row),
                             outline=models.outline(m.model_id), model_id=m.model_id, model=row,
                             model_sections=_registered_sections(models.geometry(m.model_id).sections, reg))
     s = shape.size

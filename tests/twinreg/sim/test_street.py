@@ -13,6 +13,8 @@ from tests.conftest import furniture_rows, manifest_rows
 from tests.twinreg.helpers import cityjson_schema_valid, cjio_read
 
 FURNITURE = ("lamp_post", "first_2015_trash_can", "jersey_barrier", "fire_hydrant", "oak_tree")
+#: the van's street whose later survey hides furniture that still stands behind a car that parked
+SEED_MOBILE = 3
 
 
 @pytest.fixture(scope="module")
@@ -152,3 +154,37 @@ def test_a_lamp_post_knocked_down_is_left(street_lib, tmp_path):
             assert c["before"]["kind"] in {kinds[i] for i in c["before"]["id"].split("+")}
     cars = [r.name for r in rows if r.category == "car"]
     assert sum(status.get(n) == "same" for n in cars) >= 2, status
+
+
+def test_furniture_behind_a_car_that_parked_is_not_left(street_lib, tmp_path):
+    """Two surveys of the street from a van (sim/street_epochs.py): cars park in the later survey in front of
+    furniture, a car leaves, furniture is taken away, one piece behind a car that parked. Built with their
+    trajectories and compared: nothing that still stands is called ``left`` (hidden or not), what was taken away
+    in view is ``left``, the arrivals ``arrived``, the car that went ``left``; every status one the truth allows."""
+    from twinreg.change.compare import compare
+    from twinreg.pipeline import build_twin
+    from twinreg.sim.mobile import write_survey
+    from twinreg.sim.street_epochs import score, street_surveys
+
+    rows = sorted(street_lib.list(), key=lambda r: r.name)
+    models = [(r.category, r.name, m) for r, m in zip(rows, street_lib.scan_meshes(rows))]
+    cars, furniture = [m for m in models if m[0] == "car"], [m for m in models if m[0] != "car"]
+    surveys = street_surveys(cars, furniture, seed=SEED_MOBILE, n_cars=3)
+    assert any(c.hidden and c.event == "same" for c in surveys.changes)  # the case this test is about
+    twins = []
+    for k, (scan, date) in enumerate([(surveys.before, "2026-03-02"), (surveys.after, "2026-06-02")]):
+        (tmp_path / f"s{k}").mkdir()
+        write_survey(tmp_path / f"s{k}", scan, "EPSG:28992", origin=(121000.0, 487000.0, 0.0), date=date)
+        build_twin(tmp_path / f"s{k}" / "scan.laz", street_lib, None, tmp_path / f"t{k}", ply=False, date=date,
+                   trajectory=tmp_path / f"s{k}" / "trajectory.csv")
+        twins.append(tmp_path / f"t{k}")
+    got = score(compare(twins, tmp_path / "changes"), surveys, (121000.0, 487000.0))
+    status = {it["name"]: it for it in got["items"]}
+    assert got["hidden_left"] == 0 and got["wrong"] == 0, got["items"]
+    for c in surveys.changes:
+        it = status[c.item.name]
+        if c.event in ("arrived", "left") and not c.hidden and c.item.kind == "car":
+            assert it["status"] == c.event, it
+        if c.event == "same":
+            assert it["status"] != "left", it
+    assert sum(it["status"] == it["event"] for it in got["items"]) >= len(got["items"]) - 2, got["items"]
