@@ -32,6 +32,8 @@ sys.path.insert(0, str(ROOT / "bench"))
 MATCHING: dict = {}
 #: the van's passes of the street (``--passes``)
 PASSES = [1]
+#: the van's speed and how much further from the kerb it drives (``--speed``, ``--lane-offset``)
+DRIVE: dict = {}
 
 
 def catalogue(folder: Path):
@@ -89,7 +91,7 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne", seen:
     if platform == "mobile":
         from twinreg.sim.street import mobile_street
 
-        st, scan = mobile_street(cars, furniture, n_cars=8, seed=seed, passes=PASSES[0])
+        st, scan = mobile_street(cars, furniture, n_cars=8, seed=seed, passes=PASSES[0], **DRIVE)
         origins = scan.origins if seen else None
     else:
         st = street(cars, furniture, n_cars=8, seed=seed, passes=density_passes(density))
@@ -144,12 +146,16 @@ def main() -> None:
     ap.add_argument("--matching", action="append", default=[], metavar="KEY=VALUE",
                     help="a matching parameter for this run (twinreg/settings.py MatchingParams), to choose one")
     ap.add_argument("--passes", type=int, default=1, choices=(1, 2), help="mobile: 2 drives the street there and back")
+    ap.add_argument("--speed", type=float, default=8.0, help="mobile: the van's speed (m/s)")
+    ap.add_argument("--lane-offset", type=float, default=0.0,
+                    help="mobile: the road this much wider (m), the van that much further from the kerb")
     ap.add_argument("--time-twin", action="store_true", help="mobile: also time build-twin --trajectory on the first "
                     "seed's street as a whole process (wall seconds, peak memory of the process tree)")
     ap.add_argument("--no-seen", action="store_true", help="mobile: without the scanner positions (as a scan "
                     "delivered without its trajectory)")
     args = ap.parse_args()
     PASSES[0] = args.passes
+    DRIVE.update(speed=args.speed, lane_offset=args.lane_offset)
     for kv in args.matching:
         key, value = kv.split("=", 1)
         MATCHING[key] = float(value)

@@ -54,11 +54,11 @@ LANE_X = -1.6
 
 
 def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, spacing: tuple = (4.0, 7.0),
-                  absent: frozenset = frozenset(), buildings: bool = False):
+                  absent: frozenset = frozenset(), buildings: bool = False, wider: float = 0.0):
     """The placed meshes of :func:`street` (scene frame), each one's label (the item's index; -1 the ground, -2 a
     kerb, -3 a facade), the items, and the street's length (m, along +Y). With ``buildings``, the street as a van
-    drives it: a road 7 m wide, a second kerb and pavement across it, and facades 6 m tall behind both
-    pavements."""
+    drives it: a road 7 m wide (``wider``: that many metres more, the far side moved away), a second kerb and
+    pavement across it, and facades 6 m tall behind both pavements."""
     rng = np.random.default_rng(seed)
     meshes, labels, items = [], [], []
 
@@ -90,43 +90,49 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
     top = max(end, y) + 2.0
     import trimesh
 
-    kerbs = (3.675, -5.3) if buildings else (3.675,)
+    kerbs = (3.675, -5.3 - wider) if buildings else (3.675,)
     for x in kerbs:
         box = trimesh.creation.box([0.15, top + 2.0, 0.15])
         box.apply_translation([x, (top - 2.0) / 2, float(ground_height(x, 0.0)) + 0.075])
         meshes.append((box.vertices, box.faces))
         labels.append(-2)
     if buildings:  # facades behind both pavements, following the ground's slope along the street
-        for x in (8.6, -8.0):
+        for x in (8.6, -8.0 - wider):
             wall = trimesh.creation.box([0.3, top + 2.0, 6.0])
             wall.apply_translation([x, (top - 2.0) / 2, float(ground_height(x, (top - 2.0) / 2)) + 3.0 - 0.3])
             meshes.append((wall.vertices, wall.faces))
             labels.append(-3)
-    meshes.append(_ground_mesh(-9.0 if buildings else -4.0, 12.0, -3.0, top))
+    meshes.append(_ground_mesh(-9.0 - wider if buildings else -4.0, 12.0, -3.0, top))
     labels.append(-1)
     return meshes, labels, items, top
 
 
 def mobile_street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, speed: float = 8.0,
                   scanners=None, absent: frozenset = frozenset(), spacing: tuple = (4.0, 7.0),
-                  back: bool = False, scan_seed: int | None = None, passes: int = 1, t0: float = 0.0):
+                  back: bool = False, scan_seed: int | None = None, passes: int = 1, t0: float = 0.0,
+                  lane_offset: float = 0.0):
     """:func:`street` surveyed from a van (:mod:`.mobile`): driven along the near lane (x = :data:`LANE_X`) the
     street's whole length at ``speed`` m/s (``back``: the other way, in the far lane), ``scanners`` (default the
     crossed pair) 2.4 m above the road; ``passes=2``: there and back, one drive (the way back starts 5 s after the
-    way there ends, its own range noise). Returns (:class:`Street`, the :class:`~.mobile.MobileScan`)."""
+    way there ends, its own range noise). ``lane_offset``: the road that many metres wider and the van that much
+    further from the parked cars and the furniture (their range grows by as much). Returns (:class:`Street`, the
+    :class:`~.mobile.MobileScan`)."""
     from .mobile import CROSSED, merged, scan_mobile, straight_drive
 
     if passes == 2:
-        st, there = mobile_street(cars, furniture, n_cars, seed, speed, scanners, absent, spacing, back, scan_seed)
+        st, there = mobile_street(cars, furniture, n_cars, seed, speed, scanners, absent, spacing, back, scan_seed,
+                                  lane_offset=lane_offset)
         st2, again = mobile_street(cars, furniture, n_cars, seed, speed, scanners, absent, spacing, not back,
                                    (seed if scan_seed is None else scan_seed) + 7919,
-                                   t0=float(there.trajectory.time[-1]) + 5.0)
+                                   t0=float(there.trajectory.time[-1]) + 5.0, lane_offset=lane_offset)
         return Street(np.vstack([st.points, st2.points]), np.r_[st.labels, st2.labels], st.items), merged(there, again)
-    meshes, labels, items, top = street_meshes(cars, furniture, n_cars, seed, spacing, absent, buildings=True)
+    meshes, labels, items, top = street_meshes(cars, furniture, n_cars, seed, spacing, absent, buildings=True,
+                                               wider=lane_offset)
     scanners = CROSSED if scanners is None else scanners
-    ends = ((LANE_X, -3.0), (LANE_X, top))
+    lane = LANE_X - lane_offset
+    ends = ((lane, -3.0), (lane, top))
     if back:
-        ends = ((LANE_X - 2.0, top), (LANE_X - 2.0, -3.0))
+        ends = ((lane - 2.0, top), (lane - 2.0, -3.0))
     traj = straight_drive(*ends, speed=speed, height=scanners[0].height, ground=ground_height, t0=t0)
     scan = scan_mobile(meshes, traj, scanners, seed=seed if scan_seed is None else scan_seed)
     return Street(scan.points, np.asarray(labels)[scan.labels], items), scan
