@@ -110,14 +110,19 @@ def seen_grid(points: np.ndarray, viewpoints: np.ndarray, voxel: float = 0.1, ma
         stop = np.clip(1.0 - 1.5 * voxel / np.maximum(length, 1e-9), 0.0, 1.0)
         n_steps = int(np.ceil(float(np.max((stop - enter) * length, initial=0.0)) / (0.5 * voxel))) + 1
         blocked = np.zeros(len(c), dtype=bool)
+        live = np.flatnonzero(stop > enter)  # the rays still marching: a blocked one is dropped
         for s in np.linspace(0.0, 1.0, n_steps):
-            t = enter + s * (stop - enter)
-            q = v + d * t[:, None]
-            iq = np.floor((q - lo) / voxel).astype(np.int64)
-            ok = np.all((iq >= 0) & (iq < shape), axis=1) & (t < stop)
-            hit = np.zeros(len(c), dtype=bool)
+            if not len(live):
+                break
+            t = enter[live] + s * (stop[live] - enter[live])
+            q = (v + d[live] * t[:, None] - lo) / voxel
+            iq = np.floor(q).astype(np.int64)
+            ok = ((iq[:, 0] >= 0) & (iq[:, 0] < shape[0]) & (iq[:, 1] >= 0) & (iq[:, 1] < shape[1])
+                  & (iq[:, 2] >= 0) & (iq[:, 2] < shape[2]) & (t < stop[live]))
+            hit = np.zeros(len(live), dtype=bool)
             hit[ok] = occ[iq[ok, 0], iq[ok, 1], iq[ok, 2]]
-            blocked |= hit
+            blocked[live[hit]] = True
+            live = live[~hit]
         newly = np.flatnonzero(todo)[~blocked]
         seen[newly] = True
         todo[newly] = False
