@@ -48,6 +48,16 @@ def catalogue(folder: Path):
     return cat
 
 
+def street_models(cat, seed: int) -> tuple[list, list, list]:
+    """The catalogue's rows (by name) and its models as the street simulator takes them: the cars in the seed's
+    order, then the furniture, each ``(kind, name, mesh)``."""
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
+    cars = [("car", r.name, meshes[r.name]) for r in rows if r.category == "car"]
+    furniture = [(r.category, r.name, meshes[r.name]) for r in rows if r.category != "car"]
+    return rows, [cars[k] for k in np.random.default_rng(seed).permutation(len(cars))], furniture
+
+
 def time_twin(cat, seed: int, folder: Path) -> dict:
     """The van's street of ``seed`` written as a survey delivers it (``simulate-street``'s code: scan.laz,
     trajectory.csv), then ``twinreg build-twin --trajectory`` on it as a whole process: wall seconds and the peak
@@ -56,11 +66,7 @@ def time_twin(cat, seed: int, folder: Path) -> dict:
 
     from twinreg.sim.street import write_street
 
-    rows = sorted(cat.list(), key=lambda r: r.name)
-    meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
-    cars = [("car", r.name, meshes[r.name]) for r in rows if r.category == "car"]
-    furniture = [(r.category, r.name, meshes[r.name]) for r in rows if r.category != "car"]
-    cars = [cars[k] for k in np.random.default_rng(seed).permutation(len(cars))]
+    _, cars, furniture = street_models(cat, seed)
     folder.mkdir(parents=True, exist_ok=True)
     doc = write_street(folder, cars, furniture, n_cars=8, seed=seed)
     cmd = [sys.executable, "-m", "twinreg", "--library", str(cat.folder), "build-twin", str(folder / "scan.laz"),
@@ -82,12 +88,7 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne", seen:
     from twinreg.sim.street import item_objects, street
     from twinreg.stages import recognise, taxonomy, with_targets
 
-    rows = sorted(cat.list(), key=lambda r: r.name)
-    meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
-    cars = [("car", r.name, meshes[r.name]) for r in rows if r.category == "car"]
-    furniture = [(r.category, r.name, meshes[r.name]) for r in rows if r.category != "car"]
-    rng = np.random.default_rng(seed)
-    cars = [cars[k] for k in rng.permutation(len(cars))]
+    rows, cars, furniture = street_models(cat, seed)
     if platform == "mobile":
         from twinreg.sim.street import mobile_street
 

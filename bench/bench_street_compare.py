@@ -30,16 +30,14 @@ DATES = ("2026-03-02", "2026-06-02")
 
 
 def run_seed(cat, seed: int, folder: Path) -> dict:
+    from bench_street import street_models
+
     from twinreg.change.compare import compare
     from twinreg.pipeline import build_twin
     from twinreg.sim.mobile import write_survey
     from twinreg.sim.street_epochs import score, street_surveys
 
-    rows = sorted(cat.list(), key=lambda r: r.name)
-    meshes = dict(zip([r.name for r in rows], cat.scan_meshes(rows)))
-    cars = [("car", r.name, meshes[r.name]) for r in rows if r.category == "car"]
-    furniture = [(r.category, r.name, meshes[r.name]) for r in rows if r.category != "car"]
-    cars = [cars[k] for k in np.random.default_rng(seed).permutation(len(cars))]
+    _, cars, furniture = street_models(cat, seed)
     surveys = street_surveys(cars, furniture, seed=seed)
     twins, seconds = [], []
     for tag, scan, date in (("before", surveys.before, DATES[0]), ("after", surveys.after, DATES[1])):

@@ -178,7 +178,7 @@ class ChangeParams:
     fewer than ``heading_min_points`` points is no measurement (a dozen points of a hydrant give its box any axis),
     nor is that of one with no mirror plane found whose footprint is less than ``heading_min_elongation`` times
     longer than wide (a mailbox seen from one side: its box may take either axis); the turn within which an object
-    has not moved is the one that moves a ``turn_length`` m object's ends as far as a car's (status.tolerances):
+    has not moved is the one that moves a ``turn_length`` m object's ends as far as a car's (status.turn_tolerance):
     a mailbox's ends move less for a given turn, and its heading is measured on fewer points."""
 
     sure: float = 0.9  # confidence

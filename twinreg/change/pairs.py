@@ -55,9 +55,9 @@ def _sides(size: np.ndarray) -> np.ndarray:
 
 
 def _same_vehicle(a: Epoch, b: Epoch, i, j, section_m, params) -> tuple[np.ndarray, np.ndarray]:
-    """(size_z, p_same) of pairs. Sizes in units of :func:`size_sigma` (long side with long side), compared as measured, or as placed when
-    both have a model if that is closer (a model's size is exact, and two models of one size are no evidence of
-    another vehicle); differences within one sigma are free, beyond it the likelihood falls as a Gaussian. The
+    """(size_z, p_same) of pairs. Sizes in units of :func:`size_sigma` (long side with long side), compared as
+    measured, or as placed when both have a model if that is closer (a model's size is exact, and two models of one
+    size are no evidence of another vehicle); differences within one sigma are free, beyond it the likelihood falls as a Gaussian. The
     sections' dissimilarity is weighed the same way against COSCO's cluster threshold widened by the scans'
     spacing and noise; two sure matches to different models divide the odds by four."""
     sigma = size_sigma(a, b)
@@ -86,9 +86,10 @@ def _long_axis(e: Epoch, idx: np.ndarray) -> np.ndarray:
     return e.heading[idx] + np.where(e.size[idx, 0] < e.size[idx, 1], np.pi / 2, 0.0)
 
 
-def _square(e: Epoch, idx: np.ndarray) -> np.ndarray:
-    sides = np.sort(e.size[idx, :2], axis=1)
-    return sides[:, 1] < SQUARE * np.maximum(sides[:, 0], 1e-6)
+def _squat(e: Epoch, idx: np.ndarray, ratio: float) -> np.ndarray:
+    """(k,) whether each footprint's long side is less than ``ratio`` times its short side."""
+    sides = _sides(e.size[idx])
+    return sides[:, 0] < ratio * np.maximum(sides[:, 1], 1e-6)
 
 
 def _no_axis(e: Epoch, idx: np.ndarray, params: Settings) -> np.ndarray:
@@ -97,8 +98,7 @@ def _no_axis(e: Epoch, idx: np.ndarray, params: Settings) -> np.ndarray:
     if not e.levels or not len(idx):
         return np.zeros(len(idx), dtype=bool)
     plain = np.array([e.models[k] is None and e.levels[k] == "none" for k in idx], dtype=bool)
-    sides = np.sort(e.size[idx, :2], axis=1)
-    return plain & (sides[:, 1] < params.change.heading_min_elongation * np.maximum(sides[:, 0], 1e-6))
+    return plain & _squat(e, idx, params.change.heading_min_elongation)
 
 
 def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAULT,
@@ -136,9 +136,9 @@ def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAU
     # and one turned about its axis (a pole, a hydrant, a bin) none: its heading is no measurement
     # without a model on both sides, the footprints' long axes are compared (a shelter's measured box may run
     # along its back wall where its model's front faces the road), and a square footprint's only modulo a quarter
-    axes = turn(_long_axis(a, i), _long_axis(b, j), np.pi)
-    square = _square(a, i) | _square(b, j)
-    axes = np.where(square, turn(_long_axis(a, i), _long_axis(b, j), np.pi / 2), axes)
+    long_a, long_b = _long_axis(a, i), _long_axis(b, j)
+    square = _squat(a, i, SQUARE) | _squat(b, j, SQUARE)
+    axes = turn(long_a, long_b, np.where(square, np.pi / 2, np.pi))
     t = np.where(both, turn(a.heading[i], b.heading[j]), axes)
     if a.levels and b.levels:
         la, lb = np.asarray(a.levels, dtype=object)[i], np.asarray(b.levels, dtype=object)[j]

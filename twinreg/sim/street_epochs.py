@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mobile import MobileScan
-from .street import PlacedItem, mobile_street
+from .street import PlacedItem, mobile_street, street_meshes
 
 #: furniture within this distance (m, along the street) of a parked car's centre stands behind it
 BEHIND = 2.3
@@ -45,8 +45,7 @@ def street_surveys(cars: list, furniture: list, seed: int = 0, n_cars: int = 8, 
     earlier survey the two cars in front of furniture (or the first two cars) are absent; in the later one they are
     parked there, the last other car has gone, and two pieces of furniture are taken away: one behind a car that
     parked (when there is one) and one that no car hides. Each survey has its own range noise."""
-    st, _ = mobile_street(cars, furniture, n_cars=n_cars, seed=seed, speed=speed)
-    items = st.items
+    items = street_meshes(cars, furniture, n_cars, seed, buildings=True)[2]  # the street's items, not scanned
     car_i = [k for k, it in enumerate(items) if it.kind == "car"]
     furn_i = [k for k, it in enumerate(items) if it.kind != "car"]
 
