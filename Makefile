@@ -50,9 +50,10 @@ install: $(STAMP) $(NPM_STAMP)
 demo: $(STAMP) $(NPM_STAMP)
 	$(BIN)/twinreg demo
 
-# the suite fails (instead of skipping) when ../shared/data is missing; plain `pytest` may skip, with a count
+# the suite fails (instead of skipping) when ../shared/data is missing; plain `pytest` may skip, with a count.
+# Two workers (pytest-xdist), a test file each at a time: a file's fixtures are built once, in one worker
 test: $(STAMP) $(NPM_STAMP) /usr/bin/chromium /usr/bin/CloudCompare
-	TWINREG_REQUIRE_SHARED_DATA=1 $(BIN)/python -m pytest
+	TWINREG_REQUIRE_SHARED_DATA=1 $(BIN)/python -m pytest -n 2 --dist loadfile
 
 # the benches' baselines (scikit-learn's random forest)
 $(BENCH_STAMP): $(STAMP)
