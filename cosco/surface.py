@@ -9,6 +9,13 @@ air are strings of points: the neighbours lie along a line (the *linearity*: the
 second). A car's roof and bonnet, a shelter's roof are horizontal: the share of points whose surface normal is near
 vertical (*horizontal*).
 
+A scanner on the ground (a mobile survey's profilers, issue 50) strings its points along scan lines, centimetres
+apart along a line and up to decimetres between lines: each point's nearest neighbours lie on its own line, so the
+linearity is the scan's and not the object's, and the variation is the range noise's over a few centimetres, not
+the surface's curvature. For such points (``lines``) the object's *thickness* is measured as well: how far its points
+lie from the one plane that fits them best (an upright board or a wall: centimetres; the side and roof of a car
+seen from the street: decimetres).
+
 Pure numpy and a KD-tree: points in, three numbers out, on at most ``surface.max_points`` points spread evenly
 through the object (the neighbours are sought among all its points), so the cost is bounded per object.
 """
@@ -26,12 +33,19 @@ from .params import DEFAULT, CoscoParams
 class Surface:
     """One object's surface at the scale of its point spacing (see the module's text): the median ``variation``
     (0-1/3) and ``linearity`` (0-1) of its points' neighbourhoods and the share of its points on a ``horizontal``
-    surface (0-1); ``n`` the points they were measured on."""
+    surface (0-1); ``n`` the points they were measured on; ``thickness`` (m) the 90th percentile of the points'
+    distances from their best-fitting plane, for points along a ground scanner's lines (else None)."""
 
     variation: float
     linearity: float
     horizontal: float
     n: int
+    thickness: float | None = None
+
+    @property
+    def along_lines(self) -> bool:
+        """Whether the points lie along a ground scanner's lines (their neighbourhoods are the scan's)."""
+        return self.thickness is not None
 
 
 def neighbourhood_shapes(points: np.ndarray, k: int, at: np.ndarray | None = None) -> tuple:
@@ -56,8 +70,24 @@ def neighbourhood_shapes(points: np.ndarray, k: int, at: np.ndarray | None = Non
     return np.maximum(ev, 0.0), vec[:, :, 0]
 
 
-def surface_of(points, params: CoscoParams = DEFAULT) -> Surface:
-    """The :class:`Surface` of one object's ``points`` ((n, 3) metres, n >= 3).
+def thickness_of(points: np.ndarray, share: float = 0.9) -> float:
+    """The ``share`` quantile of (n, 3) ``points``' distances (m) from the plane that fits them best (through their
+    mean, normal to their covariance's least direction).
+
+    >>> rng = np.random.default_rng(0)
+    >>> board = np.c_[rng.uniform(0, 2, 500), rng.normal(0, 0.01, 500), rng.uniform(0, 1, 500)]
+    >>> round(thickness_of(board), 2)
+    0.02
+    """
+    q = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    q = q - q.mean(axis=0)
+    normal = np.linalg.eigh(q.T @ q)[1][:, 0]
+    return float(np.quantile(np.abs(q @ normal), share))
+
+
+def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False) -> Surface:
+    """The :class:`Surface` of one object's ``points`` ((n, 3) metres, n >= 3); ``lines``: the points lie along a
+    ground scanner's lines (the thickness measured too).
 
     >>> rng = np.random.default_rng(0)
     >>> a = rng.uniform(0, 2 * np.pi, 3000)
@@ -76,4 +106,5 @@ def surface_of(points, params: CoscoParams = DEFAULT) -> Surface:
     linearity = (ev[:, 2] - ev[:, 1]) / np.maximum(ev[:, 2], 1e-18)
     horizontal = np.abs(normal[:, 2]) >= np.cos(np.radians(sp.horizontal_deg))
     return Surface(variation=round(float(np.median(variation)), 6), linearity=round(float(np.median(linearity)), 6),
-                   horizontal=round(float(horizontal.mean()), 6), n=len(at))
+                   horizontal=round(float(horizontal.mean()), 6), n=len(at),
+                   thickness=round(thickness_of(p), 6) if lines else None)

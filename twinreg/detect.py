@@ -115,8 +115,9 @@ def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) 
     """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
     from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
     objects = det.objects if objects is None else objects
+    lines = det.scene.origins is not None  # a survey from the ground, its points along its profilers' lines
     shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o),
-                                    seen=object_seen(det, o, params)) for o in objects]
+                                    seen=object_seen(det, o, params), lines=lines) for o in objects]
     classes = det.scene.classes  # None in a city's cells: the parameter is read only when there are classes
     if classes is None or not params.open_world.scan_classes:
         return shapes

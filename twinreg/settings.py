@@ -119,7 +119,9 @@ class OpenWorldParams:
     at most ``rigid_max_linearity`` when measured on ``linearity_min_points`` points or more, unless the kind is
     thin: its references ``thin_ratio`` times taller than their plan is wide, a pole's points are strung along its
     line; a ``curved`` kind's at least ``curved_min_variation`` unless ``flat_max_horizontal`` or more of it is
-    horizontal: no upright board or wall, while a car seen from the air is mostly its flat roof). What fits no kind
+    horizontal: no upright board or wall, while a car seen from the air is mostly its flat roof; from the ground, where
+    points lie along scan lines, its points more than ``board_max_thickness`` m from their best plane, and linearity
+    no test: :func:`~twinreg.recognition.kinds.fits_surface`). What fits no kind
     is ``vegetation`` when porous (variation at least ``vegetation_variation`` measured on ``vegetation_min_points``
     points or more, at least ``vegetation_height`` m tall: a dozen points of a hydrant are as scattered as a
     bush's), ``structure`` when long and thin (at least ``structure_length`` m and ``structure_elongation`` times
@@ -144,6 +146,7 @@ class OpenWorldParams:
     curved: tuple = ("car", "van", "truck", "bus")  # kinds
     curved_min_variation: float = 0.01  # surface variation
     flat_max_horizontal: float = 0.4  # share horizontal: a board
+    board_max_thickness: float = 0.1  # m from its best plane, from the ground
     vegetation_variation: float = 0.06  # surface variation
     vegetation_height: float = 0.5  # m, at least
     vegetation_min_points: int = 30  # points, to call it porous

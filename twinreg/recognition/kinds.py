@@ -218,12 +218,19 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     """Whether an object's :class:`~cosco.surface.Surface` is that of a kind: a shell (neither porous nor, unless
     the kind is ``thin``, a pole, strung along lines) unless the kind is porous, and not flat when the kind is
     ``curved`` (vehicles); True when not measured (the line and flatness tests need ``linearity_min_points``
-    points).
+    points). Points along a ground scanner's lines (a mobile survey's, :attr:`~cosco.surface.Surface.along_lines`)
+    are strung along the scan's lines whatever the object, and their variation is the range noise's: a ``curved``
+    kind's points then lie more than ``board_max_thickness`` m from their best plane (a car's side and roof seen
+    from the street, where a board or a wall is flat), and linearity is no test.
 
     >>> from cosco.surface import Surface
     >>> pole = Surface(0.02, 0.8, 0.05, 150)
     >>> fits_surface(pole, "lamp_post"), fits_surface(pole, "lamp_post", thin=True)
     (False, True)
+    >>> fits_surface(Surface(0.006, 0.7, 0.1, 900, thickness=0.4), "car")  # a car's side and roof, from a van
+    True
+    >>> fits_surface(Surface(0.006, 0.7, 0.1, 900, thickness=0.03), "car")  # a board
+    False
     """
     k = params.open_world
     if surface is None or kind in k.porous:
@@ -232,6 +239,8 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
         return False
     if surface.n < k.linearity_min_points:
         return True
+    if surface.along_lines:  # from the ground: the neighbourhoods are the scan lines', the object's thickness tells
+        return not (kind in k.curved and surface.thickness < k.board_max_thickness)
     if (kind in k.curved and surface.variation < k.curved_min_variation
             and surface.horizontal < k.flat_max_horizontal):
         return False  # an upright flat board or wall, not a car's rounded shell (from the air: its flat roof)
