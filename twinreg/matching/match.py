@@ -298,8 +298,17 @@ class _Scorer:
         about the vertical and a shift (twinreg/matching/refine.py), scored on every point."""
         e, in_model = screen
         m = e.extra["transform"]
-        c = refine(sample_cloud(in_model, self.params.matching.refine_max_points), self.cache.tree(mid),
-                   self.params.matching.refine_reach, params=self.params)
+        q = sample_cloud(in_model, self.params.matching.refine_max_points)
+        c = refine(q, self.cache.tree(mid), self.params.matching.refine_reach, params=self.params)
+        # scanned from the ground (a van's scan lines), the road around the object is measured densely: a model
+        # the points sank into it beyond the sink limit (one sloped face seen, the model slid down it) is stood on
+        # it and refined again; one within the limit keeps the height its points give (a mesh's lowest vertex is
+        # not always where its tyres touch, and a boxy car's side seen from afar pins its height loosely)
+        surface = self.shape.surface
+        ground = float(self.shape.frame.ground_z - m[2, 3])  # the ground's level in the model's frame
+        if surface is not None and surface.along_lines and ground + c[2, 3] > e.sink_limit:
+            c = refine(q, self.cache.tree(mid), self.params.matching.refine_reach, params=self.params,
+                       ground=ground)
         e = self.scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
         e.extra["refined"] = True
         return e

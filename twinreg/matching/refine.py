@@ -36,19 +36,29 @@ def yaw_fit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
 
 
 def refine(points_in_model: np.ndarray, model_tree, reach: float, iterations: int = 6,
-           params: Settings = DEFAULT) -> np.ndarray:
+           params: Settings = DEFAULT, ground: float | None = None) -> np.ndarray:
     """(4, 4) correction ``c`` in the model's frame: ``c`` applied to the object's points (already in the model's
     frame) brings them onto the model's sampled points (``model_tree``, a cKDTree). Pairs farther than ``reach``
     (m) are left out. The identity when the fit does not converge within the bounds
-    (``params.matching.refine_max_turn``, ``params.matching.refine_max_shift``)."""
+    (``params.matching.refine_max_turn``, ``params.matching.refine_max_shift``).
+
+    ``ground``: the object's ground level in the model's frame (m), to stand the model on: the points are first
+    moved so that it is the model's lowest level (z = 0), then turned and shifted in plan only. An object seen from
+    one side (a jersey barrier's one sloped face from a van) lets a model slide down its slope and towards the
+    scanner and still fit; the ground under it, measured around it, holds the height."""
     q = np.asarray(points_in_model, dtype=np.float64)
     total = np.eye(4)
+    if ground is not None:
+        total[2, 3] = -float(ground)
+        q = q + total[:3, 3]
     for _ in range(iterations):
         d, idx = model_tree.query(q, k=1, distance_upper_bound=reach)
         ok = np.isfinite(d)
         if ok.sum() < 10:
             break
         step = yaw_fit(q[ok], model_tree.data[idx[ok]])
+        if ground is not None:
+            step[2, 3] = 0.0
         q = q @ step[:3, :3].T + step[:3, 3]
         total = step @ total
         if np.abs(step[:3, 3]).max() < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-4:
