@@ -254,7 +254,9 @@ def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, 
     top) connected to its top join it (a pole's upper part and its lamp, a sign's plate, a tree's crown), unless
     they run on beyond ``segment.object_reach`` plus half ``segment.object_max_extent`` m of it in plan (a building's
     wall under its roof: the object is then no target). Objects whose tops join the same high points are one object (a
-    crown's lower pieces under its top); the larger objects look first."""
+    crown's lower pieces under its top); the larger objects look first. The points above a building's own (an
+    object larger than a street object may be, under the ceiling: a facade) are its, not a crown's: a tree whose
+    crown touches the facade behind the pavement grows into its crown, not along the facade."""
     from scipy.spatial import cKDTree
 
     ceiling = params.segment.max_height
@@ -262,6 +264,9 @@ def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, 
     if len(high) == 0:
         return objects
     link = reach_link(max(params.segment.voxel, 1.2 * spacing))
+    high = _off_buildings(pts, high, objects, params, link)
+    if len(high) == 0:
+        return objects
     tree = cKDTree(pts[high, :2])
     owner = np.full(len(high), -1, dtype=np.int64)
     slots: list = []  # per grown object: [indices, edge], or None once merged into another
@@ -297,3 +302,27 @@ def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, 
             grown = dataclasses.replace(grown, target=False)
         out.append(grown)
     return out
+
+
+def _off_buildings(pts, high, objects: list, params: CoscoParams, link: float) -> np.ndarray:
+    """``high`` (rows of ``pts``) without those within ``link`` m in plan of a building's points: an object that
+    is no target and larger than a street object (``segment.object_max_extent`` across or ``object_max_area`` m^2).
+
+    >>> from cosco.params import DEFAULT
+    >>> from cosco.segment.components import DetectedObject
+    >>> pts = np.array([[0.0, y, 1.0] for y in range(20)] + [[0.0, 5.0, 5.0], [3.0, 5.0, 5.0]])
+    >>> wall = DetectedObject(np.arange(20), 19.0, 0.1, 3.0, 2.0, 0.0, False)
+    >>> _off_buildings(pts, np.array([20, 21]), [wall], DEFAULT, 0.5).tolist()
+    [21]
+    """
+    from scipy.spatial import cKDTree
+
+    sg = params.segment
+    big = [o for o in objects if not o.target and (max(o.length, o.width) > sg.object_max_extent
+                                                   or o.area > sg.object_max_area)]
+    if not big or len(high) == 0:
+        return high
+    d, _ = cKDTree(pts[np.concatenate([o.indices for o in big]), :2]).query(pts[high, :2],
+                                                                           distance_upper_bound=link)
+    return high[~np.isfinite(d)]
+

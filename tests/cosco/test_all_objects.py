@@ -115,3 +115,38 @@ def test_pieces_of_one_object_joined_and_neighbours_kept_apart():
     assert np.array_equal(every["car"][0].indices, car_mode.indices)
     assert not np.isin(np.flatnonzero(labels == names.index("wire")), every["car"][0].indices).any()
     assert len(every["pole"]) == 1 and every["pole"][0].height > 8.0
+
+
+def _tree_at_a_facade(seed=0):
+    """A street's pavement seen from a van: a facade 6 m tall and 30 m long along y (its face at x = 8.5), a tree
+    beside it, its trunk at x = 6, its crown 2.6 m round at 5.5 m touching the facade above the ceiling only."""
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(9000, 3))
+    crown = u / np.linalg.norm(u, axis=1, keepdims=True) * 2.6 * rng.uniform(0.7, 1.0, (9000, 1)) + [6.0, 15.0, 5.5]
+    crown[:, 0] = np.minimum(crown[:, 0], 8.45)
+    parts = {
+        "ground": _ground(rng, 40000),
+        "facade": np.c_[rng.normal(8.5, 0.01, 30000), rng.uniform(0, 30, 30000), rng.uniform(0.05, 6.0, 30000)],
+        "tree": np.vstack([np.c_[rng.normal(6.0, 0.12, 800), rng.normal(15.0, 0.12, 800), rng.uniform(0.05, 3.0, 800)],
+                           crown]),
+    }
+    labels = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts.values())])
+    pts = np.vstack(list(parts.values()))
+    return pts, pts[:, 2].copy(), labels, list(parts)
+
+
+def test_a_tree_whose_crown_touches_the_facade_is_an_object(monkeypatch):
+    """The crown grows up through the ceiling into its own points, not along the facade it touches (the facade's
+    points above the facade's own are the building's); without that (the control) the tree joins the facade and is
+    no object."""
+    import cosco.segment.street as street_pass
+
+    pts, hag, labels, names = _tree_at_a_facade()
+    street = DEFAULT.with_(segment={"targets": "all"})
+    every = _owner(segment_objects(pts, hag, street, is_ground=hag < 0.03), labels, names)
+    tree = every.get("tree", [])
+    assert len(tree) == 1 and tree[0].height > 7.0, [(o.n_points, o.height) for o in tree]
+    assert (labels[tree[0].indices] == names.index("tree")).mean() > 0.9
+    assert (labels[tree[0].indices] == names.index("tree")).sum() > 0.9 * (labels == names.index("tree")).sum()
+    monkeypatch.setattr(street_pass, "_off_buildings", lambda pts, high, objects, params, link: high)
+    assert "tree" not in _owner(segment_objects(pts, hag, street, is_ground=hag < 0.03), labels, names)
