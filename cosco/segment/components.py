@@ -233,9 +233,18 @@ def describe(points: np.ndarray, hag: np.ndarray, idx: np.ndarray, params: Cosco
         # (a tree's crown above a trunk the airborne scan does not see stands on the ground too)
         crown = height >= params.segment.object_crown_height and base <= height / 2
         target = (params.segment.object_height[0] <= height <= params.segment.object_height[1] and (grounded or crown)
-                  and max(length, width) <= params.segment.object_max_extent and area <= params.segment.object_max_area
-                  and describable(p))
+                  and not beyond_street(length, width, area, params) and describable(p))
     return DetectedObject(np.sort(idx), float(length), float(width), height, float(area), base, bool(target))
+
+
+def beyond_street(length: float, width: float, area: float, params: CoscoParams) -> bool:
+    """Whether a footprint of ``length`` x ``width`` m and ``area`` m^2 is larger than a street object may be
+    (``segment.object_max_extent`` across, ``segment.object_max_area``): a building's, not furniture's.
+
+    >>> beyond_street(0.4, 0.4, 0.1, DEFAULT), beyond_street(30.0, 0.3, 9.0, DEFAULT)
+    (False, True)
+    """
+    return max(length, width) > params.segment.object_max_extent or area > params.segment.object_max_area
 
 
 def describable(points: np.ndarray) -> bool:

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..arrays import cell_keys
 from ..params import CoscoParams
-from .components import car_sized, describe
+from .components import beyond_street, car_sized, describe
 from .components import members as _members
 from .components import voxel_components
 
@@ -306,7 +306,7 @@ def reach_up(pts, hag, ground, objects: list, params: CoscoParams, cell: float, 
 
 def _off_buildings(pts, high, objects: list, params: CoscoParams, link: float) -> np.ndarray:
     """``high`` (rows of ``pts``) without those within ``link`` m in plan of a building's points: an object that
-    is no target and larger than a street object (``segment.object_max_extent`` across or ``object_max_area`` m^2).
+    is no target and larger than a street object (:func:`.components.beyond_street`).
 
     >>> from cosco.params import DEFAULT
     >>> from cosco.segment.components import DetectedObject
@@ -317,12 +317,9 @@ def _off_buildings(pts, high, objects: list, params: CoscoParams, link: float) -
     """
     from scipy.spatial import cKDTree
 
-    sg = params.segment
-    big = [o for o in objects if not o.target and (max(o.length, o.width) > sg.object_max_extent
-                                                   or o.area > sg.object_max_area)]
-    if not big or len(high) == 0:
+    big = [o for o in objects if not o.target and beyond_street(o.length, o.width, o.area, params)]
+    if not big:
         return high
     d, _ = cKDTree(pts[np.concatenate([o.indices for o in big]), :2]).query(pts[high, :2],
                                                                            distance_upper_bound=link)
     return high[~np.isfinite(d)]
-

@@ -57,9 +57,9 @@ def _sides(size: np.ndarray) -> np.ndarray:
 def _same_vehicle(a: Epoch, b: Epoch, i, j, section_m, params) -> tuple[np.ndarray, np.ndarray]:
     """(size_z, p_same) of pairs. Sizes in units of :func:`size_sigma` (long side with long side), compared as
     measured, or as placed when both have a model if that is closer (a model's size is exact, and two models of one
-    size are no evidence of another vehicle); differences within one sigma are free, beyond it the likelihood falls as a Gaussian. The
-    sections' dissimilarity is weighed the same way against COSCO's cluster threshold widened by the scans'
-    spacing and noise; two sure matches to different models divide the odds by four."""
+    size are no evidence of another vehicle); differences within one sigma are free, beyond it the likelihood falls
+    as a Gaussian. The sections' dissimilarity is weighed the same way against COSCO's cluster threshold widened by
+    the scans' spacing and noise; two sure matches to different models divide the odds by four."""
     sigma = size_sigma(a, b)
     both = np.array([a.models[p] is not None and b.models[q] is not None for p, q in zip(i, j)], dtype=bool)
     measured = np.abs(_sides(a.measured[i]) - _sides(b.measured[j])) / sigma

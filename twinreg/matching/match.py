@@ -304,11 +304,11 @@ class _Scorer:
         # the points sank into it beyond the sink limit (one sloped face seen, the model slid down it) is stood on
         # it and refined again; one within the limit keeps the height its points give (a mesh's lowest vertex is
         # not always where its tyres touch, and a boxy car's side seen from afar pins its height loosely)
+        # (the screened sink is the ground's level in the model's frame, as the sections placed it)
         surface = self.shape.surface
-        ground = float(self.shape.frame.ground_z - m[2, 3])  # the ground's level in the model's frame
-        if surface is not None and surface.along_lines and ground + c[2, 3] > e.sink_limit:
+        if surface is not None and surface.along_lines and e.sink + c[2, 3] > e.sink_limit:
             c = refine(q, self.cache.tree(mid), self.params.matching.refine_reach, params=self.params,
-                       ground=ground)
+                       ground=e.sink)
         e = self.scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
         e.extra["refined"] = True
         return e
