@@ -45,6 +45,8 @@ VEHICLES_NUSCENES = ("car", "truck", "bus", "construction_vehicle")
 NUSCENES_KIND = {"car": "car", "barrier": "barrier", "traffic_cone": "cone"}
 GROW = 0.5  # m a labelled box is grown by in plan
 MIN_POINTS = 10
+#: the objects' point counts the reliability is also printed by
+POINT_BINS = ((10, 30), (30, 100), (100, 10 ** 9))
 
 
 def twinreg(*args) -> subprocess.CompletedProcess:
@@ -157,7 +159,7 @@ def read_bin(path: Path) -> np.ndarray:
 
 class Tally:
     """Counts of one half: true and false cars, found and missed labelled cars, named kinds right and wrong, and
-    (claimed confidence, right) pairs for the reliability table."""
+    (claimed confidence, right, the object's points) for the reliability table."""
 
     def __init__(self):
         self.c = Counter()
@@ -200,7 +202,7 @@ def score_sweep(objs: list[dict], boxes: list[dict], points: np.ndarray, vehicle
         if named and (o["kind"] in kind_of_cls.values() or truth is not None):
             right = o["kind"] == truth or (o["kind"] == "car" and is_vehicle)
             t.c["named_right" if right else "named_wrong"] += 1
-            t.claims.append((o["kind_confidence"], right))
+            t.claims.append((o["kind_confidence"], right, o["n_points"]))
     for b in boxes:
         if b["cls"] != vehicles[0] or not view(b["centre"][None])[0]:
             continue
@@ -225,7 +227,7 @@ def dales(lib: Path, tallies: dict) -> None:
         t.c[f"{truth}_n"] += 1
         t.c[f"{truth}_as_{item['kind']}"] += 1
         if item["kind"] == "car":  # a claim scored (the catalogue's other kinds have no DALES class to be right in)
-            t.claims.append((item["kind_confidence"], truth == "car"))
+            t.claims.append((item["kind_confidence"], truth == "car", item["n_points"]))
 
 
 def print_reliability(claims: dict) -> list:
@@ -234,6 +236,12 @@ def print_reliability(claims: dict) -> list:
         print(f"\nkind confidence, {h} half (sweeps' named kinds, DALES' cars claimed):")
         print("| claimed | objects | mean claimed | right |\n|---|---|---|---|")
         print("\n".join(reliability(claims[h])))
+    print("\nkind confidence by the object's points, both halves:")
+    print("| points | claimed | objects | mean claimed | right |\n|---|---|---|---|---|")
+    both = claims["tuning"] + claims["checking"]
+    for lo, hi in POINT_BINS:
+        for row in reliability([c for c in both if lo <= c[2] < hi]):
+            print(f"| {lo}-{hi if hi < 10 ** 9 else ''} {row}")
     a, b = platt(claims["tuning"])
     print(f"\nPlatt fit on the tuning half: right = logistic({a:.3f} * logit(claimed) + {b:.3f}) "
           f"({len(claims['tuning'])} claims)")
@@ -253,7 +261,7 @@ def plot_reliability(claims: dict, path: Path) -> None:
     for (h, got), colour in zip(claims.items(), ("#1f77b4", "#d62728")):
         xs, ys, ns = [], [], []
         for lo, hi in zip(bins, bins[1:]):
-            sel = [(c, r) for c, r in got if lo <= c < hi]
+            sel = [(c, r) for c, r, _ in got if lo <= c < hi]
             if sel:
                 xs.append(np.mean([c for c, _ in sel]))
                 ys.append(np.mean([r for _, r in sel]))
@@ -272,8 +280,8 @@ def platt(claims: list) -> tuple[float, float]:
     """(a, b) of p = 1 / (1 + exp(-(a * logit(c) + b))) fitted to (claimed c, right) pairs by maximum likelihood
     with a unit Gaussian prior on (a - 1, b) (Newton's method; a = 1, b = 0 is the claim as it stands: a few dozen
     claims move it only as far as they show)."""
-    c = np.clip(np.array([x for x, _ in claims], dtype=np.float64), 1e-4, 1 - 1e-4)
-    y = np.array([r for _, r in claims], dtype=np.float64)
+    c = np.clip(np.array([x[0] for x in claims], dtype=np.float64), 1e-4, 1 - 1e-4)
+    y = np.array([x[1] for x in claims], dtype=np.float64)
     x = np.c_[np.log(c / (1 - c)), np.ones(len(c))]
     w = np.array([1.0, 0.0])
     for _ in range(50):
@@ -291,9 +299,9 @@ def reliability(claims: list) -> list[str]:
     bins = [0.0, 0.5, 0.7, 0.8, 0.9, 0.95, 1.01]
     rows = []
     for lo, hi in zip(bins, bins[1:]):
-        got = [r for c, r in claims if lo <= c < hi]
+        got = [x[1] for x in claims if lo <= x[0] < hi]
         if got:
-            mid = [c for c, _ in claims if lo <= c < hi]
+            mid = [x[0] for x in claims if lo <= x[0] < hi]
             rows.append(f"| {lo:.2f}-{min(hi, 1):.2f} | {len(got)} | {np.mean(mid):.2f} | {np.mean(got):.2f} |")
     return rows
 

@@ -201,9 +201,9 @@ def parametric_catalogue(tmp_path_factory, parametric_objs):
     return cat
 
 
-def write_las(path, points, crs=None, version="1.4", vlr=None, point_format=3):
+def write_las(path, points, crs=None, version="1.4", vlr=None, point_format=3, classes=None):
     """A LAS/LAZ file of (n, 3) points (file units) with ``crs`` (pyproj input) in its header (GeoTIFF keys; WKT
-    with ``point_format`` 6 or above), or a raw ``vlr``."""
+    with ``point_format`` 6 or above), or a raw ``vlr``; ``classes``: (n,) ASPRS classes (None: every point 0)."""
     import laspy
     import pyproj
 
@@ -216,6 +216,8 @@ def write_las(path, points, crs=None, version="1.4", vlr=None, point_format=3):
         header.vlrs.append(vlr)
     las = laspy.LasData(header)
     las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
+    if classes is not None:
+        las.classification = np.asarray(classes, dtype=np.uint8)
     las.write(path)
     return path
 

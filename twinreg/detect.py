@@ -118,7 +118,7 @@ def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) 
     lines = det.scene.origins is not None  # a survey from the ground, its points along its profilers' lines
     shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o),
                                     seen=object_seen(det, o, params), lines=lines) for o in objects]
-    classes = det.scene.classes  # None in a city's cells: the parameter is read only when there are classes
+    classes = det.scene.classes  # None: a scan without classes (the parameter is read only when there are some)
     if classes is None or not params.open_world.scan_classes:
         return shapes
     return [replace(s, classes=class_shares(classes[o.indices])) for s, o in zip(shapes, objects)]

@@ -84,6 +84,7 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
     total)`` is called as work advances (``done`` and ``total`` None for a scene's stage messages)."""
     paths = [Path(p) for p in paths]
     s = settings
+    params = DEFAULT if s.scan_classes else DEFAULT.with_(open_world={"scan_classes": False})
     if s.tiled(paths):
         if s.trajectory is not None:
             raise ParameterError(f"{s.trajectory}: --trajectory is read with one scene file; a tiled run (several "
@@ -92,8 +93,8 @@ def build(paths, catalogue: Catalogue, georef: Georef | None, out, settings: Run
         return build_city_twin(paths, catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                                cell=s.cell, buffer=10.0 if s.buffer is None else s.buffer, workers=s.workers,
                                scheduler=s.scheduler, restart=s.restart, ply=bool(s.ply), progress=progress,
-                               date=s.date, classified=s.classified_scan, min_confidence=s.min_confidence)
-    params = DEFAULT if s.scan_classes else DEFAULT.with_(open_world={"scan_classes": False})
+                               date=s.date, classified=s.classified_scan, min_confidence=s.min_confidence,
+                               params=params)
     return build_twin(paths[0], catalogue, georef, out, unit=s.unit, tol=s.tol, threshold=s.threshold,
                       params=params, progress=progress, ply=s.ply is not False, date=s.date,
                       templates=s.cityjson_templates, min_confidence=s.min_confidence, trajectory=s.trajectory)

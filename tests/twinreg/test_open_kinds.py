@@ -224,9 +224,9 @@ def test_add_model_from_twin_refuses_a_kind_its_members_contradict(park):
     cat.remove("tall_one")
 
 
-def _classified_las(path, with_classes: bool):
+def _classified_las(path, with_classes: bool, shift=(0.0, 0.0), copc: bool = False):
     """A 30 x 20 m patch of ground (class 2) with two car-sized boxes of points: one classed building (6), one 1
-    (unclassified, as AHN classes its cars)."""
+    (unclassified, as AHN classes its cars); moved by ``shift`` (m); ``copc``: written as a COPC file."""
     import laspy
 
     rng = np.random.default_rng(0)
@@ -241,14 +241,18 @@ def _classified_las(path, with_classes: bool):
 
     wall = box([6, 5, 0.2], [10.4, 6.8, 1.5], 3000)
     car = box([18, 8, 0.2], [22.4, 9.8, 1.5], 3000)
-    pts = np.vstack([g, wall, car])
+    pts = np.vstack([g, wall, car]) + [*shift, 0.0]
+    cls = np.r_[np.full(len(g), 2), np.full(len(wall), 6), np.full(len(car), 1)] if with_classes else \
+        np.zeros(len(pts))
+    if copc:
+        from twinreg.io.copc import write_copc
+
+        return write_copc(path, pts, None, classes=cls.astype(np.uint8))
     header = laspy.LasHeader(point_format=3, version="1.4")
     header.scales = [0.001] * 3
     header.offsets = [0, 0, 0]
     las = laspy.LasData(header)
     las.x, las.y, las.z = pts.T
-    cls = np.r_[np.full(len(g), 2), np.full(len(wall), 6), np.full(len(car), 1)] if with_classes else \
-        np.zeros(len(pts))
     las.classification = cls.astype(np.uint8)
     las.write(path)
     return path
@@ -280,3 +284,35 @@ def test_a_classified_scan_names_its_buildings_structure(parametric_catalogue, t
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "plain" / "twin.json").read_text())
     assert doc["scan_classes"]["used"] is False and "no ASPRS class" in doc["scan_classes"]["reason"]
+
+
+@pytest.mark.timeout(300)
+def test_a_tiled_run_reads_the_classes_as_a_scene_does(parametric_catalogue, tmp_path):
+    """build-twin cell by cell reads the tiles' ASPRS classes (plain LAS split into cells, and COPC read by bounds)
+    and names the same objects as a scene run of the same points; ``--no-scan-classes`` turns it off there too."""
+    shift = (20.0, 20.0)  # the patch across four 33 m cells: a plain tile read by each is split into them
+    plain = _classified_las(tmp_path / "patch.las", True, shift)
+    copc = _classified_las(tmp_path / "patch.copc.laz", True, shift, copc=True)
+    lib = ["--library", parametric_catalogue.folder, "--no-ply"]
+    runs = {"scene": [plain], "split": [plain, "--cell", "33", "--workers", "1"],
+            "copc": [copc, "--workers", "1"], "off": [plain, "--cell", "33", "--workers", "1", "--no-scan-classes"]}
+    docs, outputs = {}, {}
+    for name, args in runs.items():
+        out = tmp_path / name
+        res = _run("build-twin", args[0], *DUBLIN, "--out", out, *args[1:], *lib)
+        assert res.exit_code == 0, (name, res.output)
+        docs[name] = json.loads((out / "twin.json").read_text())
+        outputs[name] = res.output
+    assert "split tiles" in outputs["split"] and "split tiles" not in outputs["copc"]  # the plain tile was split
+    for name in ("scene", "split", "copc"):
+        assert docs[name]["scan_classes"] == {"used": True, "codes": {"2": "ground", "6": "building"}}, name
+    assert docs["off"]["scan_classes"]["used"] is False and "turned off" in docs["off"]["scan_classes"]["reason"]
+
+    def kind(doc, x, y):
+        return next(o["kind"] for o in doc["objects"]
+                    if np.hypot(o["centroid"][0] - x - shift[0], o["centroid"][1] - y - shift[1]) < 1.0)
+
+    for name in ("split", "copc"):  # the same points, the same kinds
+        assert kind(docs[name], 8.2, 5.9) == kind(docs["scene"], 8.2, 5.9) == "structure", name
+        assert kind(docs[name], 20.2, 8.9) == kind(docs["scene"], 20.2, 8.9) != "structure", name
+    assert kind(docs["off"], 8.2, 5.9) != "structure"

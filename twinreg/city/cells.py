@@ -19,6 +19,7 @@ from cosco.footprint import min_area_rectangle
 from ..detect import describe_detected, detect_points, object_ground, object_levels, object_points
 from ..export.scan_tiles import cell_scan_folder, write_cell_scan
 from ..export.tiles3d import scan_sample
+from ..io.asprs import NAMES
 from ..io.observed import raster
 from ..io.points import PointSet
 from ..matching.acceptance import sample_cloud, scene_noise
@@ -87,12 +88,24 @@ class CellResult:
     timing_s: dict = field(default_factory=dict)
     observed: object = None
     scan_tiles: dict | None = None
+    codes: list = field(default_factory=list)  # the ASPRS classes the kinds read that the cell's points carry
 
 
-def read_cell(job: CellJob) -> np.ndarray:
-    """The (n, 3) float64 metre points of the cell's buffered square, from every tile that feeds it."""
-    boxes = [read_box(src, job.cell.read_lo, job.cell.read_hi) for src in job.boxes]
-    return read_splits(job.splits, job.cell.name, boxes)
+def read_cell(job: CellJob) -> tuple[np.ndarray, np.ndarray]:
+    """The (n, 3) float64 metre points of the cell's buffered square, from every tile that feeds it, and their (n,)
+    uint8 ASPRS classes."""
+    boxes = [read_box(src, job.cell.read_lo, job.cell.read_hi, classes=True) for src in job.boxes]
+    return read_splits(job.splits, job.cell.name, boxes, classes=True)
+
+
+def scan_codes(codes: np.ndarray) -> list[int]:
+    """The ASPRS classes the kinds read (:data:`twinreg.io.asprs.NAMES`) that a cell's points carry, ascending.
+
+    >>> scan_codes(np.array([1, 2, 2, 6, 26], dtype=np.uint8))
+    [2, 6]
+    """
+    present = np.flatnonzero(np.bincount(np.asarray(codes, dtype=np.int64), minlength=256))
+    return [int(c) for c in present if int(c) in NAMES]
 
 
 def process_cell(job: CellJob, *ready) -> CellResult:
@@ -109,15 +122,22 @@ def _process_cell(job: CellJob) -> CellResult:
     cell, params = job.cell, job.params
     out = CellResult(cell.name, job.key, cell.lo, cell.hi)
     t0 = time.perf_counter()
-    pts = [read_cell(job)]  # held in a list, so that the scene alone holds the points (and lets go of the margin)
+    # held in a list, so that the scene alone holds the points (and lets go of the margin)
+    got = read_cell(job)
+    pts, codes = [got[0]], got[1]
+    del got
     out.n_read = len(pts[0])
+    out.codes = scan_codes(codes)
+    # a scan classed beyond 0 (never) and 1 (unclassified) gives its objects' class shares, as a scene's reader does
+    classes = codes if params.open_world.scan_classes and (codes > 1).any() else None
     out.timing_s["read"] = time.perf_counter() - t0
     if out.n_read < 100:
         return _empty_cell(job, out)
     offset = np.asarray(job.offset, dtype=np.float64)
     # the ground from everything read (the filter's reach), the objects from the core and its buffer
-    det = detect_points(PointSet(path=Path(cell.name), points=pts.pop(), offset=offset, unit="m"), params,
-                        keep=lambda p: cell.searches(p[:, :2]))
+    det = detect_points(PointSet(path=Path(cell.name), points=pts.pop(), offset=offset, unit="m", classes=classes),
+                        params, keep=lambda p: cell.searches(p[:, :2]))
+    del classes, codes
     out.timing_s.update(det.timing_s)
     pts = det.scene.points
     own = cell.owns(pts[:, :2])

@@ -16,7 +16,7 @@ import numpy as np
 from ..export.formats import TwinFiles, write_twin
 from ..export.twin_json import MatchSummary, ScanSummary, survey_date, twin_document
 from ..io import observed
-from ..io.asprs import classes_doc
+from ..io.asprs import NAMES, classes_doc
 from ..io.outdir import staged_folder
 from ..report.city import write_city_report
 from ..stages import finish
@@ -75,6 +75,14 @@ def _unmatched_clouds(run: CityRun, outcomes: list) -> list:
                        [w if res.match is None else None for w, res in zip(where, outcomes)])
 
 
+def city_classes_doc(results: list, on: bool) -> dict:
+    """twin.json's ``scan_classes`` for a city run: the ASPRS classes the kinds read that any cell's points carry
+    (:attr:`~twinreg.city.cells.CellResult.codes`; a code a cell file gives that the kinds do not read is ignored),
+    as :func:`~twinreg.io.asprs.classes_doc` says them for one scene."""
+    codes = sorted({c for r in results for c in (r.codes or []) if type(c) is int and c in NAMES})
+    return classes_doc(np.array(codes, dtype=np.uint8) if codes else None, on)
+
+
 def export_city(run: CityRun) -> dict:
     """Write a tiled run's twin (see the module's text); returns twin.json's document."""
     t = time.perf_counter()
@@ -120,8 +128,7 @@ def _document(run: CityRun, docs: list[dict], by_cell: dict) -> dict:
                        np.asarray(plan.offset), float(np.median([r.noise for r in results if r.n_points])),
                        np.vstack([lo, hi]), sources=[s.path for s in sources], survey_date=when,
                        survey_date_source=source, warnings=warnings,
-                       scan_classes=classes_doc(None, reason="a tiled (city) run does not read the tiles' classes "
-                                                       "yet; build-twin on one tile reads them"))
+                       scan_classes=city_classes_doc(results, run.params.open_world.scan_classes))
     grid = {"cell_m": plan.grid.size, "buffer_m": plan.grid.buffer, "read_margin_m": plan.grid.reach,
             "n_cells": plan.n_cells, "n_cells_reused": int(run.reused), "origin": [0.0, 0.0]}
     return twin_document(scan, run.georef, docs, run.tax, run.params,

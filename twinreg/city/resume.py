@@ -22,12 +22,13 @@ from . import cellfile
 WORK = ".cells"
 
 
-#: the groups a cell reads whole (ground, segmentation, symmetry and headings, levels, sections) and the one value
-#: it reads from another (the number of each object's points kept for the acceptance test): a cell's key hashes
+#: the groups a cell reads whole (ground, segmentation, symmetry and headings, levels, sections) and the values it
+#: reads from others (the number of each object's points kept for the acceptance test, whether the objects' class
+#: shares are read from the scan's ASPRS classes): a cell's key hashes
 #: these alone, so that matching's, kinds', fusion's and change's settings (``--min-confidence``, ``--tol``...)
 #: reuse every finished cell. A test runs cells with recording settings and checks that nothing else is read.
 CELL_GROUPS = ("ground", "segment", "joins", "symmetry", "levels", "sections", "surface")
-CELL_VALUES = (("matching", "accept_max_points"),)
+CELL_VALUES = (("matching", "accept_max_points"), ("open_world", "scan_classes"))
 
 
 def cell_params(params) -> dict:

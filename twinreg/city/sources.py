@@ -192,22 +192,28 @@ def _xyz(points, source: Source) -> np.ndarray:
 
 
 def _chunks(source: Source):
-    """The (n, 3) float64 metre points of a plain LAS/LAZ file, ``CHUNK_POINTS`` at a time."""
+    """The (n, 3) float64 metre points of a plain LAS/LAZ file and their (n,) uint8 ASPRS classes, ``CHUNK_POINTS``
+    at a time."""
     import laspy
 
     try:
         with laspy.open(source.path) as reader:
             for chunk in reader.chunk_iterator(CHUNK_POINTS):
-                yield _xyz(chunk, source)
+                yield _xyz(chunk, source), _classes(chunk)
     except Exception as exc:
         raise SceneReadError(f"{source.path}: reading failed ({type(exc).__name__}: {exc}); is the file complete?") \
             from exc
 
 
+def _classes(points) -> np.ndarray:
+    """(n,) uint8 ASPRS classes of a laspy point record."""
+    return np.asarray(points.classification, dtype=np.uint8)
+
+
 def _raw_chunks(source: Source):
     """A plain LAS/LAZ file's points ``CHUNK_POINTS`` at a time, for splitting: their x and y in metres ((n,)
-    float64 each, as :func:`_xyz` gives them), their integer coordinates ((n, 3) int32 X, Y, Z), the header's scales
-    and offsets."""
+    float64 each, as :func:`_xyz` gives them), their integer coordinates ((n, 3) int32 X, Y, Z), their ASPRS classes
+    ((n,) uint8), the header's scales and offsets."""
     import laspy
 
     try:
@@ -218,15 +224,17 @@ def _raw_chunks(source: Source):
                 for k, name in enumerate("XYZ"):
                     ints[:, k] = chunk[name]
                 yield (np.asarray(chunk.x, dtype=np.float64) * source.scale,
-                       np.asarray(chunk.y, dtype=np.float64) * source.scale, ints, h.scales, h.offsets)
+                       np.asarray(chunk.y, dtype=np.float64) * source.scale, ints, _classes(chunk), h.scales,
+                       h.offsets)
     except Exception as exc:
         raise SceneReadError(f"{source.path}: reading failed ({type(exc).__name__}: {exc}); is the file complete?") \
             from exc
 
 
-def read_box(source: Source, lo, hi) -> np.ndarray:
+def read_box(source: Source, lo, hi, classes: bool = False):
     """The points of one tile inside the closed box ``[lo, hi]`` (2-vectors, metres): a COPC file by bounds (only
-    the octree nodes that meet the box are decompressed), a plain LAS/LAZ file by chunks."""
+    the octree nodes that meet the box are decompressed), a plain LAS/LAZ file by chunks; with ``classes``, the pair
+    (points, their (n,) uint8 ASPRS classes)."""
     lo, hi = np.asarray(lo, dtype=np.float64)[:2], np.asarray(hi, dtype=np.float64)[:2]
     if source.copc:
         import laspy
@@ -237,26 +245,36 @@ def read_box(source: Source, lo, hi) -> np.ndarray:
                                    maxs=np.array([hi[0] / source.scale, hi[1] / source.scale, zhi]))
         try:
             with laspy.CopcReader.open(source.path) as reader:
-                pts = _xyz(reader.query(bounds=bounds), source)
+                got = reader.query(bounds=bounds)
+                pts, codes = _xyz(got, source), _classes(got)
+                del got
         except Exception as exc:
             raise SceneReadError(f"{source.path}: reading the COPC file failed ({type(exc).__name__}: {exc})") \
                 from exc
-        return pts[in_box(pts[:, :2], lo, hi)]
-    parts = []
-    for pts in _chunks(source):
-        parts.append(pts[in_box(pts[:, :2], lo, hi)])
-    return np.vstack(parts) if parts else np.zeros((0, 3))
+        inside = in_box(pts[:, :2], lo, hi)
+        return (pts[inside], codes[inside]) if classes else pts[inside]
+    parts, codes = [], []
+    for pts, c in _chunks(source):
+        inside = in_box(pts[:, :2], lo, hi)
+        parts.append(pts[inside])
+        codes.append(c[inside])
+    pts = np.vstack(parts) if parts else np.zeros((0, 3))
+    return (pts, np.concatenate(codes) if codes else np.zeros(0, np.uint8)) if classes else pts
 
 
 #: how a split keeps its points: the file's own integer coordinates, ``(n, 3)`` int32 X, Y, Z in ``<cell>.i32`` (half
-#: the bytes of float64 metres); ``split.json`` holds the header's scales and offsets and the unit's scales
+#: the bytes of float64 metres) and their ASPRS classes, ``(n,)`` uint8 in ``<cell>.cls``; ``split.json`` holds the
+#: header's scales and offsets and the unit's scales
 SPLIT_FORMAT = "i32"
+SPLIT_CLASSES = "cls"
+#: the split document's format: a split of an earlier format (points without their classes) is made again
+SPLIT_DOC_FORMAT = "i32+cls"
 
 
 def split_key(source: Source, grid: Grid) -> str:
     """The hash naming a tile's split for one grid (changes when the file, the grid or the split's format
     changes)."""
-    text = json.dumps([source.key(), grid.size, grid.buffer, grid.margin, SPLIT_FORMAT])
+    text = json.dumps([source.key(), grid.size, grid.buffer, grid.margin, SPLIT_DOC_FORMAT])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -274,14 +292,16 @@ def split_doc(folder) -> dict | None:
         if folder.is_symlink() or p.is_symlink() or not p.is_file() or p.stat().st_size > 2 ** 20:
             return None
         doc = json.loads(p.read_text(encoding="utf-8"))
-        if not isinstance(doc, dict) or doc.get("format") != SPLIT_FORMAT or not isinstance(doc.get("cells"), dict):
+        if not isinstance(doc, dict) or doc.get("format") != SPLIT_DOC_FORMAT or not isinstance(doc.get("cells"), dict):
             return None
         cells = doc["cells"]
         for name, n in cells.items():
-            f = folder / f"{name}.{SPLIT_FORMAT}"
-            if (not _CELL_NAME.fullmatch(str(name)) or type(n) is not int or n < 0 or f.is_symlink()
-                    or not f.is_file() or f.stat().st_size != 12 * n):
+            if not _CELL_NAME.fullmatch(str(name)) or type(n) is not int or n < 0:
                 return None
+            for suffix, size in ((SPLIT_FORMAT, 12), (SPLIT_CLASSES, 1)):
+                f = folder / f"{name}.{suffix}"
+                if f.is_symlink() or not f.is_file() or f.stat().st_size != size * n:
+                    return None
         for key in ("scales", "offsets", "units") if cells else ():
             v = doc.get(key)
             if not (isinstance(v, list) and len(v) == 3
@@ -294,7 +314,8 @@ def split_doc(folder) -> dict | None:
 
 def split_tile(source: Source, grid: Grid, folder) -> dict:
     """Stream a plain LAS/LAZ tile once and write, for every cell its points feed (core and buffer), those points
-    as the file's integer coordinates (:data:`SPLIT_FORMAT`) to ``folder/<cell>.i32``; returns ``{cell name: n}``.
+    as the file's integer coordinates (:data:`SPLIT_FORMAT`) to ``folder/<cell>.i32`` and their ASPRS classes to
+    ``folder/<cell>.cls``; returns ``{cell name: n}``.
     The folder appears complete (written under a temporary name, then renamed) or not at all, so a killed split is
     redone; a folder whose document does not check (:func:`split_doc`) is removed and the tile split again."""
     folder = Path(folder)
@@ -313,7 +334,7 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     scaling = None
     try:
         boxes = np.array([[*c.read_lo, *c.read_hi] for c in cells], dtype=np.float64).reshape(-1, 4)
-        for x, y, ints, scales, offsets in _raw_chunks(source):
+        for x, y, ints, codes, scales, offsets in _raw_chunks(source):
             if scaling is None:  # one header: the same for every chunk
                 scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
                            "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
@@ -322,26 +343,31 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
                 if not len(inside):
                     continue
                 if c.name not in handles:
-                    handles[c.name] = open(tmp / f"{c.name}.{SPLIT_FORMAT}", "wb")
-                handles[c.name].write(np.ascontiguousarray(ints[inside], dtype=np.int32).tobytes())
+                    handles[c.name] = (open(tmp / f"{c.name}.{SPLIT_FORMAT}", "wb"),
+                                       open(tmp / f"{c.name}.{SPLIT_CLASSES}", "wb"))
+                handles[c.name][0].write(np.ascontiguousarray(ints[inside], dtype=np.int32).tobytes())
+                handles[c.name][1].write(np.ascontiguousarray(codes[inside], dtype=np.uint8).tobytes())
                 counts[c.name] = counts.get(c.name, 0) + len(inside)
-        for h in handles.values():
-            h.close()
-        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts, "format": SPLIT_FORMAT,
+        for pair in handles.values():
+            for h in pair:
+                h.close()
+        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts, "format": SPLIT_DOC_FORMAT,
                                                     **(scaling or {})}), encoding="utf-8")
         os.replace(tmp, folder)
     except BaseException:
-        for h in handles.values():
-            h.close()
+        for pair in handles.values():
+            for h in pair:
+                h.close()
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return counts
 
 
-def read_splits(folders, cell_name: str, extra=()) -> np.ndarray:
+def read_splits(folders, cell_name: str, extra=(), classes: bool = False):
     """The points split tiles gave one cell, followed by the ``extra`` (n, 3) arrays: (n, 3) float64 metres, each
     file's integers scaled into one array (laspy's arithmetic, ``(X * scale + offset) * unit``: the same metres as
-    reading the tile, bit for bit)."""
+    reading the tile, bit for bit). With ``classes``, the pair (points, their (n,) uint8 ASPRS classes), ``extra``
+    then being (points, classes) pairs."""
     parts = []
     for folder in folders:
         doc = split_doc(folder)
@@ -350,7 +376,9 @@ def read_splits(folders, cell_name: str, extra=()) -> np.ndarray:
                             "split again)")
         if cell_name in doc["cells"]:
             parts.append((Path(folder) / f"{cell_name}.{SPLIT_FORMAT}", doc["cells"][cell_name], doc))
-    out = np.empty((sum(n for _, n, _ in parts) + sum(len(e) for e in extra), 3))
+    more = [e[0] for e in extra] if classes else list(extra)
+    out = np.empty((sum(n for _, n, _ in parts) + sum(len(e) for e in more), 3))
+    codes = np.empty(len(out), dtype=np.uint8) if classes else None
     at = 0
     for f, n, doc in parts:
         ints = np.fromfile(f, dtype=np.int32, count=3 * n).reshape(n, 3)
@@ -361,8 +389,12 @@ def read_splits(folders, cell_name: str, extra=()) -> np.ndarray:
             if doc["units"][k] != 1.0:
                 col *= doc["units"][k]
         del ints
+        if classes:
+            codes[at:at + n] = np.fromfile(f.with_suffix(f".{SPLIT_CLASSES}"), dtype=np.uint8, count=n)
         at += n
-    for e in extra:
+    for k, e in enumerate(more):
         out[at:at + len(e)] = e
+        if classes:
+            codes[at:at + len(e)] = extra[k][1]
         at += len(e)
-    return out
+    return (out, codes) if classes else out

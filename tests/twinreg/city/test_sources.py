@@ -85,22 +85,27 @@ def test_reading_by_chunks_and_splitting_keep_every_point_once(tmp_path, monkeyp
 
 def test_a_split_gives_the_metres_of_the_tile_bit_for_bit_in_feet_too(tmp_path):
     # the split keeps the file's integers; the cell scales them back with the header's scale and offset and the
-    # unit (international feet here): the same float64 metres as reading the tile
+    # unit (international feet here): the same float64 metres as reading the tile, each with its ASPRS class
     rng = np.random.default_rng(3)
+    codes = rng.choice(np.array([1, 2, 5, 6], dtype=np.uint8), 4000)
     tile = write_las(tmp_path / "feet.laz", rng.uniform([4_000_000, 800_000, 300], [4_000_150, 800_150, 330],
-                                                       (4000, 3)), crs="EPSG:2994")
+                                                       (4000, 3)), crs="EPSG:2994", classes=codes)
     (src,) = open_sources([tile])
     assert src.scale != 1.0
-    direct = read_box(src, [-1e12, -1e12], [1e12, 1e12])
+    direct, direct_codes = read_box(src, [-1e12, -1e12], [1e12, 1e12], classes=True)
+    assert np.array_equal(direct_codes, codes)
     grid = Grid(20.0, 2.0, 5.0)
     counts = split_tile(src, grid, tmp_path / "split")
-    assert sorted(p.suffix for p in (tmp_path / "split").iterdir()) == [".i32"] * len(counts) + [".json"]
+    assert sorted(p.suffix for p in (tmp_path / "split").iterdir()) == \
+        [".cls"] * len(counts) + [".i32"] * len(counts) + [".json"]
     for name, n in counts.items():
         ix, iy = map(int, name[1:].split("_"))
         c = grid.cell(ix, iy)
-        got = read_splits([tmp_path / "split"], name)
-        want = direct[((direct[:, :2] >= c.read_lo) & (direct[:, :2] <= c.read_hi)).all(1)]
-        assert len(got) == n and np.array_equal(got, want)  # the same points in the same order, bit for bit
+        got, got_codes = read_splits([tmp_path / "split"], name, classes=True)
+        inside = ((direct[:, :2] >= c.read_lo) & (direct[:, :2] <= c.read_hi)).all(1)
+        assert len(got) == n and np.array_equal(got, direct[inside])  # the same points in the same order, bit for bit
+        assert np.array_equal(got_codes, codes[inside])  # each with its class
+        assert np.array_equal(read_splits([tmp_path / "split"], name), got)  # the points alone, as before
 
 
 def test_a_damaged_or_planted_split_is_made_again_and_names_no_path(tmp_path):
@@ -120,7 +125,9 @@ def test_a_damaged_or_planted_split_is_made_again_and_names_no_path(tmp_path):
     outside.write_bytes(b"\0" * 12)
     good = json.loads((folder / "split.json").read_text())
     name = sorted(counts)[0]
-    for bad in ({**good, "format": "f64"}, {**good, "cells": {**counts, name: counts[name] + 1}},
+    # "i32": a split of the format before the classes were kept
+    for bad in ({**good, "format": "f64"}, {**good, "format": "i32"},
+                {**good, "cells": {**counts, name: counts[name] + 1}},
                 {**good, "cells": {**counts, "../elsewhere": 1}}, {**good, "scales": ["1e-3", 1, 1]}, [1, 2]):
         (folder / "split.json").write_text(json.dumps(bad))
         with pytest.raises(CityError):
@@ -129,4 +136,9 @@ def test_a_damaged_or_planted_split_is_made_again_and_names_no_path(tmp_path):
         assert json.loads((folder / "split.json").read_text()) == good
         for n in counts:
             assert np.array_equal(read_splits([folder], n), want[n])
+    # a classes file cut short (a killed copy): split again
+    (folder / f"{name}.cls").write_bytes(b"\2")
+    with pytest.raises(CityError):
+        read_splits([folder], name)
+    assert split_tile(src, grid, folder) == counts and np.array_equal(read_splits([folder], name), want[name])
     assert outside.read_bytes() == b"\0" * 12
