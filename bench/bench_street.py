@@ -117,7 +117,8 @@ def run_street(cat, density: float, seed: int, platform: str = "airborne", seen:
         if k >= 0:
             m = results[k].match
             kind = category[m.name] if m is not None else kinds[k].kind
-            row.update(got_kind=kind, got_model=m.name if m is not None else None,
+            row.update(got_kind=kind, kind_confidence=round(float(kinds[k].confidence), 3),
+                       got_model=m.name if m is not None else None,
                        confidence=None if m is None else m.confidence, level=levels[k],
                        measured=[round(float(v), 2) for v in shapes[k].size.as_array()])
             if m is None:

@@ -130,8 +130,12 @@ class OpenWorldParams:
     to its kind's nearest other (at least ``min_spread``: two exemplars of one design are no measure of a kind's
     spread). When the scan is classified (``scan_classes``, ASPRS classes in LAS/LAZ), an object at least
     ``class_share`` of whose points are classed vegetation is ``vegetation``, building or bridge ``structure``,
-    whatever its size. Tuned on the tuning halves of bench/bench_open_kinds.py (KITTI and nuScenes left of the
-    vehicle, DALES even ids)."""
+    whatever its size. From the ground (points along scan lines), a plan width no more than ``resolve_spacings``
+    times the object's point spacing over its seen surface is not measured (a one-sided sliver's depth, a few scan
+    lines across: :func:`~twinreg.recognition.kinds.unresolved`): the kind's references may be as wide or wider,
+    and its level of symmetry is no evidence.
+    Tuned on the tuning halves of bench/bench_open_kinds.py (KITTI and nuScenes left of the vehicle, DALES even ids),
+    ``resolve_spacings`` on bench/bench_street.py's van streets of seeds 1-2."""
 
     size_margin: float = 0.1  # share beyond the kind's sizes
     plan_margin: float = 0.25  # m beyond its plan
@@ -157,6 +161,7 @@ class OpenWorldParams:
     min_spread: float = 0.3  # the least spread of a kind
     scan_classes: bool = True  # read a classified scan's classes
     class_share: float = 0.5  # of its points, to take the class
+    resolve_spacings: float = 2.0  # point spacings a plan side needs to be measured
 
 
 @dataclass(frozen=True)

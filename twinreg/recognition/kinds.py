@@ -106,16 +106,57 @@ class KindResult:
     near: tuple = ()
     margin: float = 0.0
     fitted: str | None = None  # the kind it fits but is too near another to name (:func:`confirmed_by_model`)
+    fits: tuple = ()  # with sides its points do not measure: every kind it fits, which a model may confirm
 
 
-def distances(size, level: str, refs: References, params: Settings = DEFAULT) -> np.ndarray:
+def distances(size, level: str, refs: References, params: Settings = DEFAULT, loose=None) -> np.ndarray:
     """(n,) the distance of an object (``size`` L, W, H metres, its ``level``) to every reference. The plan sizes
     are compared longer to longer (a model's length is along its own x axis, which may be its shorter side: a bus
-    shelter drawn facing +x)."""
+    shelter drawn facing +x). ``loose``: (2,) which of the object's plan-sorted sides its points do not measure
+    (:func:`unresolved`): such a side is a least size, only a reference smaller than it is away, and the level
+    (read from a sliver) is not compared.
+
+    >>> refs = References(np.arange(2), ["mailbox", "cone"], np.array(["mailbox", "cone"], dtype=object),
+    ...                   np.array([[0.34, 0.13, 1.05], [0.31, 0.31, 1.08]]),
+    ...                   np.array(["two_mirrors", "rotational"], dtype=object))
+    >>> distances([0.23, 0.1, 0.95], "two_mirrors", refs).round(2).tolist()  # a cone's sliver: a mailbox?
+    [0.75, 2.16]
+    >>> distances([0.23, 0.1, 0.95], "two_mirrors", refs, loose=[False, True]).round(2).tolist()  # either
+    [0.49, 0.43]
+    """
     floor = params.kinds.min_size
-    ratio = np.abs(np.log(np.maximum(_plan_sorted(size), floor) / np.maximum(_plan_sorted(refs.sizes), floor)))
+    log_ratio = np.log(np.maximum(_plan_sorted(size), floor) / np.maximum(_plan_sorted(refs.sizes), floor))
+    ratio = np.abs(log_ratio)
+    differ = refs.levels != level
+    if loose is not None and np.any(loose):
+        plan = np.asarray(loose, dtype=bool)
+        ratio[:, :2] = np.where(plan, np.maximum(log_ratio[:, :2], 0.0), ratio[:, :2])
+        differ = np.zeros(len(refs.levels), dtype=bool)
     d = params.kinds.length_weight * ratio[:, 0] + ratio[:, 1] + ratio[:, 2]
-    return d + params.kinds.level_penalty * (refs.levels != level)
+    return d + params.kinds.level_penalty * differ
+
+
+def unresolved(size, n_points: int | None, params: Settings = DEFAULT, lines: bool = True) -> np.ndarray:
+    """(2,) which of an object's plan-sorted sides (L, W) its ``n_points`` points, along a ground scanner's
+    ``lines``, do not measure: its narrower side when no longer than ``open_world.resolve_spacings`` times their
+    spacing over the surface a scan sees of it (its top and two of its sides, ``sqrt((L W + (L + W) H) / n)``). A
+    van's few lines over a cone 20 m away measure its height and breadth, not how deep it is: a sliver as thin as a
+    mailbox. Its length is always taken as measured (else a few points of a post would fit a car), and so is every
+    side from the air or of a sweep without scanner positions (``lines`` False: a car's side seen from a sweep is
+    as thin as a wall's, which no thickness then tells apart), or when ``n_points`` is None.
+
+    >>> unresolved([0.23, 0.1, 0.85], 30).tolist(), unresolved([0.33, 0.31, 1.05], 200).tolist()
+    ([False, True], [False, False])
+    >>> unresolved([0.23, 0.1, 0.85], 30, lines=False).tolist(), unresolved([4.4, 1.8, 1.5], 80).tolist()
+    ([False, False], [False, False])
+    """
+    out = np.zeros(2, dtype=bool)
+    if not n_points or not lines:
+        return out
+    s = _plan_sorted(size)
+    spacing = np.sqrt(max(s[0] * s[1] + (s[0] + s[1]) * s[2], 0.0) / n_points)
+    out[1] = s[1] <= params.open_world.resolve_spacings * spacing
+    return out
 
 
 def seen_size(points: np.ndarray, above: float, fallback) -> np.ndarray:
@@ -181,22 +222,23 @@ def kind_spreads(refs: References, params: Settings = DEFAULT) -> dict:
     return out
 
 
-def fits_kind(size, d_own: float, kind: str, refs: References, params: Settings = DEFAULT) -> bool:
+def fits_kind(size, d_own: float, kind: str, refs: References, params: Settings = DEFAULT, loose=None) -> bool:
     """Whether an object whose nearest reference of ``kind`` is ``d_own`` away fits that kind: within the spread of
     the kind's scanned exemplars (:func:`kind_spreads`) or, for mesh models, their range of sizes
-    (:func:`fits_size`)."""
+    (:func:`fits_size`; a side its points do not measure, ``loose``, is no smaller than theirs)."""
     spread = refs.spreads.get(kind)
     if spread is not None:
         return d_own <= params.open_world.scan_spread * max(spread, params.open_world.min_spread)
     lo, hi = refs.ranges[kind]
-    return fits_size(size, lo, hi, params)
+    loose = np.zeros(2, dtype=bool) if loose is None else np.asarray(loose, dtype=bool)
+    return fits_size(size, lo, hi, params, sliver=bool(loose[1]))
 
 
 def fits_size(size, lo, hi, params: Settings = DEFAULT, sliver: bool = False) -> bool:
     """Whether an object of ``size`` (L, W, H m) is of a kind whose references measure ``lo``-``hi`` (plan-sorted):
     its plan no larger than theirs (a share and metres of margin), its longer side not a small part of theirs nor
-    its narrower (unless ``sliver``: what a kind seen edge-on may be), its height within theirs widened by the
-    margins (:class:`~twinreg.settings.OpenWorldParams`).
+    its narrower (unless ``sliver``: what a kind seen edge-on may be, or a side its points do not measure), its
+    height within theirs widened by the margins (:class:`~twinreg.settings.OpenWorldParams`).
 
     >>> lo, hi = np.array([3.7, 1.6, 1.4]), np.array([5.0, 2.0, 2.1])
     >>> fits_size([4.4, 1.8, 1.5], lo, hi), fits_size([2.5, 0.9, 1.4], lo, hi)  # a car seen whole, one seen in part
@@ -278,7 +320,31 @@ def kind_of(shape, level: str, refs: References, params: Settings = DEFAULT) -> 
     by_class = class_kind(shape.classes, params)
     if by_class is not None:  # its confidence: the share of its points the scan classes so
         return KindResult(by_class, float(max(shape.classes)), {})
-    return recognise_kind(shape.size.as_array(), level, refs, params, shape.surface)
+    size = shape.size.as_array()
+    lines = shape.surface is not None and shape.surface.along_lines
+    got = recognise_kind(size, level, refs, params, shape.surface, shape.n_points if lines else None)
+    loose = unresolved(size, shape.n_points, params, lines)
+    if not loose.any() or len(refs) == 0:
+        return got
+    return replace(got, fits=kinds_fitted(size, loose, refs, params, shape.surface))
+
+
+def kinds_fitted(size, loose, refs: References, params: Settings = DEFAULT, surface=None) -> tuple:
+    """The kinds an object fits by size (its ``loose`` sides least sizes, :func:`fits_kind`) and surface
+    (:func:`fits_surface`), nearest first: what its size cannot tell apart, a model's sections may."""
+    d = distances(size, "none", refs, params, loose)
+    out = []
+    for kind in sorted(refs.ranges, key=lambda k: float(d[refs.kinds == k].min())):
+        mine = refs.kinds == kind
+        own = float(d[mine].min())
+        if not own <= params.kinds.unknown_distance:
+            continue
+        lo, hi = refs.ranges[kind]
+        thin = bool(lo[2] >= params.open_world.thin_ratio * hi[1])
+        if fits_kind(size, own, kind, refs, params, loose) and (kind in refs.scanned
+                                                                 or fits_surface(surface, kind, params, thin)):
+            out.append(kind)
+    return tuple(out)
 
 
 def class_kind(shares, params: Settings = DEFAULT) -> str | None:
@@ -298,8 +364,9 @@ def class_kind(shares, params: Settings = DEFAULT) -> str | None:
 
 
 def recognise_kind(size, level: str, refs: References, params: Settings = DEFAULT,
-                   surface=None) -> KindResult:
-    """The kind of one object (see the module's text).
+                   surface=None, n_points: int | None = None) -> KindResult:
+    """The kind of one object (see the module's text); ``n_points``: its points along a ground scanner's lines,
+    which tell which of its plan's sides they measure (:func:`unresolved`; None: every side).
 
     >>> refs = References(np.arange(4), list("abcd"), np.array(["car", "car", "pole", "pole"], dtype=object),
     ...                   np.array([[4.5, 1.8, 1.5], [4.2, 1.7, 1.4], [0.3, 0.3, 8.0], [0.4, 0.4, 10.0]]),
@@ -314,7 +381,8 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     """
     if len(refs) == 0:
         return KindResult(UNKNOWN, 0.0, {})  # CONTRACT: an empty catalogue names nothing
-    d = distances(size, level, refs, params)
+    loose = unresolved(size, n_points, params)
+    d = distances(size, level, refs, params, loose)
     height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kinds.min_size)
                            / np.maximum(refs.sizes[:, 2], params.kinds.min_size)))
     d = np.where(height > np.log(params.kinds.max_height_ratio), np.inf, d)
@@ -337,7 +405,7 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     lo, hi = refs.ranges[kind]
     thin = bool(lo[2] >= params.open_world.thin_ratio * hi[1])
     shell = kind in refs.scanned or fits_surface(surface, kind, params, thin)
-    sized = fits_kind(size, float(d[mine].min()), kind, refs, params)
+    sized = fits_kind(size, float(d[mine].min()), kind, refs, params, loose)
     if not (sized and shell):
         # a sparse object's surface is its whole shape, not its skin: a model of the kind may still decide it
         sparse = sized and surface is not None and surface.n < params.open_world.linearity_min_points
@@ -355,14 +423,19 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
 def confirmed_by_model(kind: KindResult, category: str | None, confidence: float | None) -> KindResult:
     """``kind``, or the kind an object fits (its size, its surface) but whose vote was too close to name when the
     model decided for it (at the floor or above, ``confidence``) is of that kind (``category``): its sections then
-    tell a hydrant from a cone of one size, which the vote by size cannot; its kind's confidence the model's.
+    tell a hydrant from a cone of one size, which the vote by size cannot; its kind's confidence the model's. An
+    object with sides its points do not measure fits every kind of :attr:`KindResult.fits`.
 
     >>> k = KindResult("unknown", 0.0, {"hydrant": 0.6, "cone": 0.4}, fitted="hydrant")
     >>> confirmed_by_model(k, "hydrant", 0.93).kind, confirmed_by_model(k, "cone", 0.93).kind
     ('hydrant', 'unknown')
+    >>> confirmed_by_model(replace(k, fits=("hydrant", "mailbox")), "mailbox", 0.9).kind
+    'mailbox'
     """
-    if kind.fitted is not None and category == kind.fitted and confidence is not None:
-        return replace(kind, kind=kind.fitted, confidence=float(confidence))
+    if confidence is None or category is None:
+        return kind
+    if category == kind.fitted or (kind.kind in NO_MODEL and category in kind.fits):
+        return replace(kind, kind=category, confidence=float(confidence))
     return kind
 
 

@@ -241,3 +241,36 @@ def test_a_van_fast_or_far_still_sees_a_car_and_a_board_is_none(street_lib, spee
     assert kinds["board", True] != "car", kinds
     if across > 10:
         assert kinds["car", False] != "car", kinds  # the control: the airborne test refuses it
+
+
+def test_a_cone_a_van_sees_on_a_few_lines_is_named_by_no_size(tmp_path):
+    """A traffic cone 32 m across the street from a van at 16 m/s: 18 points on a few lines measure its height, not
+    how deep it is, and a sliver of it is as thin as a mailbox. Its plan's unmeasured side is a least size: the cone,
+    the hydrant and the mailbox all fit it, no kind is named by size, and a model of any of them may still decide
+    it. The control: measured as if every side were known, the vote calls it a mailbox."""
+    import cosco
+    from cosco.visibility import object_grid
+    from twinreg.catalogue.repository import Catalogue
+    from twinreg.recognition.kinds import References, confirmed_by_model, kind_of, recognise_kind, unresolved
+    from twinreg.settings import DEFAULT
+    from twinreg.stages import with_targets
+
+    cat = Catalogue(tmp_path / "lib")
+    for r in furniture_rows():
+        if r["slug"] in ("construction_cone", "fire_hydrant", "mailbox"):
+            cat.add(r["path"], name=r["slug"], category=r["category"], scale=r["scale"])
+    params = with_targets(cat, DEFAULT)
+    refs = References.of_catalogue(cat, params)
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    cone = next(m for r, m in zip(rows, cat.scan_meshes(rows)) if r.name == "construction_cone")
+    pts, origins = _seen_from_the_road(cone, 32.0, 16.0)
+    assert 10 <= len(pts) < 40, len(pts)
+    shape = cosco.describe_object(pts, params, ground_z=0.0, seen=object_grid(pts, origins, params), lines=True)
+    size = shape.size.as_array()
+    assert unresolved(size, shape.n_points, params).any()
+    got = kind_of(shape, "two_mirrors", refs, params)
+    assert got.kind == "unknown" and got.confidence == 0.0, got
+    assert {"cone", "mailbox"} <= set(got.fits), got.fits
+    assert confirmed_by_model(got, "cone", 0.9).kind == "cone"  # the model's sections may name it
+    control = recognise_kind(size, "two_mirrors", refs, params, shape.surface)  # every side taken as measured
+    assert control.kind == "mailbox", control
