@@ -133,6 +133,20 @@ def placement(obj_frame: cosco.Frame, model_frame: cosco.Frame, reg: cosco.Regis
     return to_scene @ registered @ to_model_frame
 
 
+def quarter_turned(m: np.ndarray, obj_heading: float, model_heading: float) -> bool:
+    """Whether the model placed by ``m`` (4, 4) lies with its frame's length (its heading ``model_heading`` in its
+    own coordinates) nearer the object's width than its length (the object's frame heading ``obj_heading``): the
+    registration turned it a quarter.
+
+    >>> m = placement(cosco.Frame(np.zeros(2), 0.3, 0.0), cosco.Frame(np.zeros(2), 0.1, 0.0),
+    ...               cosco.Registration(0.0, np.pi / 2, 0.0, 0.0))
+    >>> quarter_turned(m, 0.3, 0.1), quarter_turned(np.eye(4), 0.3, 0.3)
+    (True, False)
+    """
+    turn = np.arctan2(m[1, 0], m[0, 0]) + model_heading - obj_heading
+    return bool(abs(np.sin(turn)) > abs(np.cos(turn)))
+
+
 def _trial(obj_pair, cache: ModelCache, model_id: int, params: Settings):
     return cosco.register_sections(obj_pair, cache.pair(model_id), params)
 
@@ -277,9 +291,12 @@ class _Scorer:
         cache = self.cache
         top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
         row = cache.row(mid)
+        size = np.array([row.length, row.width, row.height])
+        if quarter_turned(m, self.shape.frame.heading, cache.frame(mid).heading):
+            size = size[[1, 0, 2]]  # its length across the object's (a bus shelter drawn facing its own x axis)
         # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
         e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top, self.tree,
-                     np.array([row.length, row.width, row.height]), self.measured, self.noise, self.spacing,
+                     size, self.measured, self.noise, self.spacing,
                      self.params, sink=float(self.shape.frame.ground_z - m[2, 3]),
                      top_known=None if self.seen is None else self.seen.known(top))
         e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)), refined=False)

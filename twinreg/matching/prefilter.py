@@ -5,7 +5,9 @@ A scan measures a car smaller than it is, hardly ever larger: scan lines miss th
 lower sides are hidden by neighbours, glass returns nothing. So a model may be longer and wider than the object by
 the paper's tolerance (``matching.size_tol``, 0.2 m) plus ``matching.size_spacing_k`` scan-line spacings of the object,
 and smaller by the tolerance only; the height (the roof, which airborne scans always see) keeps the plain tolerance. A
-user's ``--tol`` sets ``matching.size_spacing_k`` to 0: the window is then exactly +-tol, as in the paper.
+user's ``--tol`` sets ``matching.size_spacing_k`` to 0: the window is then exactly +-tol, as in the paper. A model's
+plan may lie in the window either way round (a bus shelter drawn facing along its own x axis, its length the
+shelter's depth): the registration turns it a quarter.
 
 Inside the window the models are ranked by their descriptor (:func:`cosco.taxonomy.descriptor`: L, W, H and the
 section's top at two stations, stored with each model) against the object's, its L and W first grown by the
@@ -78,7 +80,9 @@ class SizeIndex:
         lo, hi = self.window(size, spacing, params)
         if not len(self.ids):
             return Candidates([], False, 0, (lo, hi))
-        in_window = ((self.desc[:, :3] >= lo) & (self.desc[:, :3] <= hi)).all(1)
+        in_window = np.zeros(len(self.ids), dtype=bool)
+        for sizes in self._plans():
+            in_window |= ((sizes >= lo) & (sizes <= hi)).all(1)
         inside = np.flatnonzero(in_window)
         dist = self.distance(descriptor(size, shape.sections.longitudinal), spacing, params)
         order = inside[np.argsort(dist[inside], kind="stable")][:params.matching.register_k]
@@ -89,15 +93,23 @@ class SizeIndex:
         return Candidates([int(i) for i in self.ids[order]], len(inside) == 0, len(inside), (lo, hi),
                           [int(i) for i in self.ids[near]])
 
-    def _gap(self, size, lo, hi) -> np.ndarray:
-        """(n,) how far (m, summed over L, W and H) each model lies outside the window."""
+    def _plans(self) -> tuple:
+        """Every model's (L, W, H) as stored and with L and W swapped: a model drawn facing along its own width (a
+        bus shelter's front along +x) is the object its registration turns a quarter (the section registration
+        tries quarter turns, :data:`cosco.dissimilarity.ROTATIONS`)."""
         s = self.desc[:, :3]
-        return np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1)
+        return s, s[:, [1, 0, 2]]
+
+    def _gap(self, size, lo, hi) -> np.ndarray:
+        """(n,) how far (m, summed over L, W and H) each model lies outside the window, either way round in plan."""
+        return np.min([np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1) for s in self._plans()], axis=0)
 
     def nearest_gap(self, size, spacing: float, params: Settings = DEFAULT) -> tuple[int, np.ndarray] | None:
         """(model id, its L/W/H minus the object's (m)) of the model nearest to the window, or None."""
         if not len(self.ids):
             return None
         lo, hi = self.window(size, spacing, params)
-        k = int(np.argmin(self._gap(size, lo, hi)))
-        return int(self.ids[k]), self.desc[k, :3] - np.asarray(size, dtype=np.float64)
+        gaps = [np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1) for s in self._plans()]
+        k = int(np.argmin(np.min(gaps, axis=0)))
+        turned = gaps[1][k] < gaps[0][k]
+        return int(self.ids[k]), self._plans()[int(turned)][k] - np.asarray(size, dtype=np.float64)

@@ -47,3 +47,15 @@ def test_candidates_are_ranked_inside_the_window_and_the_nearest_outside_are_kep
     assert none.ids == [] and none.outside and none.nearest[0] == 4
     model, gap = index.nearest_gap(np.array([2.5, 1.2, 1.0]), 0.06)
     assert model == 4 and np.allclose(gap, [1.1, 0.4, 0.5])
+
+
+def test_a_model_drawn_along_its_width_is_a_candidate_either_way_round():
+    """A bus shelter's model drawn facing its own x axis (L 1.74 m, W 3.46 m) is in the window of a shelter measured
+    3.45 x 1.71 m (its length along the kerb): the registration turns it a quarter. A car's window stays a car's."""
+    rows = [[1, 1.74, 3.46, 3.26, 0.0, 2.6], [2, 4.50, 1.80, 1.50, 1.4, 1.1], [3, 1.80, 4.50, 3.26, 0.0, 2.6]]
+    index = SizeIndex(_Cat(rows))
+    found = index.candidates(_Shape((3.45, 1.71, 3.21)), spacing=0.05)
+    assert found.ids == [1] and not found.outside
+    assert index.candidates(_Shape((4.40, 1.78, 1.48)), spacing=0.05).ids == [2]
+    model, gap = index.nearest_gap(np.array([3.0, 1.7, 3.2]), 0.05)
+    assert model == 1 and np.allclose(gap, [0.46, 0.04, 0.06])  # measured against the quarter-turned plan

@@ -274,3 +274,39 @@ def test_a_cone_a_van_sees_on_a_few_lines_is_named_by_no_size(tmp_path):
     assert confirmed_by_model(got, "cone", 0.9).kind == "cone"  # the model's sections may name it
     control = recognise_kind(size, "two_mirrors", refs, params, shape.surface)  # every side taken as measured
     assert control.kind == "mailbox", control
+
+
+def test_a_bus_shelter_drawn_facing_its_own_x_axis_gets_its_model_from_a_van(tmp_path, monkeypatch):
+    """The shared bus shelter is drawn with its front along its own x axis (its length, 1.74 m, the shelter's
+    depth). Scanned from a van at 16 m/s, measured 3.5 m along the kerb, it gets its model: the size window takes a
+    model's plan either way round and the evidence measures the model as the registration turned it. The control:
+    with the window as it was (the plan as stored), the shelter has no candidate of its size and no model."""
+    import cosco
+    from cosco.visibility import object_grid
+    from twinreg.catalogue.repository import Catalogue
+    from twinreg.matching import prefilter
+    from twinreg.matching.match import Evidence, ModelCache, match_objects
+    from twinreg.settings import DEFAULT
+    from twinreg.stages import with_targets
+
+    cat = Catalogue(tmp_path / "lib")
+    for r in manifest_rows()[:2]:
+        cat.add(r["path"], unit=r["unit"], up=r["up"])
+    shelter = next(r for r in furniture_rows() if r["slug"] == "bus_stop")
+    cat.add(shelter["path"], name="bus_stop", category=shelter["category"], scale=shelter["scale"])
+    params = with_targets(cat, DEFAULT)
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    mesh = next(m for r, m in zip(rows, cat.scan_meshes(rows)) if r.name == "bus_stop")
+    pts, origins = _seen_from_the_road(mesh, 5.0, 16.0)
+    seen = object_grid(pts, origins, params)
+    shape = cosco.describe_object(pts, params, ground_z=0.0, seen=seen, lines=True)
+    assert shape.size.length > shape.size.width, shape.size  # along the kerb, as the model is not
+
+    def model_of():
+        results, _ = match_objects([shape], cat, labels=[1], params=params, cache=ModelCache(cat, params),
+                                   evidence=Evidence([pts], 0.01, seen=[seen]))
+        return results[0].match.name if results[0].match is not None else None
+
+    assert model_of() == "bus_stop"
+    monkeypatch.setattr(prefilter.SizeIndex, "_plans", lambda self: (self.desc[:, :3],))
+    assert model_of() != "bus_stop"
