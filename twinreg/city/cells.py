@@ -19,7 +19,7 @@ from cosco.footprint import min_area_rectangle
 from ..detect import describe_detected, detect_points, object_ground, object_levels, object_points
 from ..export.scan_tiles import cell_scan_folder, write_cell_scan
 from ..export.tiles3d import scan_sample
-from ..io.asprs import NAMES
+from ..io.asprs import read_codes
 from ..io.observed import raster
 from ..io.points import PointSet
 from ..matching.acceptance import sample_cloud, scene_noise
@@ -98,16 +98,6 @@ def read_cell(job: CellJob) -> tuple[np.ndarray, np.ndarray]:
     return read_splits(job.splits, job.cell.name, boxes, classes=True)
 
 
-def scan_codes(codes: np.ndarray) -> list[int]:
-    """The ASPRS classes the kinds read (:data:`twinreg.io.asprs.NAMES`) that a cell's points carry, ascending.
-
-    >>> scan_codes(np.array([1, 2, 2, 6, 26], dtype=np.uint8))
-    [2, 6]
-    """
-    present = np.flatnonzero(np.bincount(np.asarray(codes, dtype=np.int64), minlength=256))
-    return [int(c) for c in present if int(c) in NAMES]
-
-
 def process_cell(job: CellJob, *ready) -> CellResult:
     """Read, ground, detection and description of one cell; the objects whose footprint centre lies in the
     cell's half-open core (see :mod:`twinreg.city.grid`). ``ready``: the results of the tile splits it reads
@@ -122,12 +112,10 @@ def _process_cell(job: CellJob) -> CellResult:
     cell, params = job.cell, job.params
     out = CellResult(cell.name, job.key, cell.lo, cell.hi)
     t0 = time.perf_counter()
-    # held in a list, so that the scene alone holds the points (and lets go of the margin)
-    got = read_cell(job)
-    pts, codes = [got[0]], got[1]
-    del got
+    pts, codes = read_cell(job)
+    pts = [pts]  # held in a list, so that the scene alone holds the points (and lets go of the margin)
     out.n_read = len(pts[0])
-    out.codes = scan_codes(codes)
+    out.codes = read_codes(codes)
     # a scan classed beyond 0 (never) and 1 (unclassified) gives its objects' class shares, as a scene's reader does
     classes = codes if params.open_world.scan_classes and (codes > 1).any() else None
     out.timing_s["read"] = time.perf_counter() - t0

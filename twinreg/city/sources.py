@@ -6,6 +6,7 @@ it feeds.
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import hashlib
 import json
@@ -292,7 +293,8 @@ def split_doc(folder) -> dict | None:
         if folder.is_symlink() or p.is_symlink() or not p.is_file() or p.stat().st_size > 2 ** 20:
             return None
         doc = json.loads(p.read_text(encoding="utf-8"))
-        if not isinstance(doc, dict) or doc.get("format") != SPLIT_DOC_FORMAT or not isinstance(doc.get("cells"), dict):
+        if (not isinstance(doc, dict) or doc.get("format") != SPLIT_DOC_FORMAT
+                or not isinstance(doc.get("cells"), dict)):
             return None
         cells = doc["cells"]
         for name, n in cells.items():
@@ -333,31 +335,27 @@ def split_tile(source: Source, grid: Grid, folder) -> dict:
     cells = grid.cells_over(np.asarray(source.lo[:2]) - grid.reach, np.asarray(source.hi[:2]) + grid.reach)
     scaling = None
     try:
-        boxes = np.array([[*c.read_lo, *c.read_hi] for c in cells], dtype=np.float64).reshape(-1, 4)
-        for x, y, ints, codes, scales, offsets in _raw_chunks(source):
-            if scaling is None:  # one header: the same for every chunk
-                scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
-                           "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
-            found = box_rows(x, y, boxes)  # each cell's rows, in order (compiled: every cell in two passes)
-            for c, inside in zip(cells, found):
-                if not len(inside):
-                    continue
-                if c.name not in handles:
-                    handles[c.name] = (open(tmp / f"{c.name}.{SPLIT_FORMAT}", "wb"),
-                                       open(tmp / f"{c.name}.{SPLIT_CLASSES}", "wb"))
-                handles[c.name][0].write(np.ascontiguousarray(ints[inside], dtype=np.int32).tobytes())
-                handles[c.name][1].write(np.ascontiguousarray(codes[inside], dtype=np.uint8).tobytes())
-                counts[c.name] = counts.get(c.name, 0) + len(inside)
-        for pair in handles.values():
-            for h in pair:
-                h.close()
-        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts, "format": SPLIT_DOC_FORMAT,
-                                                    **(scaling or {})}), encoding="utf-8")
+        with contextlib.ExitStack() as files:  # every cell's two files closed before the document is written
+            boxes = np.array([[*c.read_lo, *c.read_hi] for c in cells], dtype=np.float64).reshape(-1, 4)
+            for x, y, ints, codes, scales, offsets in _raw_chunks(source):
+                if scaling is None:  # one header: the same for every chunk
+                    scaling = {"scales": [float(v) for v in scales], "offsets": [float(v) for v in offsets],
+                               "units": [float(source.scale), float(source.scale), float(source.z_scale)]}
+                found = box_rows(x, y, boxes)  # each cell's rows, in order (compiled: every cell in two passes)
+                for c, inside in zip(cells, found):
+                    if not len(inside):
+                        continue
+                    if c.name not in handles:
+                        handles[c.name] = tuple(files.enter_context(open(tmp / f"{c.name}.{suffix}", "wb"))
+                                                for suffix in (SPLIT_FORMAT, SPLIT_CLASSES))
+                    handles[c.name][0].write(np.ascontiguousarray(ints[inside], dtype=np.int32).tobytes())
+                    handles[c.name][1].write(np.ascontiguousarray(codes[inside], dtype=np.uint8).tobytes())
+                    counts[c.name] = counts.get(c.name, 0) + len(inside)
+        (tmp / "split.json").write_text(json.dumps({"source": source.path, "cells": counts,
+                                                    "format": SPLIT_DOC_FORMAT, **(scaling or {})}),
+                                        encoding="utf-8")
         os.replace(tmp, folder)
     except BaseException:
-        for pair in handles.values():
-            for h in pair:
-                h.close()
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return counts
@@ -376,8 +374,8 @@ def read_splits(folders, cell_name: str, extra=(), classes: bool = False):
                             "split again)")
         if cell_name in doc["cells"]:
             parts.append((Path(folder) / f"{cell_name}.{SPLIT_FORMAT}", doc["cells"][cell_name], doc))
-    more = [e[0] for e in extra] if classes else list(extra)
-    out = np.empty((sum(n for _, n, _ in parts) + sum(len(e) for e in more), 3))
+    extra = list(extra) if classes else [(e, None) for e in extra]
+    out = np.empty((sum(n for _, n, _ in parts) + sum(len(e) for e, _ in extra), 3))
     codes = np.empty(len(out), dtype=np.uint8) if classes else None
     at = 0
     for f, n, doc in parts:
@@ -392,9 +390,9 @@ def read_splits(folders, cell_name: str, extra=(), classes: bool = False):
         if classes:
             codes[at:at + n] = np.fromfile(f.with_suffix(f".{SPLIT_CLASSES}"), dtype=np.uint8, count=n)
         at += n
-    for k, e in enumerate(more):
+    for e, c in extra:
         out[at:at + len(e)] = e
         if classes:
-            codes[at:at + len(e)] = extra[k][1]
+            codes[at:at + len(e)] = c
         at += len(e)
     return (out, codes) if classes else out

@@ -26,6 +26,16 @@ def class_shares(codes: np.ndarray) -> tuple[float, float]:
     return round(float(np.isin(c, VEGETATION).mean()), 4), round(float(np.isin(c, BUILT).mean()), 4)
 
 
+def read_codes(codes: np.ndarray) -> list[int]:
+    """The classes the kinds read (:data:`NAMES`) that ``codes`` hold, ascending.
+
+    >>> read_codes(np.array([1, 2, 2, 6, 26], dtype=np.uint8))
+    [2, 6]
+    """
+    present = np.flatnonzero(np.bincount(np.asarray(codes, dtype=np.int64), minlength=256))
+    return [int(c) for c in present if int(c) in NAMES]
+
+
 def used_codes(codes: np.ndarray | None) -> dict:
     """{code: name} of the classes the kinds read that a scan's ``codes`` hold (json keys: strings).
 
@@ -34,8 +44,7 @@ def used_codes(codes: np.ndarray | None) -> dict:
     """
     if codes is None:
         return {}
-    present = np.flatnonzero(np.bincount(np.asarray(codes, dtype=np.int64), minlength=256))
-    return {str(int(c)): NAMES[int(c)] for c in present if int(c) in NAMES}
+    return {str(c): NAMES[c] for c in read_codes(codes)}
 
 
 def classes_doc(codes: np.ndarray | None, on: bool = True, reason: str | None = None) -> dict:

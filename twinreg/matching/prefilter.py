@@ -100,16 +100,21 @@ class SizeIndex:
         s = self.desc[:, :3]
         return s, s[:, [1, 0, 2]]
 
+    def _gaps(self, lo, hi) -> np.ndarray:
+        """(2, n) how far (m, summed over L, W and H) each model lies outside the window, as stored and turned a
+        quarter (:meth:`_plans`)."""
+        return np.array([np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1) for s in self._plans()])
+
     def _gap(self, size, lo, hi) -> np.ndarray:
-        """(n,) how far (m, summed over L, W and H) each model lies outside the window, either way round in plan."""
-        return np.min([np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1) for s in self._plans()], axis=0)
+        """(n,) how far (m) each model lies outside the window, either way round in plan."""
+        return self._gaps(lo, hi).min(0)
 
     def nearest_gap(self, size, spacing: float, params: Settings = DEFAULT) -> tuple[int, np.ndarray] | None:
         """(model id, its L/W/H minus the object's (m)) of the model nearest to the window, or None."""
         if not len(self.ids):
             return None
         lo, hi = self.window(size, spacing, params)
-        gaps = [np.maximum(np.maximum(lo - s, s - hi), 0.0).sum(1) for s in self._plans()]
-        k = int(np.argmin(np.min(gaps, axis=0)))
-        turned = gaps[1][k] < gaps[0][k]
-        return int(self.ids[k]), self._plans()[int(turned)][k] - np.asarray(size, dtype=np.float64)
+        gaps = self._gaps(lo, hi)
+        k = int(np.argmin(gaps.min(0)))
+        turned = int(gaps[1, k] < gaps[0, k])
+        return int(self.ids[k]), self._plans()[turned][k] - np.asarray(size, dtype=np.float64)

@@ -136,22 +136,22 @@ def distances(size, level: str, refs: References, params: Settings = DEFAULT, lo
     return d + params.kinds.level_penalty * differ
 
 
-def unresolved(size, n_points: int | None, params: Settings = DEFAULT, lines: bool = True) -> np.ndarray:
-    """(2,) which of an object's plan-sorted sides (L, W) its ``n_points`` points, along a ground scanner's
-    ``lines``, do not measure: its narrower side when no longer than ``open_world.resolve_spacings`` times their
-    spacing over the surface a scan sees of it (its top and two of its sides, ``sqrt((L W + (L + W) H) / n)``). A
-    van's few lines over a cone 20 m away measure its height and breadth, not how deep it is: a sliver as thin as a
-    mailbox. Its length is always taken as measured (else a few points of a post would fit a car), and so is every
-    side from the air or of a sweep without scanner positions (``lines`` False: a car's side seen from a sweep is
-    as thin as a wall's, which no thickness then tells apart), or when ``n_points`` is None.
+def unresolved(size, n_points: int | None, params: Settings = DEFAULT) -> np.ndarray:
+    """(2,) which of an object's plan-sorted sides (L, W) its ``n_points`` points along a ground scanner's lines do
+    not measure: its narrower side when no longer than ``open_world.resolve_spacings`` times their spacing over the
+    surface a scan sees of it (its top and two of its sides, ``sqrt((L W + (L + W) H) / n)``). A van's few lines
+    over a cone 20 m away measure its height and breadth, not how deep it is: a sliver as thin as a mailbox. Its
+    length is always taken as measured (else a few points of a post would fit a car), and so is every side when
+    ``n_points`` is None: from the air, or of a sweep without scanner positions (a car's side seen from a sweep is
+    as thin as a wall's, which no thickness then tells apart; :func:`kind_of` passes None there).
 
     >>> unresolved([0.23, 0.1, 0.85], 30).tolist(), unresolved([0.33, 0.31, 1.05], 200).tolist()
     ([False, True], [False, False])
-    >>> unresolved([0.23, 0.1, 0.85], 30, lines=False).tolist(), unresolved([4.4, 1.8, 1.5], 80).tolist()
+    >>> unresolved([0.23, 0.1, 0.85], None).tolist(), unresolved([4.4, 1.8, 1.5], 80).tolist()
     ([False, False], [False, False])
     """
     out = np.zeros(2, dtype=bool)
-    if not n_points or not lines:
+    if not n_points:
         return out
     s = _plan_sorted(size)
     spacing = np.sqrt(max(s[0] * s[1] + (s[0] + s[1]) * s[2], 0.0) / n_points)
@@ -320,31 +320,32 @@ def kind_of(shape, level: str, refs: References, params: Settings = DEFAULT) -> 
     by_class = class_kind(shape.classes, params)
     if by_class is not None:  # its confidence: the share of its points the scan classes so
         return KindResult(by_class, float(max(shape.classes)), {})
-    size = shape.size.as_array()
     lines = shape.surface is not None and shape.surface.along_lines
-    got = recognise_kind(size, level, refs, params, shape.surface, shape.n_points if lines else None)
-    loose = unresolved(size, shape.n_points, params, lines)
-    if not loose.any() or len(refs) == 0:
-        return got
-    return replace(got, fits=kinds_fitted(size, loose, refs, params, shape.surface))
+    return recognise_kind(shape.size.as_array(), level, refs, params, shape.surface,
+                          shape.n_points if lines else None)
 
 
-def kinds_fitted(size, loose, refs: References, params: Settings = DEFAULT, surface=None) -> tuple:
-    """The kinds an object fits by size (its ``loose`` sides least sizes, :func:`fits_kind`) and surface
-    (:func:`fits_surface`), nearest first: what its size cannot tell apart, a model's sections may."""
-    d = distances(size, "none", refs, params, loose)
+def kinds_fitted(size, d: np.ndarray, loose, refs: References, params: Settings = DEFAULT, surface=None) -> tuple:
+    """The kinds an object fits by size (``d``: its :func:`distances` to every reference, its ``loose`` sides least
+    sizes, :func:`fits_kind`) and surface (:func:`shell_of`), nearest first: what its size cannot tell apart, a
+    model's sections may."""
     out = []
     for kind in sorted(refs.ranges, key=lambda k: float(d[refs.kinds == k].min())):
-        mine = refs.kinds == kind
-        own = float(d[mine].min())
-        if not own <= params.kinds.unknown_distance:
-            continue
-        lo, hi = refs.ranges[kind]
-        thin = bool(lo[2] >= params.open_world.thin_ratio * hi[1])
-        if fits_kind(size, own, kind, refs, params, loose) and (kind in refs.scanned
-                                                                 or fits_surface(surface, kind, params, thin)):
+        own = float(d[refs.kinds == kind].min())
+        if (own <= params.kinds.unknown_distance and fits_kind(size, own, kind, refs, params, loose)
+                and shell_of(surface, kind, refs, params)):
             out.append(kind)
     return tuple(out)
+
+
+def shell_of(surface, kind: str, refs: References, params: Settings = DEFAULT) -> bool:
+    """Whether an object's surface is that of ``kind``: always for a kind of scanned exemplars (their surface is the
+    scan's), else :func:`fits_surface`, the kind ``thin`` when its references stand ``open_world.thin_ratio`` times
+    taller than their plan is wide."""
+    if kind in refs.scanned:
+        return True
+    lo, hi = refs.ranges[kind]
+    return fits_surface(surface, kind, params, bool(lo[2] >= params.open_world.thin_ratio * hi[1]))
 
 
 def class_kind(shares, params: Settings = DEFAULT) -> str | None:
@@ -383,6 +384,13 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
         return KindResult(UNKNOWN, 0.0, {})  # CONTRACT: an empty catalogue names nothing
     loose = unresolved(size, n_points, params)
     d = distances(size, level, refs, params, loose)
+    got = _vote(size, d, loose, refs, params, surface)
+    # a side not measured: every kind the object fits, which a decided model may confirm (confirmed_by_model)
+    return replace(got, fits=kinds_fitted(size, d, loose, refs, params, surface)) if loose.any() else got
+
+
+def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surface) -> KindResult:
+    """:func:`recognise_kind`'s vote, given the object's :func:`distances` ``d`` to every reference."""
     height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kinds.min_size)
                            / np.maximum(refs.sizes[:, 2], params.kinds.min_size)))
     d = np.where(height > np.log(params.kinds.max_height_ratio), np.inf, d)
@@ -402,9 +410,7 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
     kind = next(iter(votes))
     mine = refs.kinds == kind
-    lo, hi = refs.ranges[kind]
-    thin = bool(lo[2] >= params.open_world.thin_ratio * hi[1])
-    shell = kind in refs.scanned or fits_surface(surface, kind, params, thin)
+    shell = shell_of(surface, kind, refs, params)
     sized = fits_kind(size, float(d[mine].min()), kind, refs, params, loose)
     if not (sized and shell):
         # a sparse object's surface is its whole shape, not its skin: a model of the kind may still decide it
