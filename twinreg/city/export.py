@@ -78,7 +78,14 @@ def _unmatched_clouds(run: CityRun, outcomes: list) -> list:
 def city_classes_doc(results: list, on: bool) -> dict:
     """twin.json's ``scan_classes`` for a city run: the ASPRS classes the kinds read that any cell's points carry
     (:attr:`~twinreg.city.cells.CellResult.codes`; a code a cell file gives that the kinds do not read is ignored),
-    as :func:`~twinreg.io.asprs.classes_doc` says them for one scene."""
+    as :func:`~twinreg.io.asprs.classes_doc` says them for one scene.
+
+    >>> from types import SimpleNamespace as R
+    >>> city_classes_doc([R(codes=[2, 6]), R(codes=["../6", True, 99, 5.0]), R(codes=None)], True)
+    {'used': True, 'codes': {'2': 'ground', '6': 'building'}}
+    >>> city_classes_doc([R(codes=["6"])], True)["used"]  # a foreign cell file's codes name nothing
+    False
+    """
     codes = sorted({c for r in results for c in (r.codes or []) if type(c) is int and c in NAMES})
     return classes_doc(np.array(codes, dtype=np.uint8) if codes else None, on)
 
