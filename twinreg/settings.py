@@ -46,6 +46,15 @@ class MatchingParams:
     Refining (refine.py): each candidate's pose is refined on at most ``refine_max_points`` points (pairs within
     ``refine_reach`` m), turning at most ``refine_max_turn`` rad and moving at most ``refine_max_shift`` m, unless
     its score lies more than ``refine_sigma`` noise units behind the best candidate's (it cannot win then).
+
+    A type's work done once (issue 51): a cluster's leader is decided in full; where its model explains it cleanly
+    (fit and design factors 1), its members (``type_reuse``) are decided among its contenders alone (its model and
+    the models, and its other end, that came within ``refine_sigma`` noise units of it), registered, refined and
+    scored on their points, without screening. A
+    member that keeps the leader's model, scoring no more than ``type_slack`` noise units behind its leader and
+    explaining it as a copy of its design no worse than its leader (its fit factor times its design factor at most
+    ``type_fit_slack`` under the leader's), keeps it with a margin at most the leader's to the models beyond its
+    contenders less what it lost; any other member is decided in full, as a leader is.
     """
 
     size_tol: float = 0.20  # m, the window's floor
@@ -79,6 +88,9 @@ class MatchingParams:
     refine_max_points: int = 500  # points
     refine_max_turn: float = math.radians(8.0)  # rad
     refine_max_shift: float = 0.4  # m
+    type_reuse: bool = True  # members decided among their leader's contenders first
+    type_slack: float = 2.0  # noise units a member may score behind its leader
+    type_fit_slack: float = 0.1  # fit and design factor a member may lose against its leader
 
 
 @dataclass(frozen=True)

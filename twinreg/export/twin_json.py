@@ -88,6 +88,7 @@ def twin_document(scan: ScanSummary, georef, objects: list[dict], tax, params, m
          "catalogue_models": matching.catalogue_models, "n_trials": stats.n_trials,
          "n_pairs_without_prefilter": stats.n_pairs_without_prefilter,
          "n_trials_saved_by_clusters": stats.n_trials_saved_by_clusters,
+         "n_type_offered": stats.n_type_offered, "n_type_decided": stats.n_type_decided,
          "registration_ms_per_trial": round(1000 * stats.registration_s / max(stats.n_trials, 1), 3)}
     if matching.worker_stages:
         m["worker_s"] = {k[:-2]: round(getattr(stats, k), 3)
@@ -137,7 +138,8 @@ def match_record(p) -> dict | None:
             "confidence": None if m.confidence is None else round(m.confidence, 3),
             "margin_sigma": None if m.margin_sigma is None else round(m.margin_sigma, 2),
             "ambiguous_with": list(m.ambiguous_with), "outside_tolerance": bool(m.outside_tolerance),
-            "evidence": m.evidence, "verification": m.verdict.as_dict() if m.verdict is not None else None}
+            "evidence": m.evidence, "verification": m.verdict.as_dict() if m.verdict is not None else None,
+            "decided_by": m.decided_by}
 
 
 def object_record(p, georef) -> dict:

@@ -180,6 +180,7 @@ class Decision:
     margin_sigma: float | None
     confidence: float | None
     ambiguous_with: list
+    ends_sigma: float | None = None  # noise units between the winner's two ends (None: not tried)
 
 
 def design_factor(scan_fit: float, noise: float, spacing: float, params: Settings = DEFAULT) -> tuple:
@@ -218,11 +219,20 @@ def decide(scored: list[Evidence], noise: float, params: Settings = DEFAULT, spa
     else:  # the only candidate: the margin to the acceptance limit of its outliers
         margin = (best.verdict.max_share - best.verdict.outlier_share) * best.verdict.tolerance_m / noise
     margin = max(float(margin), 0.0)
-    confidence = float(1.0 - np.exp(-margin / params.matching.confidence_sigma))
+    confidence = confidence_of(best, margin, noise, params, spacing, approximate)
+    ambiguous = [e.model_id for e in others if (e.score - best.score) / noise < params.matching.ambiguous_sigma]
+    return Decision(best, ranked, margin, confidence, ambiguous)
+
+
+def confidence_of(best: Evidence, margin: float, noise: float, params: Settings = DEFAULT, spacing: float = 0.0,
+                  approximate=frozenset()) -> float:
+    """The confidence of the accepted ``best`` won by ``margin`` noise units: the margin's, times the fit factor
+    and, but for ``approximate`` models, the open world's :func:`design_factor` (its figures kept in
+    ``best.extra``)."""
+    confidence = float(1.0 - np.exp(-max(float(margin), 0.0) / params.matching.confidence_sigma))
     confidence *= fit_factor(best.fit_ratio(), params)
     if best.model_id not in approximate:
         factor, x, limit = design_factor(best.scan_fit, noise, spacing, params)
         best.extra.update(fit_sigmas=x, fit_limit_sigmas=limit)
         confidence *= factor
-    ambiguous = [e.model_id for e in others if (e.score - best.score) / noise < params.matching.ambiguous_sigma]
-    return Decision(best, ranked, margin, confidence, ambiguous)
+    return confidence

@@ -7,6 +7,10 @@
    3pi/2}, a continuous tz and a small axial shift du, and ranked by RMSE. Objects of one cluster share work: the
    cluster's first object (its leader) tries every candidate, the others first the leader's favourites and their
    own nearest, and all of their candidates only when those fit clearly worse (by ``matching.share_margin``).
+   Where the leader was decided with a model, a member is first decided among the leader's contenders alone
+   (:meth:`_Matcher.as_type`: the models that came within ``matching.refine_sigma`` noise units of the leader's
+   winner): it keeps the leader's model when it wins there and scores within ``matching.type_slack`` noise units of
+   its leader, and is decided in full otherwise.
 3. Decision (:mod:`twinreg.matching.decision`), when the object's points are given: the best
 ``matching.accept_candidates``
    are placed, their pose refined on the points (:mod:`twinreg.matching.refine`), checked
@@ -32,7 +36,7 @@ from ..catalogue.repository import Catalogue
 from ..settings import DEFAULT, Settings
 from .acceptance import sample_cloud
 from .cache import ModelCache
-from .decision import decide, evidence
+from .decision import confidence_of, decide, design_factor, evidence, fit_factor
 from .refine import refine
 
 
@@ -58,6 +62,8 @@ class MatchStats:
     n_pairs_without_prefilter: int = 0  # a full search's pairs
     n_without_window: int = 0  # objects no window held
     n_trials_saved_by_clusters: int = 0  # by the leaders' rankings
+    n_type_offered: int = 0  # members offered their leader's model alone
+    n_type_decided: int = 0  # of them, kept it
     leaders: dict = field(default_factory=dict)
 
     def add(self, other: "MatchStats") -> None:
@@ -91,6 +97,7 @@ class Match:
     ambiguous_with: list = field(default_factory=list)
     outside_tolerance: bool = False
     evidence: dict | None = None
+    decided_by: str = "object"  # "type": a member given its leader's model, verified on its points
 
 
 @dataclass
@@ -176,10 +183,10 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
 
     labels : cluster label per object (objects of one cluster share work), or None. evidence : the points to
     verify the best candidates with (:class:`Evidence`); without it the lowest RMSE wins unverified. leaders :
-    ``{label: (ranking, best RMSE)}`` of clusters whose leader was matched in another call (``stats.leaders`` of
-    that call): all the objects given for those labels are members, so one cluster's members can be matched in
-    several batches with exactly the outcome of one call. cache : a :class:`ModelCache` to fill (the export then
-    reuses the models' rows, meshes and sections), or None.
+    ``{label: (ranking, best RMSE, type decision)}`` of clusters whose leader was matched in another call
+    (``stats.leaders`` of that call): all the objects given for those labels are members, so one cluster's members
+    can be matched in several batches with exactly the outcome of one call. cache : a :class:`ModelCache` to fill
+    (the export then reuses the models' rows, meshes and sections), or None.
     """
     m = _Matcher(shapes, catalogue, params, evidence, ModelCache(catalogue, params) if cache is None else cache)
     # the distance fields of a model are built the first time it is tried (counted in the registration time): a
@@ -192,7 +199,7 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     for label, members in groups.items():
         known = leaders is not None and labels is not None and label in leaders
         # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
-        ranking = (list(leaders[label][0]), float(leaders[label][1])) if known else None
+        ranking = (list(leaders[label][0]), float(leaders[label][1]), *leaders[label][2:]) if known else None
         for i in members:
             ranking = m.match(i, ranking)
             if labels is not None and not known:
@@ -228,9 +235,18 @@ class _Matcher:
         self.n_done = 0
 
     def match(self, i: int, ranking: tuple | None) -> tuple:
-        """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member tries its leader's
-        favourites first (``ranking``: the leader's models best first and its best RMSE). Returns the ranking
-        the cluster's members follow."""
+        """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member is offered its
+        leader's model alone where the leader's decision was clear (:meth:`as_type`), else tries its leader's
+        favourites first (``ranking``: the leader's models best first, its best RMSE and its type decision).
+        Returns the ranking the cluster's members follow."""
+        if ranking is not None and len(ranking) > 2 and ranking[2] is not None and self.params.matching.type_reuse:
+            self.stats.n_type_offered += 1
+            out = self.as_type(i, ranking)
+            if out is not None:
+                self.stats.n_type_decided += 1
+                self.results[i] = out
+                self.n_done += 1
+                return ranking
         ids, share = self.cands[i], self.params.matching.cluster_share
         if ranking is not None and share and ranking[0]:
             # the leader's favourites, and this object's own nearest by descriptor (a cluster may hold two kinds
@@ -240,17 +256,128 @@ class _Matcher:
             ids = preferred or ids
         regs = _registrations(self.pairs[i], ids, self.cands[i], self.cache, self.params,
                               None if ranking is None else ranking[1], self.stats)
-        if ranking is None:
+        leader = ranking is None
+        if leader:
             ranking = ([c.model_id for c in regs], regs[0].reg.rmse if regs else np.inf)
         ev = self.evidence
         t_v = time.perf_counter()
-        self.results[i] = _outcome(self.shapes[i], regs, self.cache, self.found[i],
-                                   ev.clouds[i] if ev is not None else None, ev.noise_of(i) if ev is not None else None,
-                                   self.pairs[i], self.params, self.spacings[i],
-                                   ev.seen[i] if ev is not None and ev.seen is not None else None)
+        self.results[i], decision = _outcome(self.shapes[i], regs, self.cache, self.found[i],
+                                             ev.clouds[i] if ev is not None else None,
+                                             ev.noise_of(i) if ev is not None else None, self.pairs[i], self.params,
+                                             self.spacings[i], ev.seen[i] if ev is not None and ev.seen is not None
+                                             else None)
         self.stats.verification_s += time.perf_counter() - t_v
         self.n_done += 1
+        if leader:
+            ranking = (*ranking, _type_decision(self.results[i], decision, ev.noise_of(i) if ev is not None else None,
+                                                self.spacings[i], self.cache, self.params))
         return ranking
+
+    def as_type(self, i: int, ranking: tuple) -> ObjectMatch | None:
+        """Member ``i`` decided among its leader's contenders alone (``ranking[2]``, :func:`_type_decision`): the
+        models that came within ``matching.refine_sigma`` noise units of the leader's winner are registered, placed
+        and refined on the member's points (and the winner end for end, where the leader's two ends came that
+        close); what lay farther behind for the leader is taken to lie as far behind for a member that fits the
+        winner as well: its margin is at most the leader's to the first of them, less what the member scores behind
+        its leader. None (decide it in full) when a contender is not among its candidates, its sections fit the
+        winner worse than the leader's by ``matching.share_margin``, another contender wins, none is acceptable,
+        it scores more than ``matching.type_slack`` noise units behind its leader, or it explains the winner as a copy
+        of its design worse than its leader did (:func:`_copy_factor`, by ``matching.type_fit_slack``)."""
+        rec, p, ev = ranking[2], self.params.matching, self.evidence
+        mid = int(rec["model_id"])
+        ids = [mid] + [int(c) for c in rec["contenders"]]
+        found = self.found[i]
+        if ev is None or any(c not in self.cands[i] or c in found.nearest for c in ids):
+            return None
+        t = time.perf_counter()
+        pair = self.pairs[i]
+        regs = [Candidate(_trial(pair, self.cache, c, self.params), c) for c in ids]
+        self.stats.n_trials += len(ids)
+        if regs[0].reg.rmse > ranking[1] + p.share_margin:
+            self.stats.registration_s += time.perf_counter() - t
+            return None
+        # the winner polished, as the full path's is before its refinement (_decided); the others as registered
+        regs[0] = regs[0]._replace(reg=cosco.polished(pair, self.cache.pair(mid), regs[0].reg, self.params))
+        self.stats.registration_s += time.perf_counter() - t
+        t = time.perf_counter()
+        try:
+            noise = ev.noise_of(i)
+            shape = self.shapes[i]
+            scorer = _Scorer(shape, self.cache, ev.clouds[i], noise, self.spacings[i], self.params,
+                             ev.seen[i] if ev.seen is not None else None)
+            found_e = [scorer.placed_refined(c.reg, c.model_id) for c in regs]
+            if rec["ends"] <= p.refine_sigma:  # the winner end for end: its leader's other end came as close
+                r = regs[0].reg
+                turned = scorer.placed_refined(cosco.Registration(r.rmse, r.rz + np.pi, r.tz, r.du), mid)
+                if turned.score < found_e[0].score:
+                    found_e[0] = turned
+            approximate = frozenset(c for c in ids if made_from_scans(self.cache.row(c)))
+            decision = decide(found_e, noise, self.params, self.spacings[i], approximate)
+            best = decision.best
+            if best is None or best.model_id != mid:
+                return None
+            behind = (best.score - rec["score"]) / noise
+            if behind > p.type_slack or (_copy_factor(best, noise, self.spacings[i], self.params, approximate)
+                                         < rec["factor"] - p.type_fit_slack):
+                return None
+            margin = decision.margin_sigma if len(ids) > 1 or rec["beyond"] is None else np.inf
+            if rec["beyond"] is not None:
+                margin = min(margin, max(rec["beyond"] - max(behind, 0.0), 0.0))
+            decision.margin_sigma = float(margin)
+            decision.confidence = confidence_of(best, margin, noise, self.params, self.spacings[i], approximate)
+            decision.ends_sigma = rec["ends"]
+            out = _placed(shape, regs, self.cache, found, decision, self.params)
+            if len(ids) == 1:
+                out.match.runner_up = dict(rec["runner_up"]) if rec["runner_up"] is not None else None
+            out.match.decided_by = "type"
+            out.candidates = ids + [c for c in ranking[0] if c not in ids and c in self.cands[i]]
+            return out
+        finally:
+            self.stats.verification_s += time.perf_counter() - t
+
+
+def _copy_factor(best, noise: float, spacing: float, params: Settings, approximate) -> float:
+    """How well ``best`` explains its object as a copy of its design: the product of its
+    :func:`~twinreg.matching.decision.fit_factor` (1: within half of every acceptance limit) and, but for an
+    ``approximate`` model, its open world's :func:`~twinreg.matching.decision.design_factor` (1: within the design
+    fit). A member whose factor falls more than ``matching.type_fit_slack`` under its leader's (another design
+    grouped with the leader's, a sparse or occluded copy) is decided in full."""
+    factor = fit_factor(best.fit_ratio(), params)
+    if best.model_id not in approximate:
+        factor *= design_factor(best.scan_fit, noise, spacing, params)[0]
+    return float(factor)
+
+
+def _type_decision(result: ObjectMatch, decision, noise, spacing: float, cache: ModelCache,
+                   params: Settings) -> dict | None:
+    """What a cluster's leader's decision tells its members (:meth:`_Matcher.as_type`), or None when it tells
+    them nothing (no model; one outside the size window; a winner that did not also score lowest, or that explains
+    the leader only loosely: its :func:`_copy_factor` under 1). ``model_id``
+    and ``score`` (m): the winner; ``contenders``: the other models scored within ``matching.refine_sigma`` noise
+    units of it; ``beyond``: the margin (noise units) to the first model farther behind (None: none was);
+    ``ends``: between the winner's two ends (noise units); ``factor``: how well the winner explains the leader as a
+    copy of its design (:func:`_copy_factor`); ``runner_up``: the first of those beyond, by id and name (None:
+    none)."""
+    if decision is None or decision.best is None or result.match is None or result.match.outside_tolerance:
+        return None
+    best = decision.best
+    if not decision.scored or decision.scored[0] is not best or decision.ends_sigma is None:
+        return None
+    reach = params.matching.refine_sigma
+    gaps = [(e.score - best.score) / noise for e in decision.scored[1:]]
+    contenders = [int(e.model_id) for e, g in zip(decision.scored[1:], gaps) if g <= reach]
+    far = [(g, e) for e, g in zip(decision.scored[1:], gaps) if g > reach]
+    if len(set(contenders + [int(best.model_id)])) != len(contenders) + 1:
+        return None  # a model twice (one scored at each end): decided in full
+    approximate = frozenset([best.model_id]) if made_from_scans(cache.row(best.model_id)) else frozenset()
+    factor = _copy_factor(best, noise, spacing, params, approximate)
+    if factor < 1.0:  # the leader itself explained only loosely: its members are decided in full
+        return None
+    return {"model_id": int(best.model_id), "score": float(best.score), "contenders": contenders,
+            "factor": factor,
+            "beyond": float(far[0][0]) if far else None, "ends": float(decision.ends_sigma),
+            "runner_up": {"model_id": int(far[0][1].model_id), "name": cache.row(far[0][1].model_id).name,
+                          "from_type": True} if far else None}
 
 
 def _registrations(pair, ids, all_ids, cache: ModelCache, params: Settings, leader_best,
@@ -302,19 +429,36 @@ class _Scorer:
         e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)), refined=False)
         return e
 
+    def placed(self, reg, mid):
+        """(the (4, 4) transform, the points in the model's frame) as the section registration placed the
+        model."""
+        m = placement(self.shape.frame, self.cache.frame(mid), reg)
+        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
+        return m, (self.sample - m[:3, 3]) @ m[:3, :3]
+
     def screened(self, reg, mid):
         """(evidence, the points in the model's frame) as the section registration placed the model, on the
         ``matching.refine_max_points`` points the refinement would use."""
-        m = placement(self.shape.frame, self.cache.frame(mid), reg)
-        # the points go to the model's frame (the inverse of a rotation is its transpose): one index per model
-        in_model = (self.sample - m[:3, 3]) @ m[:3, :3]
+        m, in_model = self.placed(reg, mid)
         return self.scored(reg, mid, m, sample_cloud(in_model, self.params.matching.refine_max_points)), in_model
 
     def refined(self, reg, mid, screen):
         """The screened pose (its transform, the points in the model's frame) sharpened on the points: a turn
         about the vertical and a shift (twinreg/matching/refine.py), scored on every point."""
         e, in_model = screen
-        m = e.extra["transform"]
+        return self.refined_from(reg, mid, e.extra["transform"], in_model, e.sink)
+
+    def placed_refined(self, reg, mid):
+        """The evidence of model ``mid`` as the registration ``reg`` placed it, refined on the points (no screen);
+        ``reg`` kept in its ``extra["reg"]``."""
+        m, in_model = self.placed(reg, mid)
+        e = self.refined_from(reg, mid, m, in_model, float(self.shape.frame.ground_z - m[2, 3]))
+        e.extra["reg"] = reg
+        return e
+
+    def refined_from(self, reg, mid, m, in_model, sink: float):
+        """The pose ``m`` (the points ``in_model`` in the model's frame; the model ``sink`` m into the object's
+        ground) refined and scored on every point (:meth:`refined`)."""
         q = sample_cloud(in_model, self.params.matching.refine_max_points)
         c = refine(q, self.cache.tree(mid), self.params.matching.refine_reach, params=self.params)
         # scanned from the ground (a van's scan lines), the road around the object is measured densely: a model
@@ -323,15 +467,16 @@ class _Scorer:
         # not always where its tyres touch, and a boxy car's side seen from afar pins its height loosely)
         # (the screened sink is the ground's level in the model's frame, as the sections placed it)
         surface = self.shape.surface
-        if surface is not None and surface.along_lines and e.sink + c[2, 3] > e.sink_limit:
+        sink_limit = self.params.matching.accept_sink_sigmas * self.noise + self.params.matching.accept_sink_tol
+        if surface is not None and surface.along_lines and sink + c[2, 3] > sink_limit:
             c = refine(q, self.cache.tree(mid), self.params.matching.refine_reach, params=self.params,
-                       ground=e.sink)
+                       ground=sink)
         e = self.scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
         e.extra["refined"] = True
         return e
 
 
-def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Settings, seen=None):
+def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Settings, seen=None, obj_pair=None):
     """Score the best ``matching.accept_candidates`` registrations on all of the object's evidence
     (:mod:`twinreg.matching.decision`).
 
@@ -339,15 +484,29 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
     the refinement would use; only the candidates whose screened score lies within ``matching.refine_sigma``
     noise units of the best one's are refined and scored on every point. Refining lowers a score by about one
     noise unit at most, so a candidate further behind can neither win nor come close enough to change the
-    confidence: it keeps its screened score (docs/METHOD.md, "Deciding between candidates")."""
+    confidence: it keeps its screened score (docs/METHOD.md, "Deciding between candidates"). The winner is refined
+    from its polished registration (``regs[0]``, the best by RMSE, comes polished; another winner is polished and
+    refined again), kept in its evidence's ``extra["reg"]``: the same start whichever path decides it
+    (:meth:`_Matcher.as_type`)."""
     scorer = _Scorer(shape, cache, cloud, noise, spacing, params, seen)
     reach = params.matching.refine_sigma * noise
-    candidates = regs[:params.matching.accept_candidates]
+    candidates = list(regs[:params.matching.accept_candidates])
     screens = [scorer.screened(reg, mid) for reg, mid in candidates]
     found = [e for e, _ in screens]
+    polished = [j == 0 or obj_pair is None for j in range(len(candidates))]
 
     def refine_at(j):
         found[j] = scorer.refined(*candidates[j], screens[j])
+        found[j].extra["reg"] = candidates[j].reg
+
+    def polish_at(j):  # the winner from its polished registration (at the end it won at)
+        reg, mid = candidates[j]
+        turned = found[j].extra.get("turned", False)
+        candidates[j] = Candidate(cosco.polished(obj_pair, cache.pair(mid), reg, params), mid)
+        polished[j] = True
+        p = candidates[j].reg
+        found[j] = scorer.placed_refined(cosco.Registration(p.rmse, p.rz + np.pi, p.tz, p.du) if turned else p, mid)
+        found[j].extra["turned"] = turned
 
     best = min((e.score for e in found), default=np.inf)
     for j, e in enumerate(list(found)):
@@ -361,6 +520,8 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
         turned_reg = cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
         screen = scorer.screened(turned_reg, mid)
         turned = scorer.refined(turned_reg, mid, screen) if screen[0].score <= found[k].score + reach else screen[0]
+        turned.extra.update(reg=turned_reg, turned=True)
+        ends = abs(turned.score - found[k].score) / noise
         if turned.score < found[k].score:
             found[k] = turned
     approximate = frozenset(mid for _, mid in candidates if made_from_scans(cache.row(mid)))
@@ -368,9 +529,13 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
         decision = decide(found, noise, params, spacing, approximate)
         top = decision.best if decision.best is not None else (decision.scored[0] if decision.scored else None)
         j = next((i for i, e in enumerate(found) if e is top), None)
-        if j is None or found[j].extra["refined"]:
+        if j is not None and not found[j].extra["refined"]:
+            refine_at(j)
+        elif j is not None and decision.best is not None and not polished[j]:
+            polish_at(j)
+        else:
+            decision.ends_sigma = ends if found else None
             return decision
-        refine_at(j)
 
 
 def made_from_scans(row) -> bool:
@@ -391,18 +556,19 @@ def _size_gap_text(gap: np.ndarray) -> str:
 
 
 def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=None, noise=None,
-             obj_pair=None, params: Settings = DEFAULT, spacing=0.0, seen=None) -> ObjectMatch:
-    n_candidates = found.n_window
+             obj_pair=None, params: Settings = DEFAULT, spacing=0.0, seen=None) -> tuple:
+    """(the object's :class:`ObjectMatch`, the :class:`~twinreg.matching.decision.Decision` it came from, None
+    without points) from its registrations ``regs``, best first."""
     if not regs:
         near = cache.size_index().nearest_gap(shape.size.as_array(), spacing, params)
         reason = "no catalogue model within the size tolerance"
         if near is not None:
             cache.add_rows(cache.catalogue.rows([near[0]]))
             reason += f"; the nearest, {cache.row(near[0]).name}, is {_size_gap_text(near[1])} than the object"
-        return ObjectMatch(shape, None, reason, [], reason_code="no_model_of_this_size")
+        return ObjectMatch(shape, None, reason, [], reason_code="no_model_of_this_size"), None
     decision = None
     if cloud is not None:
-        decision = _decided(shape, regs, cache, cloud, noise, spacing, params, seen)
+        decision = _decided(shape, regs, cache, cloud, noise, spacing, params, seen, obj_pair)
         if decision.best is None:
             best = decision.scored[0]
             name = cache.row(best.model_id).name
@@ -415,12 +581,17 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
             return ObjectMatch(shape, None, reason, [c.model_id for c in regs],
                                rejected={"name": name, "rmse_m": round(best.rmse, 4), **best.verdict.as_dict(),
                                          **best.as_dict()},
-                               reason_code="no_model_of_this_size" if found.outside else best.reason_code())
+                               reason_code="no_model_of_this_size" if found.outside else best.reason_code()), decision
         k = next(j for j, c in enumerate(regs) if c.model_id == decision.best.model_id)
-        if k > 0:  # the winner's pose polished (the first by RMSE already was)
-            regs[k] = regs[k]._replace(reg=cosco.polished(obj_pair, cache.pair(regs[k].model_id), regs[k].reg,
-                                                          params))
+        # the winner's registration polished (it was, before its refinement; the first by RMSE came polished)
+        regs[k] = regs[k]._replace(reg=decision.best.extra.get("reg", regs[k].reg))
         regs.insert(0, regs.pop(k))
+    return _placed(shape, regs, cache, found, decision, params), decision
+
+
+def _placed(shape: cosco.ObjectShape, regs, cache: ModelCache, found, decision, params: Settings) -> ObjectMatch:
+    """The :class:`ObjectMatch` of the winner ``regs[0]`` (its ``decision``, or None: the lowest RMSE unverified)."""
+    n_candidates = found.n_window
     reg, mid = regs[0].reg, regs[0].model_id
     row = cache.row(mid)
     m = decision.best.extra["transform"] if decision is not None else placement(shape.frame, cache.frame(mid), reg)

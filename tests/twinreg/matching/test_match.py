@@ -85,3 +85,52 @@ def test_only_the_candidates_that_can_matter_are_refined(parametric_catalogue, m
             assert b.match.runner_up["score_m"] > b.match.evidence["score_m"]
     assert sorted(r.match.name for r in screened) == sorted(names)
     assert not all(r.match.runner_up["refined"] for r in screened)  # some runners-up were only screened
+
+
+def test_a_types_members_are_decided_among_their_leaders_contenders_and_one_that_disagrees_in_full(
+        parametric_catalogue, monkeypatch):
+    """Issue 51: the members of a cluster whose leader was decided are decided among the leader's contenders alone
+    (fewer registrations and scorings) with the models, poses and confidences of deciding each in full; a member of
+    another design in the cluster does not win there and is decided in full, with its own model."""
+    import twinreg.matching.match as match_module
+    from twinreg.detect import describe_detected, detect_points, object_points
+    from twinreg.io.points import PointSet
+    from twinreg.matching import match_objects
+    from twinreg.matching.match import Evidence
+    from twinreg.matching.acceptance import scene_noise
+    from twinreg.sim.scan import _ground_mesh, ground_height, pose_matrix, scan_meshes, transform
+
+    names = ["demo_sedan", "demo_sedan", "demo_sedan", "demo_suv", "demo_sedan"]
+    meshes, xs = [], [0.0, 6.0, 12.0, 18.0, 24.0]
+    for x, (v, f, g) in zip(xs, catalogue_models(parametric_catalogue, names)):
+        meshes.append((transform(v, pose_matrix(x, 0.0, 0.3 + x / 30, float(ground_height(x, 0.0)))), f, g))
+    meshes.append(_ground_mesh(-5, 29, -6, 6))
+    scan = scan_meshes(meshes, seed=5)
+    det = detect_points(PointSet(path=None, points=scan.points, offset=np.zeros(3), unit="m"))
+    shapes = describe_detected(det)
+    order = np.argsort([s.centroid[0] for s in shapes])
+    shapes = [shapes[k] for k in order]
+    clouds = [object_points(det, det.objects[k]) for k in order]
+    noise = scene_noise(det.hag, det.is_ground)
+    labels = np.zeros(len(shapes), dtype=int)  # one cluster, the SUV among the sedans
+    calls = [0]
+    original = match_module.evidence
+
+    def counted(*args, **kwargs):
+        calls[0] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(match_module, "evidence", counted)  # every placement scored
+    full, full_stats = match_objects(shapes, parametric_catalogue, labels=labels, evidence=Evidence(clouds, noise),
+                                     params=DEFAULT.with_(matching={"type_reuse": False}))
+    n_full, calls[0] = calls[0], 0
+    typed, stats = match_objects(shapes, parametric_catalogue, labels=labels, evidence=Evidence(clouds, noise))
+    assert [r.match.name for r in full] == names == [r.match.name for r in typed]
+    assert [r.match.decided_by for r in typed] == ["object", "type", "type", "object", "type"]
+    assert stats.n_type_offered == 4 and stats.n_type_decided == 3 and full_stats.n_type_offered == 0
+    assert calls[0] < 0.8 * n_full and stats.n_trials < full_stats.n_trials
+    for a, b in zip(full, typed):
+        assert np.allclose(a.match.transform[:3, 3], b.match.transform[:3, 3], atol=0.01)
+        assert np.allclose(a.match.transform[:3, :3], b.match.transform[:3, :3], atol=0.01)
+        assert abs(a.match.confidence - b.match.confidence) <= 0.02
+        assert b.match.runner_up is None or b.match.runner_up["name"] != b.match.name
