@@ -7,26 +7,32 @@ from twinreg.settings import DEFAULT
 from tests.conftest import catalogue_models
 
 
-def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_catalogue):
+def _row_of_cars(catalogue, names: list, turn=lambda x: 0.3, seed: int = 3) -> tuple:
+    """The cars ``names`` in a row 6 m apart (headings ``turn(x)``) on sloped ground, scanned and detected: their
+    shapes and points ordered along the row, and the scan's noise."""
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import PointSet
-    from twinreg.matching import match_objects
-    from twinreg.matching.match import Evidence
     from twinreg.matching.acceptance import scene_noise
     from twinreg.sim.scan import _ground_mesh, ground_height, pose_matrix, scan_meshes, transform
 
-    names = ["demo_sedan", "demo_sedan", "demo_suv"]
-    meshes, xs = [], [0.0, 6.0, 12.0]
-    for x, (v, f, g) in zip(xs, catalogue_models(parametric_catalogue, names)):
-        meshes.append((transform(v, pose_matrix(x, 0.0, 0.3, float(ground_height(x, 0.0)))), f, g))
-    meshes.append(_ground_mesh(-5, 17, -6, 6))
-    scan = scan_meshes(meshes, seed=3)
+    meshes, xs = [], [6.0 * k for k in range(len(names))]
+    for x, (v, f, g) in zip(xs, catalogue_models(catalogue, names)):
+        meshes.append((transform(v, pose_matrix(x, 0.0, turn(x), float(ground_height(x, 0.0)))), f, g))
+    meshes.append(_ground_mesh(-5, xs[-1] + 5, -6, 6))
+    scan = scan_meshes(meshes, seed=seed)
     det = detect_points(PointSet(path=None, points=scan.points, offset=np.zeros(3), unit="m"))
     shapes = describe_detected(det)
     order = np.argsort([s.centroid[0] for s in shapes])
-    shapes = [shapes[k] for k in order]
-    clouds = [object_points(det, det.objects[k]) for k in order]
-    noise = scene_noise(det.hag, det.is_ground)
+    return ([shapes[k] for k in order], [object_points(det, det.objects[k]) for k in order],
+            scene_noise(det.hag, det.is_ground))
+
+
+def test_objects_get_their_models_and_members_share_the_leaders_work(parametric_catalogue):
+    from twinreg.matching import match_objects
+    from twinreg.matching.match import Evidence
+
+    names = ["demo_sedan", "demo_sedan", "demo_suv"]
+    shapes, clouds, noise = _row_of_cars(parametric_catalogue, names)
     labels = np.array([0, 0, 1])
     results, stats = match_objects(shapes, parametric_catalogue, labels=labels, evidence=Evidence(clouds, noise))
     assert [r.match.name for r in results] == names
@@ -93,25 +99,11 @@ def test_a_types_members_are_decided_among_their_leaders_contenders_and_one_that
     (fewer registrations and scorings) with the models, poses and confidences of deciding each in full; a member of
     another design in the cluster does not win there and is decided in full, with its own model."""
     import twinreg.matching.match as match_module
-    from twinreg.detect import describe_detected, detect_points, object_points
-    from twinreg.io.points import PointSet
     from twinreg.matching import match_objects
     from twinreg.matching.match import Evidence
-    from twinreg.matching.acceptance import scene_noise
-    from twinreg.sim.scan import _ground_mesh, ground_height, pose_matrix, scan_meshes, transform
 
     names = ["demo_sedan", "demo_sedan", "demo_sedan", "demo_suv", "demo_sedan"]
-    meshes, xs = [], [0.0, 6.0, 12.0, 18.0, 24.0]
-    for x, (v, f, g) in zip(xs, catalogue_models(parametric_catalogue, names)):
-        meshes.append((transform(v, pose_matrix(x, 0.0, 0.3 + x / 30, float(ground_height(x, 0.0)))), f, g))
-    meshes.append(_ground_mesh(-5, 29, -6, 6))
-    scan = scan_meshes(meshes, seed=5)
-    det = detect_points(PointSet(path=None, points=scan.points, offset=np.zeros(3), unit="m"))
-    shapes = describe_detected(det)
-    order = np.argsort([s.centroid[0] for s in shapes])
-    shapes = [shapes[k] for k in order]
-    clouds = [object_points(det, det.objects[k]) for k in order]
-    noise = scene_noise(det.hag, det.is_ground)
+    shapes, clouds, noise = _row_of_cars(parametric_catalogue, names, turn=lambda x: 0.3 + x / 30, seed=5)
     labels = np.zeros(len(shapes), dtype=int)  # one cluster, the SUV among the sedans
     calls = [0]
     original = match_module.evidence
