@@ -229,10 +229,22 @@ def confidence_of(best: Evidence, margin: float, noise: float, params: Settings 
     """The confidence of the accepted ``best`` won by ``margin`` noise units: the margin's, times the fit factor
     and, but for ``approximate`` models, the open world's :func:`design_factor` (its figures kept in
     ``best.extra``)."""
+    fit, design = copy_factors(best, noise, params, spacing, approximate)
     confidence = float(1.0 - np.exp(-max(float(margin), 0.0) / params.matching.confidence_sigma))
-    confidence *= fit_factor(best.fit_ratio(), params)
-    if best.model_id not in approximate:
-        factor, x, limit = design_factor(best.scan_fit, noise, spacing, params)
-        best.extra.update(fit_sigmas=x, fit_limit_sigmas=limit)
-        confidence *= factor
+    confidence *= fit
+    if design is not None:
+        confidence *= design
     return confidence
+
+
+def copy_factors(best: Evidence, noise: float, params: Settings = DEFAULT, spacing: float = 0.0,
+                 approximate=frozenset()) -> tuple:
+    """How well ``best`` explains its object as a copy of its design: its :func:`fit_factor` and, but for an
+    ``approximate`` model (None), its open world's :func:`design_factor` (its figures kept in ``best.extra``).
+    Both 1: within half of every acceptance limit and within the design fit."""
+    fit = fit_factor(best.fit_ratio(), params)
+    if best.model_id in approximate:
+        return fit, None
+    factor, x, limit = design_factor(best.scan_fit, noise, spacing, params)
+    best.extra.update(fit_sigmas=x, fit_limit_sigmas=limit)
+    return fit, factor

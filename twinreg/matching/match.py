@@ -7,7 +7,7 @@
    3pi/2}, a continuous tz and a small axial shift du, and ranked by RMSE. Objects of one cluster share work: the
    cluster's first object (its leader) tries every candidate, the others first the leader's favourites and their
    own nearest, and all of their candidates only when those fit clearly worse (by ``matching.share_margin``).
-   Where the leader was decided with a model, a member is first decided among the leader's contenders alone
+   Where the leader's model explains it cleanly, a member is first decided among the leader's contenders alone
    (:meth:`_Matcher.as_type`: the models that came within ``matching.refine_sigma`` noise units of the leader's
    winner): it keeps the leader's model when it wins there and scores within ``matching.type_slack`` noise units of
    its leader, and is decided in full otherwise.
@@ -36,7 +36,7 @@ from ..catalogue.repository import Catalogue
 from ..settings import DEFAULT, Settings
 from .acceptance import sample_cloud
 from .cache import ModelCache
-from .decision import confidence_of, decide, design_factor, evidence, fit_factor
+from .decision import confidence_of, copy_factors, decide, evidence
 from .refine import refine
 
 
@@ -62,8 +62,8 @@ class MatchStats:
     n_pairs_without_prefilter: int = 0  # a full search's pairs
     n_without_window: int = 0  # objects no window held
     n_trials_saved_by_clusters: int = 0  # by the leaders' rankings
-    n_type_offered: int = 0  # members offered their leader's model alone
-    n_type_decided: int = 0  # of them, kept it
+    n_type_offered: int = 0  # members decided first among their leader's contenders
+    n_type_decided: int = 0  # of them, kept the leader's model
     leaders: dict = field(default_factory=dict)
 
     def add(self, other: "MatchStats") -> None:
@@ -97,7 +97,7 @@ class Match:
     ambiguous_with: list = field(default_factory=list)
     outside_tolerance: bool = False
     evidence: dict | None = None
-    decided_by: str = "object"  # "type": a member given its leader's model, verified on its points
+    decided_by: str = "object"  # "type": a member decided among its leader's contenders (_Matcher.as_type)
 
 
 @dataclass
@@ -235,10 +235,10 @@ class _Matcher:
         self.n_done = 0
 
     def match(self, i: int, ranking: tuple | None) -> tuple:
-        """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member is offered its
-        leader's model alone where the leader's decision was clear (:meth:`as_type`), else tries its leader's
-        favourites first (``ranking``: the leader's models best first, its best RMSE and its type decision).
-        Returns the ranking the cluster's members follow."""
+        """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member is first decided among
+        its leader's contenders where the leader's model explains it cleanly (:meth:`as_type`), else tries its
+        leader's favourites first (``ranking``: the leader's models best first, its best RMSE and its type
+        decision). Returns the ranking the cluster's members follow."""
         if ranking is not None and len(ranking) > 2 and ranking[2] is not None and self.params.matching.type_reuse:
             self.stats.n_type_offered += 1
             out = self.as_type(i, ranking)
@@ -287,19 +287,16 @@ class _Matcher:
         mid = int(rec["model_id"])
         ids = [mid] + [int(c) for c in rec["contenders"]]
         found = self.found[i]
-        if ev is None or any(c not in self.cands[i] or c in found.nearest for c in ids):
+        if any(c not in self.cands[i] or c in found.nearest for c in ids):
             return None
-        t = time.perf_counter()
         pair = self.pairs[i]
         regs = [Candidate(_trial(pair, self.cache, c, self.params), c) for c in ids]
         self.stats.n_trials += len(ids)
         if regs[0].reg.rmse > ranking[1] + p.share_margin:
-            self.stats.registration_s += time.perf_counter() - t
             return None
         # the winner polished, as the full path's is before its refinement (_decided); the others as registered
         regs[0] = regs[0]._replace(reg=cosco.polished(pair, self.cache.pair(mid), regs[0].reg, self.params))
-        self.stats.registration_s += time.perf_counter() - t
-        t = time.perf_counter()
+        t = time.perf_counter()  # the registrations' time is the rest of the call's (match_objects)
         try:
             noise = ev.noise_of(i)
             shape = self.shapes[i]
@@ -307,8 +304,7 @@ class _Matcher:
                              ev.seen[i] if ev.seen is not None else None)
             found_e = [scorer.placed_refined(c.reg, c.model_id) for c in regs]
             if rec["ends"] <= p.refine_sigma:  # the winner end for end: its leader's other end came as close
-                r = regs[0].reg
-                turned = scorer.placed_refined(cosco.Registration(r.rmse, r.rz + np.pi, r.tz, r.du), mid)
+                turned = scorer.placed_refined(_turned(regs[0].reg), mid)
                 if turned.score < found_e[0].score:
                     found_e[0] = turned
             approximate = frozenset(c for c in ids if made_from_scans(self.cache.row(c)))
@@ -318,7 +314,7 @@ class _Matcher:
                 return None
             behind = (best.score - rec["score"]) / noise
             if behind > p.type_slack or (_copy_factor(best, noise, self.spacings[i], self.params, approximate)
-                                         < rec["factor"] - p.type_fit_slack):
+                                         < 1.0 - p.type_fit_slack):
                 return None
             margin = decision.margin_sigma if len(ids) > 1 or rec["beyond"] is None else np.inf
             if rec["beyond"] is not None:
@@ -337,31 +333,31 @@ class _Matcher:
 
 
 def _copy_factor(best, noise: float, spacing: float, params: Settings, approximate) -> float:
-    """How well ``best`` explains its object as a copy of its design: the product of its
-    :func:`~twinreg.matching.decision.fit_factor` (1: within half of every acceptance limit) and, but for an
-    ``approximate`` model, its open world's :func:`~twinreg.matching.decision.design_factor` (1: within the design
-    fit). A member whose factor falls more than ``matching.type_fit_slack`` under its leader's (another design
-    grouped with the leader's, a sparse or occluded copy) is decided in full."""
-    factor = fit_factor(best.fit_ratio(), params)
-    if best.model_id not in approximate:
-        factor *= design_factor(best.scan_fit, noise, spacing, params)[0]
-    return float(factor)
+    """The product of ``best``'s :func:`~twinreg.matching.decision.copy_factors` (1: it explains its object as a
+    copy of its design). A leader under 1 shares nothing with its members; a member more than
+    ``matching.type_fit_slack`` under it (another design grouped with the leader's, a sparse or occluded copy) is
+    decided in full."""
+    fit, design = copy_factors(best, noise, params, spacing, approximate)
+    return float(fit if design is None else fit * design)
+
+
+def _turned(reg: cosco.Registration) -> cosco.Registration:
+    """``reg`` end for end: turned half a turn about the vertical."""
+    return cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
 
 
 def _type_decision(result: ObjectMatch, decision, noise, spacing: float, cache: ModelCache,
                    params: Settings) -> dict | None:
     """What a cluster's leader's decision tells its members (:meth:`_Matcher.as_type`), or None when it tells
     them nothing (no model; one outside the size window; a winner that did not also score lowest, or that explains
-    the leader only loosely: its :func:`_copy_factor` under 1). ``model_id``
-    and ``score`` (m): the winner; ``contenders``: the other models scored within ``matching.refine_sigma`` noise
-    units of it; ``beyond``: the margin (noise units) to the first model farther behind (None: none was);
-    ``ends``: between the winner's two ends (noise units); ``factor``: how well the winner explains the leader as a
-    copy of its design (:func:`_copy_factor`); ``runner_up``: the first of those beyond, by id and name (None:
-    none)."""
+    the leader only loosely: its :func:`_copy_factor` under 1). ``model_id`` and ``score`` (m): the winner;
+    ``contenders``: the other models scored within ``matching.refine_sigma`` noise units of it; ``beyond``: the
+    margin (noise units) to the first model farther behind (None: none was); ``ends``: between the winner's two ends
+    (noise units); ``runner_up``: the first of those beyond, by id and name (None: none)."""
     if decision is None or decision.best is None or result.match is None or result.match.outside_tolerance:
         return None
     best = decision.best
-    if not decision.scored or decision.scored[0] is not best or decision.ends_sigma is None:
+    if decision.scored[0] is not best:
         return None
     reach = params.matching.refine_sigma
     gaps = [(e.score - best.score) / noise for e in decision.scored[1:]]
@@ -370,11 +366,9 @@ def _type_decision(result: ObjectMatch, decision, noise, spacing: float, cache: 
     if len(set(contenders + [int(best.model_id)])) != len(contenders) + 1:
         return None  # a model twice (one scored at each end): decided in full
     approximate = frozenset([best.model_id]) if made_from_scans(cache.row(best.model_id)) else frozenset()
-    factor = _copy_factor(best, noise, spacing, params, approximate)
-    if factor < 1.0:  # the leader itself explained only loosely: its members are decided in full
+    if _copy_factor(best, noise, spacing, params, approximate) < 1.0:  # the leader explained only loosely
         return None
     return {"model_id": int(best.model_id), "score": float(best.score), "contenders": contenders,
-            "factor": factor,
             "beyond": float(far[0][0]) if far else None, "ends": float(decision.ends_sigma),
             "runner_up": {"model_id": int(far[0][1].model_id), "name": cache.row(far[0][1].model_id).name,
                           "from_type": True} if far else None}
@@ -505,7 +499,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
         candidates[j] = Candidate(cosco.polished(obj_pair, cache.pair(mid), reg, params), mid)
         polished[j] = True
         p = candidates[j].reg
-        found[j] = scorer.placed_refined(cosco.Registration(p.rmse, p.rz + np.pi, p.tz, p.du) if turned else p, mid)
+        found[j] = scorer.placed_refined(_turned(p) if turned else p, mid)
         found[j].extra["turned"] = turned
 
     best = min((e.score for e in found), default=np.inf)
@@ -517,7 +511,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
         if not found[k].extra["refined"]:
             refine_at(k)
         reg, mid = candidates[k]
-        turned_reg = cosco.Registration(reg.rmse, reg.rz + np.pi, reg.tz, reg.du)
+        turned_reg = _turned(reg)
         screen = scorer.screened(turned_reg, mid)
         turned = scorer.refined(turned_reg, mid, screen) if screen[0].score <= found[k].score + reach else screen[0]
         turned.extra.update(reg=turned_reg, turned=True)
