@@ -30,7 +30,7 @@ from .io.points import check_point_file
 from .matching.acceptance import scene_noise
 from .matching.match import Evidence, ModelCache, match_objects
 from .matching.prober import Prober
-from .process.helpers import HELPER_TIMEOUT_S, Painter, Pending
+from .process.helpers import HELPER_TIMEOUT_S, Forked, Painter, Pending
 from .progress import say
 from .report.scene import plot_taxonomy, warm_up, write_report
 from .settings import DEFAULT, Settings
@@ -196,6 +196,11 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     return twin
 
 
+#: how long the scan's files (the classified COPC, the observation record) may take in their forked child, beyond
+#: HELPER_TIMEOUT_S, before this process writes them itself (s a point; about 1 us a point is usual)
+SCAN_FILES_S_PER_POINT = 5e-6
+
+
 @dataclass
 class SceneRun:
     """One scene's run once its objects are described: where it writes (``stage``), what it read (``scene_path``,
@@ -272,7 +277,7 @@ def _match_and_export(run: SceneRun) -> dict:
                       [("scene", det.scene.points[rows], colours)], ply="twin" if ply else None,
                       templates=run.templates, helper=run.prober.helper if run.prober else None)
 
-    def scan_files():  # the classified scan and the observation record, while the formats finish
+    def scan_files():  # the classified scan and the observation record, while the formats are written
         classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,
                                     [o["match"] is not None for o in objects])
         write_classified(stage / "scan.copc.laz", det.scene.points, classes, ids, georef)
@@ -280,7 +285,14 @@ def _match_and_export(run: SceneRun) -> dict:
             det.scene.points, det.hag, det.is_ground, det.scene.points.min(0), det.scene.points.max(0) + 1e-6)],
             [s.sections for s in shapes])}
 
-    twin |= write_twin(files, beside=scan_files)
+    # in a child forked before the formats' thread starts (it inherits the scan rather than being sent it), on the
+    # other core while this process writes the formats; here when it cannot fork, fails or dies
+    scans = Forked(scan_files)
+    try:
+        twin |= write_twin(files, beside=lambda: scans.wait(
+            timeout=HELPER_TIMEOUT_S + SCAN_FILES_S_PER_POINT * len(det.scene.points)))
+    finally:
+        scans.stop()
     # each job done there or, when its helper is missing, stuck or failed, here (the pictures within one deadline)
     deadline = time.monotonic() + HELPER_TIMEOUT_S
     for job in (taxonomy, report):

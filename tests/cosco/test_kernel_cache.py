@@ -69,29 +69,31 @@ def _plant(folder: Path, marker: Path) -> int:
 
 
 @pytest.fixture(scope="module")
-def tiny_tiles(tmp_path_factory) -> Path:
-    """One LAZ tile of a car-sized block on flat ground (RD New): build-twin takes a folder as a city (kernels on)."""
+def tiny_tile(tmp_path_factory) -> Path:
+    """One LAZ tile of a car-sized block on flat ground (RD New)."""
     rng = np.random.default_rng(0)
     pts = np.vstack([rng.uniform([0, 0, 0], [60, 60, 0.05], (20000, 3)),
                      rng.uniform([20, 20, 0], [24.2, 21.8, 1.5], (3000, 3))]) + [155000, 463000, 0]
-    tiles = tmp_path_factory.mktemp("tiny_city") / "tiles"
-    tiles.mkdir()
-    write_las(tiles / "a.laz", pts, crs="EPSG:28992")
-    return tiles
+    tile = tmp_path_factory.mktemp("tiny_city") / "a.laz"
+    write_las(tile, pts, crs="EPSG:28992")
+    return tile
 
 
-def _build(tiles: Path, library: Path, out: Path, env: dict) -> subprocess.CompletedProcess:
-    return subprocess.run([TWINREG, "--library", str(library), "build-twin", str(tiles), "--out", str(out),
-                           "--workers", "1"], env=env, capture_output=True, text=True, timeout=600)
+def _build(scan: Path, library: Path, out: Path, env: dict) -> subprocess.CompletedProcess:
+    """build-twin with the kernels on (``TWINREG_JIT=1``: a scene's run compiles, or loads, those it calls; a
+    city's engine loads them all through the same :func:`cosco.kernels.trusted_cache_dir` before its workers
+    start, a minute of compiling here when the cache is refused)."""
+    return subprocess.run([TWINREG, "--library", str(library), "build-twin", str(scan), "--out", str(out)],
+                          env=env | {"TWINREG_JIT": "1"}, capture_output=True, text=True, timeout=600)
 
 
-def test_a_planted_cache_runs_no_code_in_a_city_build(tmp_path, tiny_tiles, parametric_catalogue, compiled):
+def test_a_planted_cache_runs_no_code_in_a_build(tmp_path, tiny_tile, parametric_catalogue, compiled):
     base = tmp_path / "cache"
     folder = _copy(compiled, base)
     marker = tmp_path / "payload-ran"
     assert _plant(folder, marker) > 10
     os.chmod(base, 0o777)  # any local user could have written the payload
-    res = _build(tiny_tiles, parametric_catalogue.folder, tmp_path / "out", _env(base))
+    res = _build(tiny_tile, parametric_catalogue.folder, tmp_path / "out", _env(base))
     assert res.returncode == 0, res.stderr
     assert not marker.exists()
     assert "not using the kernel cache" in res.stderr and "writable by other users (mode 777)" in res.stderr

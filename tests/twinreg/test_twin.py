@@ -196,6 +196,14 @@ def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_pat
         assert a.shape == b.shape and np.array_equal(a, b), name
     page = (tmp_path / "here" / "report.html").read_text()
     assert all(f"src='{name}'" in page for name in ("topview.png", "sections.png", "confidence.png"))
+    # the scan's files, written by a forked child with the helpers, the same written here
+    import laspy
+
+    a, b = (laspy.read(tmp_path / out / "scan.copc.laz") for out in ("helper", "here"))
+    assert len(a.points) == len(b.points) == len(park["scene"].points)
+    assert np.array_equal(a.classification, b.classification) and np.array_equal(a.x, b.x)
+    with np.load(tmp_path / "helper" / "observed.npz") as x, np.load(tmp_path / "here" / "observed.npz") as y:
+        assert sorted(x.files) == sorted(y.files) and all(np.array_equal(x[k], y[k], equal_nan=x[k].dtype.kind == "f") for k in x.files)
 
 
 MAIN_PID = __import__("os").getpid()

@@ -19,7 +19,7 @@ def warm_up() -> bool:
     """Import matplotlib and draw a first tiny figure (font set-up): run in the helper process at the start."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(1, 1))
-    ax.text(0.5, 0.5, "warm")
+    ax.text(0.5, 0.5, r"warm $\sim$")  # mathtext too: the top view's legend uses it
     fig.savefig(io.BytesIO(), format="png")
     plt.close(fig)
     return True
@@ -40,40 +40,52 @@ def _height_image(scene_local: np.ndarray, heights: np.ndarray, cell: float):
 def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: list[dict], path, title: str,
                   hag: np.ndarray | None = None):
     """Top view: the scan as a height-above-ground image (a raster, fast at any size) with each placed model's
-    footprint, front arrow and label."""
+    footprint, front arrow and label. The footprints and arrows are one collection each (a sweep's hundred objects
+    as a hundred patches and arrows took a second to draw), and the figure is drawn once: its margins are fixed,
+    not measured by a first drawing (``bbox_inches="tight"`` or a layout engine)."""
+    from matplotlib.collections import PolyCollection
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
     plt = pyplot()
     ext = np.ptp(scene_local[:, :2], axis=0)
     scale = 14.0 / max(ext.max(), 1.0)
-    fig, ax = plt.subplots(figsize=(max(4, ext[0] * scale + 1), max(3, ext[1] * scale + 1)))
+    w, h = max(4, ext[0] * scale + 1), max(3, ext[1] * scale + 1)
+    fig = plt.figure(figsize=(w + 1.6, h + 1.1))  # the map, and fixed margins: the labels, the legend, the bar
+    ax = fig.add_axes((0.75 / (w + 1.6), 0.8 / (h + 1.1), w / (w + 1.6), h / (h + 1.1)))
+    cax = fig.add_axes(((w + 0.85) / (w + 1.6), 0.8 / (h + 1.1) + 0.1 * h / (h + 1.1), 0.12 / (w + 1.6),
+                        0.8 * h / (h + 1.1)))
     heights = np.where(is_ground, 0.0, hag if hag is not None else 1.0)
     cell = max(0.1, float(ext.max()) / 1500)
     img, lo = _height_image(scene_local, heights, cell)
     shown = ax.imshow(np.clip(img.T, 0, 3), origin="lower", cmap="Greys", vmin=-0.5, vmax=3.0,
                       extent=[lo[0], lo[0] + img.shape[0] * cell, lo[1], lo[1] + img.shape[1] * cell],
                       interpolation="nearest")
-    for fp in footprints:
-        c = np.asarray(fp["corners"])
-        ax.fill(c[:, 0], c[:, 1], color=fp["color"], alpha=0.45, lw=0)
-        ax.plot(*np.vstack([c, c[:1]]).T, color=fp["color"], lw=1)
-        ax.annotate("", xy=fp["front"], xytext=fp["centre"], arrowprops=dict(arrowstyle="->", lw=0.8))
-        ax.text(fp["centre"][0], fp["centre"][1], fp["label"], fontsize=5, ha="center", va="center")
+    if footprints:
+        colours = np.array([fp["color"] for fp in footprints], dtype=float)[:, :3]
+        ax.add_collection(PolyCollection([np.asarray(fp["corners"]) for fp in footprints],
+                                         facecolors=np.c_[colours, np.full(len(colours), 0.45)],
+                                         edgecolors=colours, linewidths=1), autolim=False)
+        centre = np.array([fp["centre"] for fp in footprints], dtype=float)
+        front = np.array([fp["front"] for fp in footprints], dtype=float) - centre
+        ax.quiver(centre[:, 0], centre[:, 1], front[:, 0], front[:, 1], angles="xy", scale_units="xy", scale=1,
+                  width=0.001, headwidth=6, headlength=7, headaxislength=6, color="black")
+        for fp in footprints:
+            ax.text(fp["centre"][0], fp["centre"][1], fp["label"], fontsize=5, ha="center", va="center")
     ax.set_aspect("equal")
     ax.set_title(title)
     ax.set_xlabel("x (m, east in the scan's frame)")
     ax.set_ylabel("y (m, north)")
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch
-
     handles = [Patch(color="tab:blue", alpha=0.45, label="placed object: a colour a type"),
                Line2D([], [], color="black", marker=r"$\rightarrow$", lw=0, markersize=9, label="its front"),
                Line2D([], [], lw=0, marker="$7$", color="black", label="7: object 7, a model"),
                Line2D([], [], lw=0, marker="$\\sim$", color="black", label="7~: its type's fused shape"),
                Line2D([], [], lw=0, marker="$?$", color="black", label="7?: a box (no model, no shape)")]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=5, fontsize=7, frameon=False)
-    bar = fig.colorbar(shown, ax=ax, fraction=0.02, pad=0.01, location="right", ticks=[0, 1, 2, 3])
+    fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=7, frameon=False)
+    bar = fig.colorbar(shown, cax=cax, ticks=[0, 1, 2, 3])
     bar.set_label("scan: height above ground (m)", fontsize=7)
     bar.ax.tick_params(labelsize=6)
-    return save_figure(fig, path, tight=True, dpi=100)
+    return save_figure(fig, path, tight=False, dpi=100)
 
 
 #: the most objects sections.png draws (a row each; every object's sections are in sections.json and the viewer)
