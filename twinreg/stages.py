@@ -20,6 +20,7 @@ from .errors import CatalogueError, require_positive, require_probability
 from .export.objects import fused_pose, place_object, pose
 from .export.twin_json import object_record
 from .geo.georef import check_area
+from .process.helpers import HELPER_TIMEOUT_S, Pending
 from .progress import say
 from .recognition.classify import near_candidates
 from .recognition.decide import decide
@@ -112,7 +113,7 @@ def types_of(labels, outcomes: list, kinds: list | None, params: Settings, spaci
 
 
 def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: Settings,
-         timing: dict | None = None, kinds: list | None = None) -> dict:
+         timing: dict | None = None, kinds: list | None = None, helper=None) -> dict:
     """The fused shape of every type whose members have no decided model (:func:`twinreg.shapes.fuse.fuse_type`:
     the members co-registered, their points gathered and completed by the type's level of symmetry, meshed), by
     type: ``(member indices, FusedShape)``. ``clouds``: each object's points (the scene frame); the type's level is
@@ -120,27 +121,69 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     keep their boxes, but for vehicles (``kinds``), which get the kind's template: a body lofted from each one's
     own sections (:func:`twinreg.shapes.fuse.generic_solid`; keyed ``"<type>:<index>"``). In a type that is not
     of vehicles (a van's roof is all a scan sees of it), parts whose points all stand over
-    ``params.fusion.hang_height`` hang (a lamp's arm, a sign's plate, a shelter's roof)."""
+    ``params.fusion.hang_height`` hang (a lamp's arm, a sign's plate, a shelter's roof).
+
+    With a ``helper`` (a :class:`~twinreg.process.helpers.Painter`: a scene's distance helper, idle once the
+    matching is done), about half the types' work (by points) is sent to it and fused there while this process
+    fuses the rest: the same calls, so the same shapes; one it does not answer in time is fused here."""
     t0 = time.perf_counter()
     groups: dict = {}
     for k, (t, res) in enumerate(zip(types, outcomes)):
         if res.match is None:
             groups.setdefault(t, []).append(k)
-    out = {}
+    out: dict = {}
+    calls, order = [], []  # the shapes in the order of the types (the generic ones where their type is)
     for t, ks in groups.items():
         if sum(len(clouds[k]) for k in ks) < params.fusion.min_points:
             for k in ks:
                 got = generic_solid(outcomes[k].shape) if kinds is not None and kinds[k].kind in VEHICLES else None
                 if got is not None:
                     out[f"{t}:{k}"] = ([k], FusedShape(*got, np.eye(4)[None], {"members": 1}, np.zeros(1), "generic"))
+                    order.append(f"{t}:{k}")
             continue
         level = Counter(levels[k] for k in ks).most_common(1)[0][0] if levels is not None else "mirror"
         vehicles = kinds is not None and Counter(kinds[k].kind for k in ks).most_common(1)[0][0] in VEHICLES
-        out[t] = (ks, fuse_type([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params,
-                                hang=None if vehicles else params.fusion.hang_height))
+        order.append(t)
+        calls.append((t, ks, ([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params, None, 2000,
+                              None, None if vehicles else params.fusion.hang_height)))
+    sent, here = _shared_out(calls, helper is not None and len(calls) >= 2)
+    # one message each way (a call a type, sent one after another, could fill both pipes: each side waiting for the
+    # other to read)
+    job = Pending(helper, fuse_types, [args for _, _, args in sent]) if sent else None
+    for t, ks, args in here:
+        out[t] = (ks, fuse_type(*args))
+    if job is not None:
+        n = sum(len(c) for _, _, args in sent for c in args[0])
+        for (t, ks, _), shape in zip(sent, job.wait(timeout=HELPER_TIMEOUT_S + FUSE_S_PER_POINT * n)):
+            out[t] = (ks, shape)
     if timing is not None:
         timing["shapes"] = time.perf_counter() - t0
-    return out
+    return {t: out[t] for t in order}
+
+
+def fuse_types(calls: list) -> list:
+    """:func:`~twinreg.shapes.fuse.fuse_type` of each call's arguments (what :func:`fuse` sends its helper)."""
+    return [fuse_type(*args) for args in calls]
+
+
+#: how long the types sent to the helper may take to fuse there, beyond HELPER_TIMEOUT_S, before they are fused here
+#: (s a point of their members)
+FUSE_S_PER_POINT = 1e-4
+
+
+def _shared_out(calls: list, share: bool) -> tuple[list, list]:
+    """The fusing calls split in two of about equal work (their members' points): those for the helper, those for
+    this process, each in the given order; all here when not ``share``."""
+    if not share:
+        return [], calls
+    load = [0, 0]
+    side = []
+    for _, _, args in calls:
+        n = sum(len(c) for c in args[0])
+        k = int(load[1] < load[0])
+        load[k] += n
+        side.append(k)
+    return [c for c, k in zip(calls, side) if k == 1], [c for c, k in zip(calls, side) if k == 0]
 
 
 def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, labels, offsets: list,
@@ -154,7 +197,8 @@ def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, la
     outcomes, kinds = recognise(outcomes, shapes, levels, catalogue, params)
     types = types_of(labels, outcomes, kinds, params, spacing)
     say(progress, "shapes of the types without a model")
-    fused = fuse(types, outcomes, clouds_of(outcomes), levels, params, timing, kinds)
+    helper = getattr(getattr(models, "prober", None), "helper", None)
+    fused = fuse(types, outcomes, clouds_of(outcomes), levels, params, timing, kinds, helper=helper)
     placed = place(ids, n_points, outcomes, labels, offsets, georef, models, kinds, levels, types, fused)
     return outcomes, placed
 

@@ -112,3 +112,36 @@ def test_types_split_by_model_and_size():
             outcome([4.0, 1.8, 1.5], "a"), outcome([4.05, 1.8, 1.5], "b")]
     types = types_of([1] * 5, outs, None, DEFAULT, spacing=[0.08] * 5)
     assert types[0] == types[1] and len(set(types)) == 4
+
+
+def test_types_fused_half_on_the_helper_are_the_shapes_fused_here():
+    """stages.fuse sends about half the types' work to a helper process (a scene's distance helper, idle once
+    the matching is done): the same shapes, in the same order, as all fused in this process."""
+    import cosco
+    from twinreg.matching.match import ObjectMatch
+    from twinreg.process.helpers import Painter
+    from twinreg.stages import _shared_out, fuse
+
+    rng = np.random.default_rng(3)
+    clouds, outcomes = [], []
+    for k in range(6):  # three types of two boxes each, of different sizes and point counts
+        size = np.array([1.0 + 0.5 * (k // 2), 0.6 + 0.2 * (k // 2), 0.8 + 0.4 * (k // 2)])
+        pts = rng.uniform([0, 0, 0], size, (600 + 400 * (k // 2), 3)) + [10.0 * k, 0.0, 0.0]
+        clouds.append(pts)
+        outcomes.append(ObjectMatch(cosco.describe_object(pts), None, "no model (the test)", []))
+    types, levels = [k // 2 for k in range(6)], ["mirror"] * 6
+    here = fuse(types, outcomes, clouds, levels, DEFAULT)
+    helper = Painter.start()
+    assert helper is not None
+    try:
+        shared = fuse(types, outcomes, clouds, levels, DEFAULT, helper=helper)
+        assert helper.result(helper.submit(sum, [1, 2])) == 3  # it answered each call: still there
+    finally:
+        helper.stop()
+    assert list(shared) == list(here) == [0, 1, 2]
+    for t in here:
+        (ks, a), (kt, b) = here[t], shared[t]
+        assert ks == kt and np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+        assert a.quality == b.quality and np.array_equal(a.member_poses, b.member_poses)
+    sent, kept = _shared_out([(t, None, ([np.zeros((n, 3))],)) for t, n in enumerate([900, 500, 400, 300])], True)
+    assert [c[0] for c in kept] == [0, 3] and [c[0] for c in sent] == [1, 2]  # 1,200 points each side
