@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..footprint import min_area_rectangle
+from ..footprint import hull_rows, min_area_rectangle
 from ..params import CoscoParams
 from .components import describe, groups
 from .components import members as _members
@@ -80,6 +80,16 @@ def join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosc
     group = {lab: [lab] for lab in labs}  # the components each surviving one has taken in
     owner = {lab: lab for lab in labs}
     out = comp.copy()
+    # each group's points on its plan hull: a union's rectangle is that of its parts' hulls (the same rectangle,
+    # from tens of points instead of thousands)
+    hulls: dict = {}
+
+    def hull(lab):
+        if lab not in hulls:
+            pts = xy[members[lab]]
+            hulls[lab] = pts[hull_rows(pts)]
+        return hulls[lab]
+
     for lab in sorted(pieces, key=lambda q: (len(members[q]), q)):
         if owner[lab] != lab:
             continue
@@ -89,7 +99,7 @@ def join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosc
             h_idx = np.concatenate([members[q] for q in group[host]])
             if host == lab or len(h_idx) < len(p_idx) or hag[p_idx].min() > hag[h_idx].max():
                 continue
-            both = min_area_rectangle(np.vstack([xy[h_idx], xy[p_idx]]))
+            both = min_area_rectangle(np.vstack([hull(host), hull(lab)]))
             if both.length > max_length or both.width > params.segment.car_width[1]:
                 continue
             # in line along the axis of their union: side by side, the union would be as wide as two cars
@@ -107,6 +117,8 @@ def join_in_line(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: Cosc
                 best = (host, rank)
         if best is not None:
             host = best[0]
+            joined = np.vstack([hull(host), hull(lab)])
+            hulls[host] = joined[hull_rows(joined)]
             for q in group.pop(lab):
                 owner[q] = host
                 group[host].append(q)
