@@ -125,6 +125,8 @@ def clear(folder: Path) -> None:
     import shutil
 
     for child in Path(folder).iterdir():
+        if child.name == ".lock":  # held by this process while it compiles (kernels._one_writer)
+            continue
         if child.is_dir() and not child.is_symlink():
             shutil.rmtree(child, ignore_errors=True)
         else:

@@ -207,15 +207,38 @@ def warm() -> float:
     unpickling fails) is dropped with the rest of the cache folder, and the kernels compiled anew."""
     t = time.perf_counter()
     if in_use():
-        try:
-            _warm_all()
-        except Exception as exc:  # noqa: BLE001 - numba raises what unpickling raised (UnpicklingError, EOFError...)
-            from ._cache import clear
+        with _one_writer(trusted_cache_dir()):
+            try:
+                _warm_all()
+            except Exception as exc:  # noqa: BLE001 - numba raises what unpickling raised (UnpicklingError...)
+                from ._cache import clear
 
-            folder = trusted_cache_dir()
-            sys.stderr.write(f"twinreg: the kernel cache {folder} could not be read ({type(exc).__name__}); "
-                             "compiling anew\n")
-            clear(folder)
-            _STATE.pop("compiled", None)
-            _warm_all()
+                folder = trusted_cache_dir()
+                sys.stderr.write(f"twinreg: the kernel cache {folder} could not be read ({type(exc).__name__}); "
+                                 "compiling anew\n")
+                clear(folder)
+                _STATE.pop("compiled", None)
+                _warm_all()
     return time.perf_counter() - t
+
+
+@contextlib.contextmanager
+def _one_writer(folder: Path):
+    """Held while this process compiles or loads the kernels: two runs started at once on a fresh cache (two
+    scenes, a scene beside a city) would both write its files, a known numba crash; the second waits for the
+    first, then loads what it wrote. An advisory lock on ``folder/.lock``; none where it cannot be taken."""
+    try:
+        import fcntl
+
+        fh = open(os.path.join(folder, ".lock"), "a")
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
+    finally:
+        fh.close()  # releases the lock

@@ -213,7 +213,8 @@ class ChangeParams:
 class Settings(CoscoParams):
     """The method's groups and twinreg's, with the run's own values: ``min_confidence``, the floor under which a
     model is not claimed (``--min-confidence``, chosen on the calibration of docs/PERFORMANCE.md, "Kinds"), and
-    ``jit_min_objects``, the scene size from which the compiled kernels pay for numba's import (a city: always)."""
+    ``jit_min_objects``, the scene size from which the compiled kernels pay for numba's import and loading (a city:
+    always; 50: a 99-object street sweep gains 1.3-1.7 s for 0.6-0.7 s of loading, a 12-car park would lose)."""
 
     matching: MatchingParams = MatchingParams()
     kinds: KindParams = KindParams()
@@ -221,7 +222,7 @@ class Settings(CoscoParams):
     fusion: FusionParams = FusionParams()
     change: ChangeParams = ChangeParams()
     min_confidence: float = 0.3
-    jit_min_objects: int = 100
+    jit_min_objects: int = 50
 
     def with_(self, **changes):
         """A copy with some values changed (:func:`cosco.params.with_groups`).

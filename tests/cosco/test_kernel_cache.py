@@ -162,3 +162,28 @@ def test_the_switches_read_their_values():
                         ({"TWINREG_JIT": "yes", "TWINREG_NO_NUMBA": "1"}, "False")):
         out = subprocess.run([sys.executable, "-c", code], env=env | extra, capture_output=True, text=True, check=True)
         assert out.stdout.strip() == want, extra
+
+
+def test_a_second_run_waits_for_the_one_compiling(tmp_path, compiled):
+    """Two runs on one cache: while one holds it (compiling or loading), the other waits, then loads what it
+    wrote (two numba processes writing one cache at once is a known crash)."""
+    import fcntl
+    import time
+
+    base = tmp_path / "cache"
+    folder = _copy(compiled, base)
+    t = time.monotonic()
+    subprocess.run([sys.executable, "-c", ENABLE], env=_env(base), capture_output=True, text=True, check=True)
+    alone = time.monotonic() - t  # loading the compiled kernels with no one else there
+    with open(folder / ".lock", "a") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)  # another run compiling
+        waiting = subprocess.Popen([sys.executable, "-c", ENABLE], env=_env(base), stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+        try:
+            time.sleep(max(3 * alone, 5.0))
+            assert waiting.poll() is None  # still waiting for the lock
+        finally:
+            fcntl.flock(held, fcntl.LOCK_UN)
+    out, err = waiting.communicate(timeout=120)
+    assert waiting.returncode == 0, err
+    assert Path(out.strip()) == folder and "compiling anew" not in err
