@@ -6,7 +6,10 @@ resident memory, polled every 20 ms).
         --library WORK/demo/library build-twin WORK/demo/scan.ply --out {out} -q
 
 ``{out}`` in the command is replaced by a fresh folder per run. Each checkout runs with ``PYTHONPATH`` set to it, so
-one installed environment serves them all (the same packages; only the code differs)."""
+one installed environment serves them all (the same packages; only the code differs), and with ``python -P``: without
+it, ``-m`` puts the current folder first on the path, and run from a checkout every turn ran that checkout's code
+(this script's figures before 2026-12-06 run from the repository compared it with itself). Each checkout's
+``twinreg`` is checked to come from it before the first turn."""
 
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ import argparse
 import os
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -38,6 +42,12 @@ def main() -> None:
     a = ap.parse_args()
     args = a.args[1:] if a.args[:1] == ["--"] else a.args
     times: dict = {str(c): [] for c in a.code}
+    for code in a.code:
+        env = {**os.environ, "PYTHONPATH": str(code.resolve())}
+        where = subprocess.run([sys.executable, "-P", "-c", "import twinreg; print(twinreg.__file__)"], env=env,
+                               capture_output=True, text=True).stdout.strip()
+        if not Path(where).resolve().is_relative_to(code.resolve()):
+            raise SystemExit(f"{code}: its runs would import twinreg from {where or 'nowhere'}, not from it")
     work = Path(tempfile.mkdtemp(prefix="turns-"))
     try:
         for turn in range(a.turns):
@@ -45,7 +55,7 @@ def main() -> None:
             for code in order:
                 out = work / f"out-{turn}"
                 env = {**os.environ, "PYTHONPATH": str(code.resolve())}
-                cmd = [sys.executable, "-m", "twinreg", *[s.replace("{out}", str(out)) for s in args]]
+                cmd = [sys.executable, "-P", "-m", "twinreg", *[s.replace("{out}", str(out)) for s in args]]
                 times[str(code)].append(timed(cmd, env))
                 shutil.rmtree(out, ignore_errors=True)
     finally:
