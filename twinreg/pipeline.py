@@ -164,8 +164,8 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
         raise SceneReadError(f"{scene_path}: no {what} were found; check --unit (the scene's unit) and that the "
                              "scan covers what the catalogue holds")
     if len(targets) >= params.jit_min_objects:  # the compiled kernels pay for numba's import (cosco.kernels)
-
-
+        if prober:  # and the distances here pay for open3d's import (the fused shapes load it here anyway)
+            prober.answer_here()
         timing["kernels"] = enable(*KERNEL_MODULES)
     say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()

@@ -42,8 +42,15 @@ class Prober:
 
     def __init__(self, helper):
         self.helper = helper
+        self.here = False  # answer in this process, the helper kept for other calls (:meth:`answer_here`)
         self._sent: set = set()
         self._local: dict = {}
+
+    def answer_here(self) -> None:
+        """Answer the queries in this process from now on (open3d loaded here too): a scene of many objects asks
+        thousands, and each round trip to the helper costs more than the query; the helper stays for other calls
+        (the fused shapes' half, the KMZ)."""
+        self.here = True
 
     @classmethod
     def start(cls) -> "Prober | None":
@@ -59,7 +66,7 @@ class Prober:
         return _Remote(self, model_id, mesh_of)
 
     def distances(self, model_id: int, mesh_of, points: np.ndarray) -> np.ndarray:
-        if self.helper is not None:
+        if self.helper is not None and not self.here:
             try:
                 mesh = None if model_id in self._sent else mesh_of()
                 self._sent.add(model_id)

@@ -1,7 +1,7 @@
 """The verification's distances answered by a helper process (twinreg/matching/prober.py) are open3d's, as
-in-process; a helper that dies or is stuck is replaced by this process, with the same answers; the helper leaves
-with the run; no helper starts where open3d is loaded already. (Run in a fresh process, as build-twin runs: the
-test process has loaded open3d long before.)"""
+in-process, and those answered here once a scene asks many; a helper that dies or is stuck is replaced by this
+process, with the same answers; the helper leaves with the run; no helper starts where open3d is loaded already.
+(Run in a fresh process, as build-twin runs: the test process has loaded open3d long before.)"""
 
 from __future__ import annotations
 
@@ -39,6 +39,10 @@ try:
     seen["helper_vs_here"] = float(np.abs(got - want).max())
     seen["kept_vs_here"] = float(np.abs(small - want[:10]).max())
     seen["second_start"] = Prober.start() is not None  # open3d is loaded here now: a helper would load it again
+    prober.answer_here()  # a scene of many objects: the queries here, the helper kept for other calls
+    seen["answered_here_vs_here"] = float(np.abs(surface.distances(pts) - want).max())
+    seen["helper_kept"] = prober.helper is not None and prober.helper.result(prober.helper.submit(sum, [1, 2])) == 3
+    prober.here = False
     psutil.Process(pid).kill()
     psutil.Process(pid).wait(10)
     seen["after_kill_vs_here"] = float(np.abs(surface.distances(pts) - want).max())  # answered here
@@ -68,5 +72,6 @@ def test_helper_distances_are_open3ds_and_a_dead_helper_is_replaced():
     assert seen["open3d_loaded_here"] is False  # the distances came from the helper
     assert seen["helper_vs_here"] == 0.0 and seen["kept_vs_here"] == 0.0
     assert seen["second_start"] is False
+    assert seen["answered_here_vs_here"] == 0.0 and seen["helper_kept"]
     assert seen["after_kill_vs_here"] == 0.0 and seen["helper_dropped"]
     assert seen["helper_gone"]
