@@ -144,14 +144,14 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
         level = Counter(levels[k] for k in ks).most_common(1)[0][0] if levels is not None else "mirror"
         vehicles = kinds is not None and Counter(kinds[k].kind for k in ks).most_common(1)[0][0] in VEHICLES
         order.append(t)
-        calls.append((t, ks, ([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params, None, 2000,
-                              None, None if vehicles else params.fusion.hang_height)))
+        calls.append((t, ks, ([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params,
+                              None if vehicles else params.fusion.hang_height)))
     sent, here = _shared_out(calls, helper is not None and len(calls) >= 2)
     # one message each way (a call a type, sent one after another, could fill both pipes: each side waiting for the
     # other to read)
     job = Pending(helper, fuse_types, [args for _, _, args in sent]) if sent else None
     for t, ks, args in here:
-        out[t] = (ks, fuse_type(*args))
+        out[t] = (ks, _fused(args))
     if job is not None:
         n = sum(len(c) for _, _, args in sent for c in args[0])
         for (t, ks, _), shape in zip(sent, job.wait(timeout=HELPER_TIMEOUT_S + FUSE_S_PER_POINT * n)):
@@ -161,9 +161,16 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     return {t: out[t] for t in order}
 
 
+def _fused(call: tuple):
+    """:func:`~twinreg.shapes.fuse.fuse_type` of one of :func:`fuse`'s calls: (clouds, shapes, level, params,
+    hang)."""
+    clouds, shapes, level, params, hang = call
+    return fuse_type(clouds, shapes, level, params, hang=hang)
+
+
 def fuse_types(calls: list) -> list:
-    """:func:`~twinreg.shapes.fuse.fuse_type` of each call's arguments (what :func:`fuse` sends its helper)."""
-    return [fuse_type(*args) for args in calls]
+    """The fused shape of each of :func:`fuse`'s calls (what it sends its helper)."""
+    return [_fused(call) for call in calls]
 
 
 #: how long the types sent to the helper may take to fuse there, beyond HELPER_TIMEOUT_S, before they are fused here

@@ -203,7 +203,8 @@ def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_pat
     assert len(a.points) == len(b.points) == len(park["scene"].points)
     assert np.array_equal(a.classification, b.classification) and np.array_equal(a.x, b.x)
     with np.load(tmp_path / "helper" / "observed.npz") as x, np.load(tmp_path / "here" / "observed.npz") as y:
-        assert sorted(x.files) == sorted(y.files) and all(np.array_equal(x[k], y[k], equal_nan=x[k].dtype.kind == "f") for k in x.files)
+        assert sorted(x.files) == sorted(y.files)
+        assert all(np.array_equal(x[k], y[k], equal_nan=x[k].dtype.kind == "f") for k in x.files)
 
 
 MAIN_PID = __import__("os").getpid()

@@ -50,11 +50,11 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
     plt = pyplot()
     ext = np.ptp(scene_local[:, :2], axis=0)
     scale = 14.0 / max(ext.max(), 1.0)
-    w, h = max(4, ext[0] * scale + 1), max(3, ext[1] * scale + 1)
-    fig = plt.figure(figsize=(w + 1.6, h + 1.1))  # the map, and fixed margins: the labels, the legend, the bar
-    ax = fig.add_axes((0.75 / (w + 1.6), 0.8 / (h + 1.1), w / (w + 1.6), h / (h + 1.1)))
-    cax = fig.add_axes(((w + 0.85) / (w + 1.6), 0.8 / (h + 1.1) + 0.1 * h / (h + 1.1), 0.12 / (w + 1.6),
-                        0.8 * h / (h + 1.1)))
+    w, h = max(4, ext[0] * scale + 1), max(3, ext[1] * scale + 1)  # the map (inches)
+    fw, fh = w + 1.6, h + 1.1  # and fixed margins: the axes' labels and the bar, the title and the legend
+    fig = plt.figure(figsize=(fw, fh))
+    ax = fig.add_axes((0.75 / fw, 0.8 / fh, w / fw, h / fh))
+    cax = fig.add_axes(((w + 0.85) / fw, (0.8 + 0.1 * h) / fh, 0.12 / fw, 0.8 * h / fh))
     heights = np.where(is_ground, 0.0, hag if hag is not None else 1.0)
     cell = max(0.1, float(ext.max()) / 1500)
     img, lo = _height_image(scene_local, heights, cell)
