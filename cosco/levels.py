@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 from .arrays import as_points, voxel_downsample
 from .nearest import NearIndex, near_share_numpy
 from .params import DEFAULT, CoscoParams
+from .surface import nearest_other
 
 LEVELS = ("none", "mirror", "two_mirrors", "rotational")
 
@@ -51,12 +52,13 @@ class Level:
                 "second": round(self.second, 3)}
 
 
-def _sharer(pts: np.ndarray, tree: cKDTree, tol: float):
-    """share(moved): the share of the moved (n, 3) points within ``tol`` of one of ``pts`` (``tree``'s), compiled
-    where numba is in use (:class:`cosco.nearest.NearIndex`), else the KD-tree's."""
+def _sharer(pts: np.ndarray, tol: float):
+    """share(moved): the share of the moved (n, 3) points within ``tol`` of one of ``pts``, compiled where numba is
+    in use (:class:`cosco.nearest.NearIndex`), else a KD-tree's."""
     index = NearIndex.of(pts, tol)
     if index is not None:
         return index.share
+    tree = cKDTree(pts)
     return lambda moved: near_share_numpy(tree, moved, tol)
 
 
@@ -92,10 +94,9 @@ def symmetry_level(points, params: CoscoParams = DEFAULT, symmetry=None) -> Leve
     cap = params.levels.object_points if symmetry is not None else params.levels.max_points
     if len(pts) > cap:
         pts = pts[np.random.default_rng(0).choice(len(pts), cap, replace=False)]
-    tree3 = cKDTree(pts)
-    spacing = float(np.median(tree3.query(pts, k=2)[0][:, 1])) if len(pts) > 1 else voxel
+    spacing = float(np.median(nearest_other(pts))) if len(pts) > 1 else voxel
     tol = max(params.levels.tol, params.levels.tol_spacing * spacing)
-    share = _sharer(pts, tree3, tol)
+    share = _sharer(pts, tol)
     xy, z = pts[:, :2], pts[:, 2]
     low = z <= np.quantile(z, params.levels.base_share)
     axis = xy[low].mean(0)

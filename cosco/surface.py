@@ -17,7 +17,10 @@ lie from the one plane that fits them best (an upright board or a wall: centimet
 seen from the street: decimetres).
 
 Pure numpy and a KD-tree: points in, three numbers out, on at most ``surface.max_points`` points spread evenly
-through the object (the neighbours are sought among all its points), so the cost is bounded per object.
+through the object (the neighbours are sought among all its points), so the cost is bounded per object. Where the
+compiled kernels are in use (:mod:`cosco.kernels`: a city's cells, a scene of many objects) the neighbourhoods come
+from :func:`_shapes_fast` (the nearest neighbours on a voxel grid, each covariance's eigenvalues by Jacobi turns),
+beside this reference (tests/cosco/test_kernels.py: the same eigenvalues to 1e-12, the same normals).
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kernels import fast, kernel
+from .nearest import _grid_build_fast
 from .params import DEFAULT, CoscoParams
 
 
@@ -50,24 +55,252 @@ class Surface:
 
 def neighbourhood_shapes(points: np.ndarray, k: int, at: np.ndarray | None = None) -> tuple:
     """Each of ``at``'s points' (all ``points`` when None) ``k`` nearest neighbours among ``points``: their
-    covariance's eigenvalues, ascending (m, 3), and the eigenvector of the smallest, the normal (m, 3).
+    covariance's eigenvalues, ascending (m, 3), and the eigenvector of the smallest, the normal (m, 3; its largest
+    component positive).
 
     >>> g = np.stack(np.meshgrid(np.arange(10.0), np.arange(10.0)), -1).reshape(-1, 2)
     >>> ev, normal = neighbourhood_shapes(np.c_[g, np.zeros(100)], 8)
     >>> float(ev[:, 0].max()), float(np.abs(normal[:, 2]).min())
     (0.0, 1.0)
     """
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    q = p if at is None else np.ascontiguousarray(at, dtype=np.float64).reshape(-1, 3)
+    k = min(k, len(p))
+    kernel_fn = fast(_shapes_fast)
+    if kernel_fn is not None and k >= 1 and len(q):
+        cell = _neighbour_cell(p, k)
+        grid_pts, _, starts, lo, shape = fast(_grid_build_fast)(p, cell)
+        ev, normal = kernel_fn(q, k, grid_pts, starts, lo, shape, cell)
+    else:
+        ev, normal = _shapes_numpy(p, q, k)
+    return np.maximum(ev, 0.0), _signed(normal)
+
+
+def _shapes_numpy(p: np.ndarray, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The reference of :func:`_shapes_fast`: a KD-tree's ``k`` nearest, LAPACK's eigenvalues and vectors."""
     from scipy.spatial import cKDTree  # deferred: the catalogue's listing imports the shapes, not scipy
 
-    p = np.asarray(points, dtype=np.float64)
-    q = p if at is None else np.asarray(at, dtype=np.float64)
-    k = min(k, len(p))
     _, idx = cKDTree(p).query(q, k)
     nb = p[idx.reshape(len(q), k)]
     nb = nb - nb.mean(axis=1, keepdims=True)
     cov = np.einsum("nki,nkj->nij", nb, nb) / k
     ev, vec = np.linalg.eigh(cov)
-    return np.maximum(ev, 0.0), vec[:, :, 0]
+    return ev, vec[:, :, 0]
+
+
+def _signed(normal: np.ndarray) -> np.ndarray:
+    """Each (m, 3) unit vector turned so that its largest component is positive (an eigenvector's sign is free)."""
+    big = np.take_along_axis(normal, np.abs(normal).argmax(axis=1)[:, None], axis=1)
+    return np.where(big < 0, -normal, normal)
+
+
+def _neighbour_cell(p: np.ndarray, k: int) -> float:
+    """A voxel edge (m) for the ``k`` nearest neighbours of (n, 3) points: about the radius holding ``k`` of them
+    on a surface of half the box's area (or along its longest side), the grid kept within ``4 n + 1024`` voxels.
+    Only the speed depends on it: the search widens until the answer is sure."""
+    n = len(p)
+    ext = np.ptp(p, axis=0) if n else np.zeros(3)
+    area = ext[0] * ext[1] + ext[0] * ext[2] + ext[1] * ext[2]
+    cell = max(float(np.sqrt(k * area / (np.pi * max(n, 1)))), float(ext.max()) * k / (2.0 * max(n, 1)))
+    if not cell > 0:
+        return 1.0
+    while float(np.prod(ext / cell + 1)) > 4 * n + 1024:
+        cell *= 1.5
+    return cell
+
+
+@kernel(helper=True)
+def _eigh3(a, v):
+    """The (3, 3) symmetric ``a`` diagonalised in place by cyclic Jacobi turns (its diagonal the eigenvalues), ``v``
+    set to the eigenvectors (columns)."""
+    for i in range(3):
+        for j in range(3):
+            v[i, j] = 1.0 if i == j else 0.0
+    for _ in range(50):
+        off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+        diag = a[0, 0] * a[0, 0] + a[1, 1] * a[1, 1] + a[2, 2] * a[2, 2]
+        if off <= 1e-30 * diag:
+            break
+        for p in range(2):
+            for q in range(p + 1, 3):
+                apq = a[p, q]
+                if apq == 0.0:
+                    continue
+                theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+                t = 1.0 / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                if theta < 0.0:
+                    t = -t
+                c = 1.0 / np.sqrt(t * t + 1.0)
+                s = t * c
+                for r in range(3):  # columns p and q, then rows p and q: a <- J^T a J
+                    arp, arq = a[r, p], a[r, q]
+                    a[r, p] = c * arp - s * arq
+                    a[r, q] = s * arp + c * arq
+                for r in range(3):
+                    apr, aqr = a[p, r], a[q, r]
+                    a[p, r] = c * apr - s * aqr
+                    a[q, r] = s * apr + c * aqr
+                a[p, q] = 0.0
+                a[q, p] = 0.0
+                for r in range(3):
+                    vrp, vrq = v[r, p], v[r, q]
+                    v[r, p] = c * vrp - s * vrq
+                    v[r, q] = s * vrp + c * vrq
+
+
+@kernel(helper=True)
+def _k_nearest_into(best, rows, k, x, y, z, grid_pts, starts, lo, shape, cell) -> int:
+    """The ``k`` nearest :func:`~cosco.nearest._grid_build_fast` points of (x, y, z) into ``best`` (squared
+    distances, nearest first) and ``rows`` (grid rows); how many were found (fewer than ``k`` when the grid holds
+    fewer). The voxels are searched ring by ring around (x, y, z)'s own until the ``k``-th nearest lies within the
+    rings searched."""
+    c0 = min(max(np.int64(np.floor((x - lo[0]) / cell)), 0), shape[0] - 1)
+    c1 = min(max(np.int64(np.floor((y - lo[1]) / cell)), 0), shape[1] - 1)
+    c2 = min(max(np.int64(np.floor((z - lo[2]) / cell)), 0), shape[2] - 1)
+    # the query's distance to its own voxel's nearest face (0 outside the grid): beyond ring r, every point is
+    # farther than margin + r cells
+    margin = min(cell, max(x - (lo[0] + c0 * cell), 0.0), max(lo[0] + (c0 + 1) * cell - x, 0.0),
+                 max(y - (lo[1] + c1 * cell), 0.0), max(lo[1] + (c1 + 1) * cell - y, 0.0),
+                 max(z - (lo[2] + c2 * cell), 0.0), max(lo[2] + (c2 + 1) * cell - z, 0.0))
+    found = 0
+    r = 0
+    while True:
+        for i in range(max(c0 - r, 0), min(c0 + r + 1, shape[0])):
+            for j in range(max(c1 - r, 0), min(c1 + r + 1, shape[1])):
+                column = (i * shape[1] + j) * shape[2]
+                for side in range(2):
+                    if abs(i - c0) < r and abs(j - c1) < r:  # inside the last ring: its bottom and top voxels only
+                        kz = c2 - r if side == 0 else c2 + r
+                        if kz < 0 or kz >= shape[2]:
+                            continue
+                        s0, s1 = starts[column + kz], starts[column + kz + 1]
+                    elif side == 0:  # the column's voxels in reach: one run of points
+                        s0, s1 = starts[column + max(c2 - r, 0)], starts[column + min(c2 + r + 1, shape[2])]
+                    else:
+                        continue
+                    for g in range(s0, s1):
+                        dx = grid_pts[g, 0] - x
+                        dy = grid_pts[g, 1] - y
+                        dz = grid_pts[g, 2] - z
+                        dd = dx * dx + dy * dy + dz * dz
+                        if found < k:
+                            slot = found
+                            found += 1
+                        elif dd < best[k - 1]:
+                            slot = k - 1
+                        else:
+                            continue
+                        while slot > 0 and best[slot - 1] > dd:  # kept sorted, nearest first
+                            best[slot] = best[slot - 1]
+                            rows[slot] = rows[slot - 1]
+                            slot -= 1
+                        best[slot] = dd
+                        rows[slot] = g
+        reach = r * cell + margin
+        if found >= k and best[k - 1] <= reach * reach:
+            return found
+        if c0 - r <= 0 and c1 - r <= 0 and c2 - r <= 0 and c0 + r >= shape[0] - 1 and c1 + r >= shape[1] - 1 \
+                and c2 + r >= shape[2] - 1:
+            return found
+        r += 1
+
+
+@kernel(entry="neighbourhood_shapes", example="_example", tolerance=1e-12)
+def _shapes_fast(at, k, grid_pts, starts, lo, shape, cell):
+    """(m, 3) eigenvalues, ascending, and (m, 3) normals (the smallest's eigenvector) of the covariance of each of
+    ``at``'s ``k`` nearest :func:`~cosco.nearest._grid_build_fast` points (:func:`_k_nearest_into`)."""
+    m = at.shape[0]
+    ev = np.empty((m, 3))
+    normal = np.empty((m, 3))
+    best = np.empty(k)
+    rows = np.empty(k, dtype=np.int64)
+    a = np.empty((3, 3))
+    v = np.empty((3, 3))
+    for qi in range(m):
+        _k_nearest_into(best, rows, k, at[qi, 0], at[qi, 1], at[qi, 2], grid_pts, starts, lo, shape, cell)
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        for t in range(k):
+            mx += grid_pts[rows[t], 0]
+            my += grid_pts[rows[t], 1]
+            mz += grid_pts[rows[t], 2]
+        mx /= k
+        my /= k
+        mz /= k
+        for i in range(3):
+            for j in range(3):
+                a[i, j] = 0.0
+        for t in range(k):
+            d0 = grid_pts[rows[t], 0] - mx
+            d1 = grid_pts[rows[t], 1] - my
+            d2 = grid_pts[rows[t], 2] - mz
+            a[0, 0] += d0 * d0
+            a[0, 1] += d0 * d1
+            a[0, 2] += d0 * d2
+            a[1, 1] += d1 * d1
+            a[1, 2] += d1 * d2
+            a[2, 2] += d2 * d2
+        for i in range(3):
+            for j in range(i, 3):
+                a[i, j] /= k
+                a[j, i] = a[i, j]
+        _eigh3(a, v)
+        i0, i1, i2 = 0, 1, 2  # the eigenvalues' order, ascending
+        if a[i0, i0] > a[i1, i1]:
+            i0, i1 = i1, i0
+        if a[i1, i1] > a[i2, i2]:
+            i1, i2 = i2, i1
+        if a[i0, i0] > a[i1, i1]:
+            i0, i1 = i1, i0
+        ev[qi, 0] = a[i0, i0]
+        ev[qi, 1] = a[i1, i1]
+        ev[qi, 2] = a[i2, i2]
+        for t in range(3):
+            normal[qi, t] = v[t, i0]
+    return ev, normal
+
+
+@kernel(entry="nearest_other", example="_spacing_example", tolerance=1e-12)
+def _kth_distance_fast(points, k, grid_pts, starts, lo, shape, cell):
+    """(n,) each point's distance to its ``k``-th nearest :func:`~cosco.nearest._grid_build_fast` point (itself the
+    first, when indexed)."""
+    n = points.shape[0]
+    out = np.empty(n)
+    best = np.empty(k)
+    rows = np.empty(k, dtype=np.int64)
+    for p in range(n):
+        _k_nearest_into(best, rows, k, points[p, 0], points[p, 1], points[p, 2], grid_pts, starts, lo, shape, cell)
+        out[p] = np.sqrt(best[k - 1])
+    return out
+
+
+def nearest_other(points) -> np.ndarray:
+    """(n,) each of (n, 3) ``points``' distance to its nearest other point (n >= 2; a duplicate's is 0): a KD-tree's
+    second neighbour, or the compiled grid's where the kernels are in use.
+
+    >>> nearest_other(np.array([[0.0, 0, 0], [0, 0, 1], [0, 0, 3]])).tolist()
+    [1.0, 1.0, 2.0]
+    """
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    kernel_fn = fast(_kth_distance_fast)
+    if kernel_fn is not None:
+        cell = _neighbour_cell(p, 2)
+        grid_pts, _, starts, lo, shape = fast(_grid_build_fast)(p, cell)
+        return kernel_fn(p, 2, grid_pts, starts, lo, shape, cell)
+    from scipy.spatial import cKDTree
+
+    return cKDTree(p).query(p, k=2)[0][:, 1]
+
+
+def _spacing_example(rng) -> tuple:
+    return (np.r_[rng.normal(0, 1, (400, 3)) * [2.0, 0.9, 0.6], rng.normal(0, 0.05, (5, 3)) + 20.0],)
+
+
+def _example(rng) -> tuple:
+    a = rng.uniform(0, 2 * np.pi, 700)
+    shell = np.c_[2.0 * np.cos(a), 0.9 * np.sin(a), rng.uniform(0, 1.5, 700)] + rng.normal(0, 0.01, (700, 3))
+    return np.r_[shell, rng.normal(0, 0.5, (200, 3))], 12, shell[::4]
 
 
 def thickness_of(points: np.ndarray, share: float = 0.9) -> float:

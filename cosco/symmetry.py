@@ -4,7 +4,9 @@ A vertical plane is ``n . (x, y) = rho`` with ``n = (cos phi, sin phi)``. Its qu
 ratio (PCR): the share of down-sampled points whose mirror image has a neighbour within a tolerance; the RMSE of
 those neighbour distances breaks ties. The search starts from the footprint's minimum-area rectangle, its principal
 axes and a coarse sweep, maximises a smooth version of the PCR with Nelder-Mead (derivative-free, as in ODAS),
-then refines the plane in closed form from full-resolution mirror pairs.
+then refines the plane in closed form from full-resolution mirror pairs. Where the compiled kernels are in use and
+every mirror image counts (no scanner positions), the starts' scores and each Nelder-Mead search run compiled
+(:func:`_softs_fast`, :func:`_simplex_fast`), beside :func:`nelder_mead` and :meth:`_Objective.soft`.
 """
 
 from __future__ import annotations
@@ -17,8 +19,10 @@ import numpy as np
 from .arrays import as_points, voxel_downsample
 from .footprint import min_area_rectangle
 from .frames import axis_difference, reflect, wrap_axis
-from .nearest import MirrorIndex, mirror_distances_numpy, mirror_nearest_numpy
+from .kernels import fast, kernel
+from .nearest import MirrorIndex, _nearest_into, mirror_distances_numpy, mirror_nearest_numpy
 from .params import DEFAULT, CoscoParams
+from .surface import nearest_other
 
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
@@ -62,30 +66,43 @@ class Symmetry:
         return reflect(points, self.phi, self.rho)
 
 
-def _median_spacing(tree: cKDTree, pts: np.ndarray) -> float:
+def _median_spacing(pts: np.ndarray) -> float:
+    """The median of (n, 3) points' distances to their nearest other point (0 for fewer than two)."""
     if len(pts) < 2:
         return 0.0
-    d, _ = tree.query(pts, k=2)
-    return float(np.median(d[:, 1]))
+    return float(np.median(nearest_other(pts)))
 
 
 class _Objective:
     """Mirror-correspondence scores of planes against one down-sampled object."""
 
-    def __init__(self, pts: np.ndarray, tol: float, tree: cKDTree | None = None, side_share: float = 0.15,
+    def __init__(self, pts: np.ndarray, tol: float, targets: np.ndarray | None = None, side_share: float = 0.15,
                  known=None):
-        from scipy.spatial import cKDTree
-
         self.pts = pts
         self.side_share = side_share
         # where a scanner could see (a callable on (n, 3) points of this frame, None: everywhere): a mirror image
         # landing where no scanner could see (behind the object from every scanner position) counts for nothing
         self.known = known
-
-        self.tree = cKDTree(pts) if tree is None else tree
+        self.targets = pts if targets is None else targets
+        self._tree = None
         self.tol = tol
         # the compiled look-up (cosco.kernels), None where numba is missing: the KD-tree answers the same
-        self.index = MirrorIndex.of(pts, 3 * tol, targets=self.tree.data)
+        self.index = MirrorIndex.of(pts, 3 * tol, targets=self.targets)
+
+    @property
+    def tree(self) -> "cKDTree":
+        """The targets' KD-tree (built when first asked: the compiled index answers without it)."""
+        if self._tree is None:
+            from scipy.spatial import cKDTree
+
+            self._tree = cKDTree(self.targets)
+        return self._tree
+
+    def nearest(self, points: np.ndarray, phi: float, rho: float, bound: float) -> tuple[np.ndarray, np.ndarray]:
+        """Each of ``points`` mirrored in (phi, rho): its nearest target nearer than ``bound`` (distance, row)."""
+        if self.index is not None:
+            return self.index.nearest(points, phi, rho, bound)
+        return mirror_nearest_numpy(self.tree, points, phi, rho, bound)
 
     def distances(self, phi: float, rho: float) -> np.ndarray:
         if self.index is not None:
@@ -105,6 +122,28 @@ class _Objective:
         if seen is None:
             return float(np.mean(g))
         return float(g[seen].sum() / max(seen.sum(), len(g) / 3, 1))
+
+    def compiled(self) -> bool:
+        """Whether the starts' scores and the searches run compiled: a grid index, and every image counted."""
+        return self.index is not None and self.known is None and fast(_simplex_fast) is not None
+
+    def softs(self, phis: np.ndarray, rhos: np.ndarray) -> np.ndarray:
+        """:meth:`soft` of each plane (phis[i], rhos[i])."""
+        if self.compiled():
+            g = self.index.index
+            return fast(_softs_fast)(self.index.points, np.asarray(phis, dtype=np.float64),
+                                     np.asarray(rhos, dtype=np.float64), g.grid, g.order, g.starts, g.lo, g.shape,
+                                     g.bound, self.tol)
+        return np.array([self.soft(float(a), float(b)) for a, b in zip(phis, rhos)])
+
+    def search(self, simplex: np.ndarray, sym) -> np.ndarray:
+        """The (phi, rho) :func:`nelder_mead` finds for the least ``-soft`` from the (3, 2) ``simplex``."""
+        if self.compiled():
+            g = self.index.index
+            return fast(_simplex_fast)(self.index.points, np.asarray(simplex, dtype=np.float64), g.grid, g.order,
+                                       g.starts, g.lo, g.shape, g.bound, self.tol, sym.iterations, sym.xatol,
+                                       sym.fatol)
+        return nelder_mead(lambda x: -self.soft(x[0], x[1]), simplex, sym.iterations, sym.xatol, sym.fatol)
 
     def hard(self, phi: float, rho: float) -> tuple[float, float]:
         """(PCR, RMSE of the corresponding distances).
@@ -145,13 +184,12 @@ def _start_angles(xy: np.ndarray, params: CoscoParams, rect=None) -> np.ndarray:
     return np.mod(np.concatenate([guided, sweep]), np.pi)
 
 
-def _refine_pairs(pts: np.ndarray, tree: cKDTree, phi: float, rho: float, tol: float, steps: int, index=None):
+def _refine_pairs(pts: np.ndarray, obj: "_Objective", phi: float, rho: float, tol: float, steps: int):
     """Closed-form refinement: fit the plane through midpoints of mirror pairs (total least squares), on the
-    voxel centroids of the reference set (density-equalised, and a third of the points of a dense scan).
-    ``index``: the tree's points' :class:`~cosco.nearest.MirrorIndex` (compiled look-ups), None for the tree's."""
+    voxel centroids of the reference set (density-equalised, and a third of the points of a dense scan), ``pts``,
+    which ``obj``'s targets are."""
     for _ in range(steps):
-        d, idx = (index.nearest(pts, phi, rho, tol) if index is not None
-                  else mirror_nearest_numpy(tree, pts, phi, rho, tol))
+        d, idx = obj.nearest(pts, phi, rho, tol)
         ok = np.isfinite(d)
         if ok.sum() < 10:
             break
@@ -231,25 +269,22 @@ def _best_plane(local: np.ndarray, params: CoscoParams, known=None) -> tuple[flo
     """(pcr, rmse, phi, rho, tolerance) of the best plane of an object in its principal frame: the searches from
     the best start overall and the best along the footprint's long axis, the longitudinal one kept unless the
     other beats it by more than ``symmetry.long_axis_margin``."""
-    from scipy.spatial import cKDTree
-
     # the reference set: the object at the base voxel size (equalised density); the tolerance follows its spacing
     ref, _ = voxel_downsample(local, params.symmetry.voxel)
-    ref_tree = cKDTree(ref)
-    tol = max(params.symmetry.tol, params.symmetry.tol_spacing * _median_spacing(ref_tree, ref))
+    ref = np.ascontiguousarray(ref, dtype=np.float64)
+    tol = max(params.symmetry.tol, params.symmetry.tol_spacing * _median_spacing(ref))
     # the probes: a coarser down-sampling when the object is large (speed), mirrored against the reference
     voxel, down = params.symmetry.voxel, ref
     while len(down) > params.symmetry.max_points:
         # a surface's voxel count falls with the square of the voxel size
         voxel *= max(1.1, 1.05 * np.sqrt(len(down) / params.symmetry.max_points))
         down, _ = voxel_downsample(local, voxel)
-    obj = _Objective(down, tol, ref_tree, params.symmetry.side_share, known)
+    obj = _Objective(down, tol, ref, params.symmetry.side_share, known)
 
     rect = min_area_rectangle(down[:, :2])
-    scored = []
-    for phi in _start_angles(down[:, :2], params, rect):
-        rho = float(rect.centre @ np.array([np.cos(phi), np.sin(phi)]))
-        scored.append((obj.soft(phi, rho), phi, rho))
+    phis = _start_angles(down[:, :2], params, rect)
+    rhos = np.array([float(rect.centre @ np.array([np.cos(phi), np.sin(phi)])) for phi in phis])
+    scored = [(float(f), float(phi), float(rho)) for f, phi, rho in zip(obj.softs(phis, rhos), phis, rhos)]
     scored.sort(key=lambda t: -t[0])
 
     # the best start overall, and the best start whose plane contains the footprint's long axis (a vehicle's
@@ -261,7 +296,7 @@ def _best_plane(local: np.ndarray, params: CoscoParams, known=None) -> tuple[flo
         if k == 1 and axis_difference(phi0, scored[0][1]) < params.symmetry.same_plane:
             break
         phi, rho = _optimise(obj, phi0, rho0, params.symmetry)
-        phi, rho = _refine_pairs(ref, ref_tree, phi, rho, tol, params.symmetry.refine_steps, obj.index)
+        phi, rho = _refine_pairs(ref, obj, phi, rho, tol, params.symmetry.refine_steps)
         pcr, rmse = obj.hard(phi, rho)
         candidates.append((pcr, rmse, phi, rho, axis_difference(phi, long_normal) < params.symmetry.along_axis))
     best = max(candidates, key=lambda c: c[0])
@@ -276,16 +311,186 @@ def _optimise(obj: "_Objective", phi0: float, rho0: float, sym) -> tuple[float, 
     """The Nelder-Mead search of the soft PCR from (phi0, rho0): to about 0.3 degrees and 5 mm (the closed-form
     refinement from the mirror pairs takes it from there; a tighter search cost a fifth more look-ups for headings
     within 0.01 degrees, docs/PERFORMANCE.md)."""
-    from scipy.optimize import minimize
+    simplex = np.array([[phi0, rho0], [phi0 + sym.simplex_turn, rho0], [phi0, rho0 + sym.simplex_shift]])
+    x = obj.search(simplex, sym)
+    return x[0], x[1]
 
-    res = minimize(
-        lambda x: -obj.soft(x[0], x[1]),
-        x0=[phi0, rho0],
-        method="Nelder-Mead",
-        options={"maxiter": sym.iterations, "xatol": sym.xatol, "fatol": sym.fatol,
-                 "initial_simplex": [[phi0, rho0], [phi0 + sym.simplex_turn, rho0], [phi0, rho0 + sym.simplex_shift]]},
-    )
-    return res.x[0], res.x[1]
+
+def nelder_mead(f, simplex, maxiter: int, xatol: float, fatol: float) -> np.ndarray:
+    """The point of least ``f`` (a function of a (2,) array) that the Nelder-Mead method finds from the (3, 2)
+    ``simplex``: reflection, expansion by 2, contraction and shrinking by half, at most ``maxiter - 1`` steps, stopped
+    when every vertex lies within ``xatol`` of the best in each coordinate and its value within ``fatol`` (the method
+    as scipy's ``minimize(method="Nelder-Mead")`` runs it with these options, step for step: the numpy reference of
+    :func:`_simplex_fast`).
+
+    >>> x = nelder_mead(lambda p: (p[0] - 1) ** 2 + (p[1] + 2) ** 2, [[0, 0], [0.1, 0], [0, 0.1]], 200, 1e-6, 1e-9)
+    >>> np.round(x, 3).tolist()
+    [1.0, -2.0]
+    """
+    sim = np.array(simplex, dtype=np.float64)
+    fsim = np.array([f(x) for x in sim])
+    order = np.argsort(fsim, kind="stable")
+    sim, fsim = sim[order], fsim[order]
+    for _ in range(1, maxiter):
+        if np.max(np.abs(sim[1:] - sim[0])) <= xatol and np.max(np.abs(fsim[0] - fsim[1:])) <= fatol:
+            break
+        xbar = (sim[0] + sim[1]) / 2
+        xr = 2 * xbar - sim[2]
+        fxr = f(xr)
+        shrink = False
+        if fxr < fsim[0]:  # the reflection is the best: try going twice as far
+            xe = 3 * xbar - 2 * sim[2]
+            fxe = f(xe)
+            sim[2], fsim[2] = (xe, fxe) if fxe < fxr else (xr, fxr)
+        elif fxr < fsim[1]:
+            sim[2], fsim[2] = xr, fxr
+        elif fxr < fsim[2]:  # outside contraction
+            xc = 1.5 * xbar - 0.5 * sim[2]
+            fxc = f(xc)
+            if fxc <= fxr:
+                sim[2], fsim[2] = xc, fxc
+            else:
+                shrink = True
+        else:  # inside contraction
+            xcc = 0.5 * xbar + 0.5 * sim[2]
+            fxcc = f(xcc)
+            if fxcc < fsim[2]:
+                sim[2], fsim[2] = xcc, fxcc
+            else:
+                shrink = True
+        if shrink:
+            for j in (1, 2):
+                sim[j] = sim[0] + 0.5 * (sim[j] - sim[0])
+                fsim[j] = f(sim[j])
+        order = np.argsort(fsim, kind="stable")
+        sim, fsim = sim[order], fsim[order]
+    return sim[0]
+
+
+@kernel(helper=True)
+def _soft_of(points, phi, rho, grid_pts, order, starts, lo, shape, bound, tol, dist, rows):
+    """:meth:`_Objective.soft` of the plane (phi, rho) without scanner positions: each point mirrored, its
+    distance to the nearest indexed point (at most ``bound``), the mean of their Gaussian weights."""
+    n = points.shape[0]
+    m = grid_pts.shape[0]
+    nx, ny = np.cos(phi), np.sin(phi)
+    b2 = bound * bound
+    total = 0.0
+    for p in range(n):
+        d = points[p, 0] * nx + points[p, 1] * ny - rho
+        _nearest_into(dist, rows, p, points[p, 0] - 2.0 * d * nx, points[p, 1] - 2.0 * d * ny, points[p, 2],
+                      grid_pts, order, starts, lo, shape, bound, b2, m)
+        e = dist[p] if np.isfinite(dist[p]) else bound
+        r = e / tol
+        total += np.exp(-0.5 * (r * r))
+    return total / n
+
+
+@kernel(entry="plane_scores", example="_search_example", tolerance=1e-12)
+def _softs_fast(points, phis, rhos, grid_pts, order, starts, lo, shape, bound, tol):
+    """:func:`_soft_of` of each plane (phis[i], rhos[i])."""
+    dist = np.empty(points.shape[0])
+    rows = np.empty(points.shape[0], dtype=np.int64)
+    out = np.empty(phis.shape[0])
+    for i in range(phis.shape[0]):
+        out[i] = _soft_of(points, phis[i], rhos[i], grid_pts, order, starts, lo, shape, bound, tol, dist, rows)
+    return out
+
+
+@kernel(entry="plane_search", example="_search_example", tolerance=1e-9)
+def _simplex_fast(points, simplex, grid_pts, order, starts, lo, shape, bound, tol, maxiter, xatol, fatol):
+    """:func:`nelder_mead` of ``-``:func:`_soft_of`, compiled: the (2,) best (phi, rho)."""
+    dist = np.empty(points.shape[0])
+    rows = np.empty(points.shape[0], dtype=np.int64)
+    sim = simplex.copy()
+    fsim = np.empty(3)
+    for j in range(3):
+        fsim[j] = -_soft_of(points, sim[j, 0], sim[j, 1], grid_pts, order, starts, lo, shape, bound, tol, dist, rows)
+    _sort3(sim, fsim)
+    x = np.empty(2)
+    for _ in range(1, maxiter):
+        spread = 0.0
+        fspread = 0.0
+        for j in range(1, 3):
+            fspread = max(fspread, abs(fsim[0] - fsim[j]))
+            for c in range(2):
+                spread = max(spread, abs(sim[j, c] - sim[0, c]))
+        if spread <= xatol and fspread <= fatol:
+            break
+        b0 = (sim[0, 0] + sim[1, 0]) / 2
+        b1 = (sim[0, 1] + sim[1, 1]) / 2
+        r0 = 2 * b0 - sim[2, 0]
+        r1 = 2 * b1 - sim[2, 1]
+        fxr = -_soft_of(points, r0, r1, grid_pts, order, starts, lo, shape, bound, tol, dist, rows)
+        shrink = False
+        if fxr < fsim[0]:
+            e0 = 3 * b0 - 2 * sim[2, 0]
+            e1 = 3 * b1 - 2 * sim[2, 1]
+            fxe = -_soft_of(points, e0, e1, grid_pts, order, starts, lo, shape, bound, tol, dist, rows)
+            if fxe < fxr:
+                sim[2, 0], sim[2, 1], fsim[2] = e0, e1, fxe
+            else:
+                sim[2, 0], sim[2, 1], fsim[2] = r0, r1, fxr
+        elif fxr < fsim[1]:
+            sim[2, 0], sim[2, 1], fsim[2] = r0, r1, fxr
+        elif fxr < fsim[2]:
+            c0 = 1.5 * b0 - 0.5 * sim[2, 0]
+            c1 = 1.5 * b1 - 0.5 * sim[2, 1]
+            fxc = -_soft_of(points, c0, c1, grid_pts, order, starts, lo, shape, bound, tol, dist, rows)
+            if fxc <= fxr:
+                sim[2, 0], sim[2, 1], fsim[2] = c0, c1, fxc
+            else:
+                shrink = True
+        else:
+            c0 = 0.5 * b0 + 0.5 * sim[2, 0]
+            c1 = 0.5 * b1 + 0.5 * sim[2, 1]
+            fxc = -_soft_of(points, c0, c1, grid_pts, order, starts, lo, shape, bound, tol, dist, rows)
+            if fxc < fsim[2]:
+                sim[2, 0], sim[2, 1], fsim[2] = c0, c1, fxc
+            else:
+                shrink = True
+        if shrink:
+            for j in range(1, 3):
+                for c in range(2):
+                    sim[j, c] = sim[0, c] + 0.5 * (sim[j, c] - sim[0, c])
+                fsim[j] = -_soft_of(points, sim[j, 0], sim[j, 1], grid_pts, order, starts, lo, shape, bound, tol,
+                                    dist, rows)
+        _sort3(sim, fsim)
+    x[0] = sim[0, 0]
+    x[1] = sim[0, 1]
+    return x
+
+
+@kernel(helper=True)
+def _sort3(sim, fsim):
+    """The three vertices ordered by value, ties kept in their order (a stable sort)."""
+    for i in range(1, 3):
+        j = i
+        while j > 0 and fsim[j - 1] > fsim[j]:
+            fsim[j - 1], fsim[j] = fsim[j], fsim[j - 1]
+            for c in range(2):
+                sim[j - 1, c], sim[j, c] = sim[j, c], sim[j - 1, c]
+            j -= 1
+
+
+def _search_objective(points, tol: float) -> "_Objective":
+    return _Objective(np.ascontiguousarray(points, dtype=np.float64), tol)
+
+
+def plane_scores(points, tol: float, phi0: float, rho0: float) -> np.ndarray:
+    """The soft PCR of an object's points ((n, 3), its own reference) at planes around (phi0, rho0)."""
+    phis = phi0 + np.linspace(-0.5, 0.5, 9)
+    return _search_objective(points, tol).softs(phis, rho0 + np.linspace(-0.2, 0.2, 9))
+
+
+def plane_search(points, tol: float, phi0: float, rho0: float) -> tuple[float, float]:
+    """The Nelder-Mead plane of an object's points ((n, 3), its own reference) from (phi0, rho0)."""
+    return _optimise(_search_objective(points, tol), phi0, rho0, DEFAULT.symmetry)
+
+
+def _search_example(rng) -> tuple:
+    box = rng.uniform([-2.2, -0.85, 0], [2.2, 0.85, 1.4], (600, 3))
+    return box + rng.normal(0, 0.01, box.shape), 0.08, np.pi / 2 + 0.15, 0.1
 
 
 def with_footprint(sym: Symmetry, points, params: CoscoParams = DEFAULT) -> Symmetry:

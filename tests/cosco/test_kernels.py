@@ -375,3 +375,54 @@ def test_capped_section_distances_are_the_kd_trees(seed, monkeypatch):
     assert not kernels.in_use()
     ra, rb = SectionPair(sa, DEFAULT), SectionPair(sb, DEFAULT)
     assert polished(ra, rb, register_sections(ra, rb, DEFAULT), DEFAULT) == reg
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_neighbourhoods_are_the_kd_trees(seed):
+    """Each point's nearest neighbours' shape (a car-like shell, a bush, a flat board, a string of points, a far
+    cluster the rings must widen to reach, duplicates, fewer points than neighbours asked): the compiled grid's
+    eigenvalues are the KD-tree's and LAPACK's to 1e-12, its normals the same lines, and the surface summary the same
+    numbers where every neighbourhood has a normal."""
+    from cosco.params import DEFAULT
+    from cosco.surface import _shapes_numpy, _signed, neighbourhood_shapes, surface_of
+
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(0, 2 * np.pi, 900)
+    shell = np.c_[2.2 * np.cos(a), 0.9 * np.sin(a), rng.uniform(0, 1.5, 900)] + rng.normal(0, 0.01, (900, 3))
+    bush = rng.normal(0, 0.6, (700, 3))
+    board = np.c_[rng.uniform(0, 3, 500), np.zeros(500), rng.uniform(0, 1, 500)]
+    string = np.c_[np.linspace(0, 10, 300), np.zeros(300), rng.normal(0, 0.002, 300)]
+    far = np.r_[shell[:200], rng.normal(0, 0.05, (8, 3)) + [30.0, -4.0, 2.0]]
+    dup = np.repeat(rng.uniform(0, 1, (40, 3)), 3, axis=0)
+    summaries = 0
+    for pts, k in ((shell, 12), (bush, 12), (board, 12), (string, 12), (far, 12), (dup, 5), (dup[:4], 12)):
+        kk = min(k, len(pts))
+        want_ev, want_n = _shapes_numpy(pts, pts, kk)
+        got_ev, got_n = neighbourhood_shapes(pts, k)
+        assert np.allclose(got_ev, np.maximum(want_ev, 0.0), rtol=0, atol=1e-12)
+        # where the smallest eigenvalue stands apart, its eigenvector is one line both ways
+        apart = (want_ev[:, 1] - want_ev[:, 0]) > 1e-6 * np.maximum(want_ev[:, 2], 1e-30)
+        assert np.allclose(got_n[apart], _signed(want_n)[apart], rtol=0, atol=1e-8)
+        if apart.all():  # (a degenerate neighbourhood's normal is any line of its plane, either way)
+            with kernels.reference_only():
+                want = surface_of(pts, DEFAULT, lines=True)
+            assert surface_of(pts, DEFAULT, lines=True) == want
+            summaries += 1
+    assert summaries >= 4
+
+
+def test_plane_searches_are_the_references(dales):
+    """The symmetry search compiled (its starts' scores and its Nelder-Mead, cosco.symmetry) on real DALES cars and
+    fences: the planes the KD-tree and Python's search find, to 1e-9 (every comparison the same way)."""
+    from cosco.params import DEFAULT
+    from cosco.symmetry import detect_symmetry
+    from tests.conftest import load_xyz
+
+    files = sorted((dales / "car").glob("*.xyz"))[:12] + sorted((dales / "fence").glob("*.xyz"))[:6]
+    for f in files:
+        pts = load_xyz(f)
+        got = detect_symmetry(pts, DEFAULT)
+        with kernels.reference_only():
+            want = detect_symmetry(pts, DEFAULT)
+        assert got.found == want.found and abs(got.pcr - want.pcr) < 1e-9, f.name
+        assert abs(got.phi - want.phi) < 1e-9 and abs(got.rho - want.rho) < 1e-9, f.name

@@ -114,3 +114,32 @@ def test_invariant_to_translation_and_rotation_about_z(tx, ty, angle):
     assert sym.found == ref.found
     assert abs(sym.pcr - ref.pcr) < 0.03
     assert np.degrees(axis_difference(sym.heading, ref.heading + angle)) < 0.5
+
+
+def test_nelder_mead_is_scipys_step_for_step(dales):
+    """The search's own Nelder-Mead (the reference of the compiled one) lands where scipy's ``minimize`` with the
+    same options lands, to the bit: on a valley, on a flat plateau (ties) and on the soft PCR of real DALES cars
+    from each of their start planes."""
+    from scipy.optimize import minimize
+
+    from cosco.params import DEFAULT
+    from cosco.symmetry import _search_objective, nelder_mead
+
+    sym = DEFAULT.symmetry
+
+    def scipy_x(f, simplex, maxiter, xatol, fatol):
+        return minimize(f, x0=simplex[0], method="Nelder-Mead",
+                        options={"maxiter": maxiter, "xatol": xatol, "fatol": fatol, "initial_simplex": simplex}).x
+
+    cases = [(lambda p: (p[0] - 1) ** 2 + 10 * (p[1] + 2) ** 2, [[0, 0], [0.1, 0], [0, 0.1]], 200, 1e-8, 1e-12),
+             (lambda p: float(abs(p[0]) > 5), [[0, 0], [0.1, 0], [0, 0.1]], 30, 1e-3, 1e-3)]
+    for f in sorted((dales / "car").glob("*.xyz"))[:6]:
+        pts = load_xyz(f)
+        pts = pts - pts.mean(0)
+        obj = _search_objective(pts, sym.tol)
+        for phi0 in (0.0, 1.2, 2.5):
+            simplex = [[phi0, 0.0], [phi0 + sym.simplex_turn, 0.0], [phi0, sym.simplex_shift]]
+            cases.append((lambda x, o=obj: -o.soft(x[0], x[1]), simplex, sym.iterations, sym.xatol, sym.fatol))
+    for f, simplex, maxiter, xatol, fatol in cases:
+        want = scipy_x(f, np.array(simplex, dtype=float), maxiter, xatol, fatol)
+        assert np.array_equal(nelder_mead(f, simplex, maxiter, xatol, fatol), want)
