@@ -124,9 +124,18 @@ def near_candidates(shape, kind, cache, params: Settings) -> list[dict]:
     missing = sorted({n.id for n in near} - set(cache.known()))
     if missing:
         cache.add_rows(cache.catalogue.rows(missing))
-    return [{"name": n.name, "kind": n.kind,
-             "score_m": round(float(cosco.dissimilarity(shape.sections, cache.geometry(n.id).sections, params)), 4),
-             "confidence": round(n.share, 3)} for n in near]
+    if not near:
+        return []
+    # the object's sections prepared once, each model's as the cache keeps them (cosco.dissimilarity's numbers)
+    own = cosco.SectionPair(shape.sections, params)
+
+    def score(model_id: int) -> float:
+        other = (cache.pair(model_id) if cache.params is params
+                 else cosco.SectionPair(cache.geometry(model_id).sections, params))
+        return float(cosco.register_sections(own, other, params).rmse)
+
+    return [{"name": n.name, "kind": n.kind, "score_m": round(score(n.id), 4), "confidence": round(n.share, 3)}
+            for n in near]
 
 
 def classify_files(paths, catalogue, unit: str = "auto", min_confidence: float | None = None,
