@@ -22,7 +22,7 @@ from ..io.outdir import check_replaceable, claim, locked
 from ..progress import say
 from ..settings import DEFAULT, Settings
 from ..stages import checked_params, locate, require_models, with_targets
-from .cells import CellJob, process_cell
+from .cells import CellJob, SavedCell, process_cell
 from .classified import FOLDER, write_classified_cells
 from .engine import Engine
 from .export import CityRun, export_city
@@ -247,13 +247,14 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
         boxes = tuple(s for s in p.feeds[n] if s.path not in folders)
         labels = str(store.labels_path(n, keys[n])) if classified else None
         cell_jobs.append(CellJob(p.cells[n], reads, boxes, params, keys[n], p.offset, str(store.scan_folder()),
-                                 labels))
+                                 labels, str(store.path(n, keys[n]))))
         deps[n] = [splits[s.path] for s in p.feeds[n] if s.path in splits]
     done = [p.n_cells - len(todo)]
     say(progress, "cells", done[0], p.n_cells)
 
     def cell_done(name, result):
-        store.save(result)
+        if not isinstance(result, SavedCell):  # (a worker writes its cell's file itself: nothing to keep here)
+            store.save(result)
         done[0] += 1
         say(progress, "cells", done[0], p.n_cells)
 

@@ -38,7 +38,8 @@ class CellJob:
     so that every grid the stages cut lies where it would on the whole scene; ``scan_dir``: where the worker writes
     the cell's scan tiles (every point of its core, :mod:`twinreg.export.scan_tiles`), None for none;
     ``labels``: where it keeps its labelled points for the classified scan (:mod:`twinreg.city.classified`), None
-    for none."""
+    for none; ``result_path``: where the worker writes the finished cell's file itself (:mod:`twinreg.city.cellfile`:
+    the main process neither receives nor writes the objects), None to return them."""
 
     cell: Cell
     splits: tuple = ()
@@ -48,6 +49,7 @@ class CellJob:
     offset: tuple = (0.0, 0.0, 0.0)
     scan_dir: str | None = None
     labels: str | None = None
+    result_path: str | None = None
 
 
 @dataclass
@@ -91,6 +93,15 @@ class CellResult:
     codes: list = field(default_factory=list)  # the ASPRS classes the kinds read that the cell's points carry
 
 
+@dataclass(frozen=True)
+class SavedCell:
+    """What a worker returns for a cell it wrote to its ``result_path`` itself: its name, key and object count."""
+
+    name: str
+    key: str
+    n_objects: int
+
+
 def read_cell(job: CellJob) -> tuple[np.ndarray, np.ndarray]:
     """The (n, 3) float64 metre points of the cell's buffered square, from every tile that feeds it, and their (n,)
     uint8 ASPRS classes."""
@@ -103,7 +114,13 @@ def process_cell(job: CellJob, *ready) -> CellResult:
     cell's half-open core (see :mod:`twinreg.city.grid`). ``ready``: the results of the tile splits it reads
     (the engine passes them so that the cell starts as soon as its own tiles are split)."""
     try:
-        return _process_cell(job)
+        result = _process_cell(job)
+        if job.result_path is None:
+            return result
+        from .cellfile import save  # (here: cellfile reads this module's classes)
+
+        save(result, Path(job.result_path))  # through a temporary file: a killed worker leaves none
+        return SavedCell(result.name, result.key, len(result.objects))
     finally:  # the worker keeps what it frees while it works on a cell (twinreg.memory), not between cells
         release_freed_memory()
 
