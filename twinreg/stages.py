@@ -20,7 +20,7 @@ from .errors import CatalogueError, require_positive, require_probability
 from .export.objects import fused_pose, place_object, pose
 from .export.twin_json import object_record
 from .geo.georef import check_area
-from .process.helpers import HELPER_TIMEOUT_S, Pending
+from .process.helpers import HELPER_TIMEOUT_S, Forked, Pending
 from .progress import say
 from .recognition.classify import near_candidates
 from .recognition.decide import decide
@@ -113,7 +113,7 @@ def types_of(labels, outcomes: list, kinds: list | None, params: Settings, spaci
 
 
 def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, params: Settings,
-         timing: dict | None = None, kinds: list | None = None, helper=None) -> dict:
+         timing: dict | None = None, kinds: list | None = None, helper=None, fork: bool = False) -> dict:
     """The fused shape of every type whose members have no decided model (:func:`twinreg.shapes.fuse.fuse_type`:
     the members co-registered, their points gathered and completed by the type's level of symmetry, meshed), by
     type: ``(member indices, FusedShape)``. ``clouds``: each object's points (the scene frame); the type's level is
@@ -125,7 +125,10 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
 
     With a ``helper`` (a :class:`~twinreg.process.helpers.Painter`: a scene's distance helper, idle once the
     matching is done), about half the types' work (by points) is sent to it and fused there while this process
-    fuses the rest: the same calls, so the same shapes; one it does not answer in time is fused here."""
+    fuses the rest: the same calls, so the same shapes; one it does not answer in time is fused here. Without one,
+    ``fork`` (a city's export: its Dask workers are gone, the second core idle) sends that half to a child forked for
+    it (:class:`~twinreg.process.helpers.Forked`: the members' points inherited, not sent) when the types hold at
+    least ``FORK_MIN_POINTS`` points."""
     t0 = time.perf_counter()
     groups: dict = {}
     for k, (t, res) in enumerate(zip(types, outcomes)):
@@ -146,10 +149,15 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
         order.append(t)
         calls.append((t, ks, ([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params,
                               None if vehicles else params.fusion.hang_height)))
-    sent, here = _shared_out(calls, helper is not None and len(calls) >= 2)
+    forked = (helper is None and fork and len(calls) >= 2
+              and sum(len(c) for _, _, args in calls for c in args[0]) >= FORK_MIN_POINTS)
+    sent, here = _shared_out(calls, (helper is not None or forked) and len(calls) >= 2)
     # one message each way (a call a type, sent one after another, could fill both pipes: each side waiting for the
     # other to read)
-    job = Pending(helper, fuse_types, [args for _, _, args in sent]) if sent else None
+    job = None
+    if sent:
+        sent_calls = [args for _, _, args in sent]
+        job = Forked(fuse_types, sent_calls) if forked else Pending(helper, fuse_types, sent_calls)
     for t, ks, args in here:
         out[t] = (ks, _fused(args))
     if job is not None:
@@ -176,6 +184,9 @@ def fuse_types(calls: list) -> list:
 #: how long the types sent to the helper may take to fuse there, beyond HELPER_TIMEOUT_S, before they are fused here
 #: (s a point of their members)
 FUSE_S_PER_POINT = 1e-4
+#: the fewest points of the types to fuse for which a city's export forks a child to fuse half of them (a fork and
+#: the shapes' way back cost tens of milliseconds; the copied city's 784 copies of one design hold 740,000)
+FORK_MIN_POINTS = 100_000
 
 
 def _shared_out(calls: list, share: bool) -> tuple[list, list]:
@@ -195,7 +206,7 @@ def _shared_out(calls: list, share: bool) -> tuple[list, list]:
 
 def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, labels, offsets: list,
            levels: list, spacing: list, clouds_of, georef, models, catalogue, params: Settings, timing: dict,
-           progress=None) -> tuple[list, list]:
+           progress=None, fork: bool = False) -> tuple[list, list]:
     """What a scene and a city both do once every object is matched: the kinds recognised and the models under the
     floor withdrawn (:func:`recognise`), the types (:func:`types_of`), the types without a model fused
     (:func:`fuse`; ``clouds_of(outcomes)`` gives each object's points, read only then: a city keeps them in its
@@ -205,7 +216,7 @@ def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, la
     types = types_of(labels, outcomes, kinds, params, spacing)
     say(progress, "shapes of the types without a model")
     helper = getattr(getattr(models, "prober", None), "helper", None)
-    fused = fuse(types, outcomes, clouds_of(outcomes), levels, params, timing, kinds, helper=helper)
+    fused = fuse(types, outcomes, clouds_of(outcomes), levels, params, timing, kinds, helper=helper, fork=fork)
     placed = place(ids, n_points, outcomes, labels, offsets, georef, models, kinds, levels, types, fused)
     return outcomes, placed
 

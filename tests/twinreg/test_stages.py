@@ -145,3 +145,45 @@ def test_types_fused_half_on_the_helper_are_the_shapes_fused_here():
         assert a.quality == b.quality and np.array_equal(a.member_poses, b.member_poses)
     sent, kept = _shared_out([(t, None, ([np.zeros((n, 3))],)) for t, n in enumerate([900, 500, 400, 300])], True)
     assert [c[0] for c in kept] == [0, 3] and [c[0] for c in sent] == [1, 2]  # 1,200 points each side
+
+
+def test_types_fused_half_in_a_forked_child_are_the_shapes_fused_here(monkeypatch):
+    """A city's export (no helper) forks a child to fuse half the types: the same shapes, in the same order, as all
+    fused here; under ``stages.FORK_MIN_POINTS`` no child is forked, and one that fails leaves its types to this
+    process."""
+    import os
+
+    import cosco
+    import twinreg.stages as stages
+    from twinreg.matching.match import ObjectMatch
+
+    rng = np.random.default_rng(4)
+    clouds, outcomes = [], []
+    for k in range(6):
+        size = np.array([1.0 + 0.5 * (k // 2), 0.6 + 0.2 * (k // 2), 0.8 + 0.4 * (k // 2)])
+        pts = rng.uniform([0, 0, 0], size, (600 + 400 * (k // 2), 3)) + [10.0 * k, 0.0, 0.0]
+        clouds.append(pts)
+        outcomes.append(ObjectMatch(cosco.describe_object(pts), None, "no model (the test)", []))
+    types, levels = [k // 2 for k in range(6)], ["mirror"] * 6
+    here = stages.fuse(types, outcomes, clouds, levels, DEFAULT)
+    children = []
+    real = stages.Forked
+
+    def counted(fn, *args):
+        job = real(fn, *args)
+        children.append(job.pid)
+        return job
+
+    monkeypatch.setattr(stages, "Forked", counted)
+    assert list(stages.fuse(types, outcomes, clouds, levels, DEFAULT, fork=True)) == [0, 1, 2] and children == []
+    monkeypatch.setattr(stages, "FORK_MIN_POINTS", 1000)
+    forked = stages.fuse(types, outcomes, clouds, levels, DEFAULT, fork=True)
+    assert len(children) == 1 and children[0] not in (None, os.getpid())
+    monkeypatch.setattr(stages, "fuse_types", lambda calls: 1 / 0)  # the child fails: fused here (by fuse_types)
+    with pytest.raises(ZeroDivisionError):
+        stages.fuse(types, outcomes, clouds, levels, DEFAULT, fork=True)
+    assert list(forked) == list(here) == [0, 1, 2]
+    for t in here:
+        (ks, a), (kt, b) = here[t], forked[t]
+        assert ks == kt and np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+        assert a.quality == b.quality and np.array_equal(a.member_poses, b.member_poses)

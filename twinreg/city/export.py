@@ -97,7 +97,7 @@ def export_city(run: CityRun) -> dict:
                                 [o.shape for o in run.objects], run.tax.labels, [o.offset for o in run.objects],
                                 [o.level for o in run.objects], [o.spacing for o in run.objects],
                                 lambda outcomes: _unmatched_clouds(run, outcomes), run.georef, run.models,
-                                run.catalogue, run.params, run.timing)
+                                run.catalogue, run.params, run.timing, fork=True)
     run.timing["records"] = time.perf_counter() - t
     by_cell: dict = {}
     for item, o in zip(outs, run.objects):
