@@ -47,14 +47,15 @@ class MatchingParams:
     ``refine_reach`` m), turning at most ``refine_max_turn`` rad and moving at most ``refine_max_shift`` m, unless
     its score lies more than ``refine_sigma`` noise units behind the best candidate's (it cannot win then).
 
-    A type's work done once (issue 51): a cluster's leader is decided in full; where its model explains it cleanly
-    (fit and design factors 1), its members (``type_reuse``) are decided among its contenders alone (its model and
+    A type's work done once (issue 51): a cluster's leader is decided in full; where its model also scored lowest,
+    its members (``type_reuse``) are decided among its contenders alone (its model and
     the models, and its other end, that came within ``refine_sigma`` noise units of it), registered, refined and
     scored on their points, without screening. A
     member that keeps the leader's model, scoring no more than ``type_slack`` noise units behind its leader and
-    explaining it as a copy of its design no worse than its leader (its fit factor times its design factor at most
-    ``type_fit_slack`` under the leader's), keeps it with a margin at most the leader's to the models beyond its
-    contenders less what it lost; any other member is decided in full, as a leader is.
+    explaining it as a copy of its design as closely as its leader (its fit factor times its design factor within
+    ``type_fit_slack`` of the leader's: no worse than a clean leader's, neither worse nor better than a loose
+    one's, an uncatalogued design's nearest), keeps it with a margin at most the leader's to the models beyond its
+    contenders less what it lost, and its own confidence; any other member is decided in full, as a leader is.
     """
 
     size_tol: float = 0.20  # m, the window's floor

@@ -282,7 +282,9 @@ class _Matcher:
         its leader. None (decide it in full) when a contender is not among its candidates, its sections fit the
         winner worse than the leader's by ``matching.share_margin``, another contender wins, none is acceptable,
         it scores more than ``matching.type_slack`` noise units behind its leader, or it explains the winner as a copy
-        of its design worse than its leader did (:func:`_copy_factor`, by ``matching.type_fit_slack``)."""
+        of its design worse or better than its leader did (:func:`_copy_factor`, by ``matching.type_fit_slack``:
+        a member that explains the winner as loosely as its leader gets the leader's loose decision, with its own
+        confidence; one that explains it better may be a better-seen copy of another design)."""
         rec, p, ev = ranking[2], self.params.matching, self.evidence
         mid = int(rec["model_id"])
         ids = [mid] + [int(c) for c in rec["contenders"]]
@@ -313,8 +315,8 @@ class _Matcher:
             if best is None or best.model_id != mid:
                 return None
             behind = (best.score - rec["score"]) / noise
-            if behind > p.type_slack or (_copy_factor(best, noise, self.spacings[i], self.params, approximate)
-                                         < 1.0 - p.type_fit_slack):
+            copy = _copy_factor(best, noise, self.spacings[i], self.params, approximate)
+            if behind > p.type_slack or abs(copy - rec.get("copy", 1.0)) > p.type_fit_slack:
                 return None
             margin = decision.margin_sigma if len(ids) > 1 or rec["beyond"] is None else np.inf
             if rec["beyond"] is not None:
@@ -334,9 +336,9 @@ class _Matcher:
 
 def _copy_factor(best, noise: float, spacing: float, params: Settings, approximate) -> float:
     """The product of ``best``'s :func:`~twinreg.matching.decision.copy_factors` (1: it explains its object as a
-    copy of its design). A leader under 1 shares nothing with its members; a member more than
-    ``matching.type_fit_slack`` under it (another design grouped with the leader's, a sparse or occluded copy) is
-    decided in full."""
+    copy of its design). A member more than ``matching.type_fit_slack`` from its leader's (under it: another design
+    grouped with the leader's, a sparse or occluded copy; over it, where the leader explained only loosely: a
+    better-seen copy, perhaps of another design) is decided in full."""
     fit, design = copy_factors(best, noise, params, spacing, approximate)
     return float(fit if design is None else fit * design)
 
@@ -349,8 +351,10 @@ def _turned(reg: cosco.Registration) -> cosco.Registration:
 def _type_decision(result: ObjectMatch, decision, noise, spacing: float, cache: ModelCache,
                    params: Settings) -> dict | None:
     """What a cluster's leader's decision tells its members (:meth:`_Matcher.as_type`), or None when it tells
-    them nothing (no model; one outside the size window; a winner that did not also score lowest, or that explains
-    the leader only loosely: its :func:`_copy_factor` under 1). ``model_id`` and ``score`` (m): the winner;
+    them nothing (no model; one outside the size window; a winner that did not also score lowest). ``model_id``
+    and ``score`` (m): the winner; ``copy``: how closely it explains the leader as a copy of its design
+    (:func:`_copy_factor`: 1 cleanly; under 1 an uncatalogued design's nearest, whose members are decided as
+    loosely, each with its own confidence, where they explain it as loosely);
     ``contenders``: the other models scored within ``matching.refine_sigma`` noise units of it; ``beyond``: the
     margin (noise units) to the first model farther behind (None: none was); ``ends``: between the winner's two ends
     (noise units); ``runner_up``: the first of those beyond, by id and name (None: none)."""
@@ -366,9 +370,8 @@ def _type_decision(result: ObjectMatch, decision, noise, spacing: float, cache: 
     if len(set(contenders + [int(best.model_id)])) != len(contenders) + 1:
         return None  # a model twice (one scored at each end): decided in full
     approximate = frozenset([best.model_id]) if made_from_scans(cache.row(best.model_id)) else frozenset()
-    if _copy_factor(best, noise, spacing, params, approximate) < 1.0:  # the leader explained only loosely
-        return None
-    return {"model_id": int(best.model_id), "score": float(best.score), "contenders": contenders,
+    copy = _copy_factor(best, noise, spacing, params, approximate)
+    return {"model_id": int(best.model_id), "score": float(best.score), "copy": copy, "contenders": contenders,
             "beyond": float(far[0][0]) if far else None, "ends": float(decision.ends_sigma),
             "runner_up": {"model_id": int(far[0][1].model_id), "name": cache.row(far[0][1].model_id).name,
                           "from_type": True} if far else None}

@@ -126,3 +126,31 @@ def test_a_types_members_are_decided_among_their_leaders_contenders_and_one_that
         assert np.allclose(a.match.transform[:3, :3], b.match.transform[:3, :3], atol=0.01)
         assert abs(a.match.confidence - b.match.confidence) <= 0.02
         assert b.match.runner_up is None or b.match.runner_up["name"] != b.match.name
+
+
+def test_a_type_of_an_uncatalogued_design_is_decided_as_loosely_as_its_leader(parametric_catalogue,
+                                                                              parametric_objs, tmp_path):
+    """Issue 51: copies of a design the catalogue lacks are explained only loosely by its nearest model (a design
+    factor under 1); their type's members are decided among the leader's contenders, each with its own confidence,
+    and get the models and confidences of deciding each in full, with fewer registrations."""
+    from twinreg.catalogue.repository import Catalogue
+    from twinreg.matching import match_objects
+    from twinreg.matching.match import Evidence
+
+    names = ["demo_sedan"] * 4
+    shapes, clouds, noise = _row_of_cars(parametric_catalogue, names, turn=lambda x: 0.3 + x / 40, seed=7)
+    lacking = Catalogue(tmp_path / "lib")
+    for name, path in parametric_objs.items():
+        if name != "demo_sedan":
+            lacking.add(path, name=name)
+    labels = np.zeros(len(shapes), dtype=int)
+    full, full_stats = match_objects(shapes, lacking, labels=labels, evidence=Evidence(clouds, noise),
+                                     params=DEFAULT.with_(matching={"type_reuse": False}))
+    typed, stats = match_objects(shapes, lacking, labels=labels, evidence=Evidence(clouds, noise))
+    leader = stats.leaders[0][2]
+    assert leader is not None and leader["copy"] < 1.0  # the nearest model explains the leader only loosely
+    assert [r.match.name for r in typed] == [r.match.name for r in full]
+    assert "type" in [r.match.decided_by for r in typed[1:]] and stats.n_trials < full_stats.n_trials
+    for a, b in zip(full, typed):
+        assert abs(a.match.confidence - b.match.confidence) <= 0.02
+        assert a.match.confidence < 0.9  # none claimed as the design
