@@ -280,7 +280,8 @@ def test_a_bus_shelter_drawn_facing_its_own_x_axis_gets_its_model_from_a_van(tmp
     """The shared bus shelter is drawn with its front along its own x axis (its length, 1.74 m, the shelter's
     depth). Scanned from a van at 16 m/s, measured 3.5 m along the kerb, it gets its model: the size window takes a
     model's plan either way round and the evidence measures the model as the registration turned it. The control:
-    with the window as it was (the plan as stored), the shelter has no candidate of its size and no model."""
+    with the window as it was (the plan one way only, the shelter's as drawn), the shelter has no candidate of its
+    size (at most the nearest model outside the window)."""
     import cosco
     from cosco.visibility import object_grid
     from twinreg.catalogue.repository import Catalogue
@@ -305,8 +306,14 @@ def test_a_bus_shelter_drawn_facing_its_own_x_axis_gets_its_model_from_a_van(tmp
     def model_of():
         results, _ = match_objects([shape], cat, labels=[1], params=params, cache=ModelCache(cat, params),
                                    evidence=Evidence([pts], 0.01, seen=[seen]))
-        return results[0].match.name if results[0].match is not None else None
+        m = results[0].match
+        return (m.name, m.outside_tolerance) if m is not None else (None, None)
 
-    assert model_of() == "bus_stop"
-    monkeypatch.setattr(prefilter.SizeIndex, "_plans", lambda self: (self.desc[:, :3],))
-    assert model_of() != "bus_stop"
+    assert model_of() == ("bus_stop", False)  # a candidate of its size
+    # the control: every plan taken one way only, its shorter side as its length (the shelter as drawn, its front
+    # along its own x axis; whether the catalogue keeps that way round depends on the mesh reader's axes)
+    monkeypatch.setattr(prefilter.SizeIndex, "_plans",
+                        lambda self: (np.column_stack([np.sort(self.desc[:, :2], axis=1), self.desc[:, 2]]),))
+    # no candidate of its size: at most the nearest outside the window (its confidence cut by outside_factor)
+    name, outside = model_of()
+    assert name != "bus_stop" or outside
