@@ -149,9 +149,8 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
         order.append(t)
         calls.append((t, ks, ([clouds[k] for k in ks], [outcomes[k].shape for k in ks], level, params,
                               None if vehicles else params.fusion.hang_height)))
-    forked = (helper is None and fork and len(calls) >= 2
-              and sum(len(c) for _, _, args in calls for c in args[0]) >= FORK_MIN_POINTS)
-    sent, here = _shared_out(calls, (helper is not None or forked) and len(calls) >= 2)
+    forked = helper is None and fork and len(calls) >= 2 and _points(calls) >= FORK_MIN_POINTS
+    sent, here = _shared_out(calls, forked or (helper is not None and len(calls) >= 2))
     # one message each way (a call a type, sent one after another, could fill both pipes: each side waiting for the
     # other to read)
     job = None
@@ -161,8 +160,8 @@ def fuse(types: list[int], outcomes: list, clouds: list, levels: list | None, pa
     for t, ks, args in here:
         out[t] = (ks, _fused(args))
     if job is not None:
-        n = sum(len(c) for _, _, args in sent for c in args[0])
-        for (t, ks, _), shape in zip(sent, job.wait(timeout=HELPER_TIMEOUT_S + FUSE_S_PER_POINT * n)):
+        timeout = HELPER_TIMEOUT_S + FUSE_S_PER_POINT * _points(sent)
+        for (t, ks, _), shape in zip(sent, job.wait(timeout=timeout)):
             out[t] = (ks, shape)
     if timing is not None:
         timing["shapes"] = time.perf_counter() - t0
@@ -189,6 +188,11 @@ FUSE_S_PER_POINT = 1e-4
 FORK_MIN_POINTS = 100_000
 
 
+def _points(calls: list) -> int:
+    """The members' points of :func:`fuse`'s calls ``(type, member indices, (clouds, ...))``: their work."""
+    return sum(len(c) for _, _, args in calls for c in args[0])
+
+
 def _shared_out(calls: list, share: bool) -> tuple[list, list]:
     """The fusing calls split in two of about equal work (their members' points): those for the helper, those for
     this process, each in the given order; all here when not ``share``."""
@@ -196,8 +200,8 @@ def _shared_out(calls: list, share: bool) -> tuple[list, list]:
         return [], calls
     load = [0, 0]
     side = []
-    for _, _, args in calls:
-        n = sum(len(c) for c in args[0])
+    for call in calls:
+        n = _points([call])
         k = int(load[1] < load[0])
         load[k] += n
         side.append(k)

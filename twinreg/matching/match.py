@@ -316,7 +316,7 @@ class _Matcher:
                 return None
             behind = (best.score - rec["score"]) / noise
             copy = _copy_factor(best, noise, self.spacings[i], self.params, approximate)
-            if behind > p.type_slack or abs(copy - rec.get("copy", 1.0)) > p.type_fit_slack:
+            if behind > p.type_slack or abs(copy - rec["copy"]) > p.type_fit_slack:
                 return None
             margin = decision.margin_sigma if len(ids) > 1 or rec["beyond"] is None else np.inf
             if rec["beyond"] is not None:
