@@ -287,9 +287,12 @@ def test_a_classified_scan_names_its_buildings_structure(parametric_catalogue, t
 
 
 @pytest.mark.timeout(300)
-def test_a_tiled_run_reads_the_classes_as_a_scene_does(parametric_catalogue, tmp_path):
+def test_a_tiled_run_reads_the_classes_as_a_scene_does(parametric_catalogue, tmp_path, monkeypatch):
     """build-twin cell by cell reads the tiles' ASPRS classes (plain LAS split into cells, and COPC read by bounds)
     and names the same objects as a scene run of the same points; ``--no-scan-classes`` turns it off there too."""
+    from twinreg.cli._common import RunProgress
+
+    monkeypatch.setattr(RunProgress, "quiet", 0.0)  # every stage said, the split too (it can end in a run's first 2 s)
     shift = (20.0, 20.0)  # the patch across four 33 m cells: a plain tile read by each is split into them
     plain = _classified_las(tmp_path / "patch.las", True, shift)
     copc = _classified_las(tmp_path / "patch.copc.laz", True, shift, copc=True)
