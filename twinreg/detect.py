@@ -132,6 +132,56 @@ def object_levels(clouds: list, shapes: list, params: Settings = DEFAULT) -> lis
     return [symmetry_level(c, params, symmetry=s.symmetry).level for c, s in zip(clouds, shapes)]
 
 
+#: the fewest objects described in two processes (below, the fork costs more than half the work)
+SPLIT_MIN_OBJECTS = 30
+#: an object's description costs about as much as this many of its points again (the symmetry search's own work)
+DESCRIBE_FIXED_POINTS = 500
+
+
+def described(det: Detection, params: Settings = DEFAULT, split: bool = False) -> tuple[list, list, list]:
+    """The detected objects' shapes (:func:`describe_detected`), points (:func:`object_points`) and levels of
+    symmetry (:func:`object_levels`). ``split``: about half of them (by their points) described in a child forked
+    here, on the other core, the same answers (:class:`~twinreg.process.helpers.Forked`: here when it cannot fork,
+    fails or dies)."""
+    import os
+
+    objects = det.objects
+    clouds = [object_points(det, o) for o in objects]
+    theirs = []
+    if split and len(objects) >= SPLIT_MIN_OBJECTS and not os.environ.get("TWINREG_NO_HELPER"):
+        a = b = 0.0
+        for k in sorted(range(len(objects)), key=lambda k: -len(clouds[k])):
+            cost = DESCRIBE_FIXED_POINTS + len(clouds[k])
+            if a <= b:
+                a += cost
+            else:
+                theirs.append(k)
+                b += cost
+        theirs.sort()
+    mine = sorted(set(range(len(objects))) - set(theirs))
+    job = None
+    if theirs:
+        from .process.helpers import HELPER_TIMEOUT_S, Forked
+
+        job = Forked(_described_some, det, params, clouds, theirs)
+    shapes, levels = [None] * len(objects), [None] * len(objects)
+    for part in [_described_some(det, params, clouds, mine)] + (
+            [job.wait(timeout=HELPER_TIMEOUT_S + len(theirs))] if job is not None else []):
+        for k, shape, level, seen in part:
+            shapes[k], levels[k] = shape, level
+            if det.scene.origins is not None:
+                det.seen[id(objects[k])] = seen
+    return shapes, clouds, levels
+
+
+def _described_some(det: Detection, params: Settings, clouds: list, which: list) -> list:
+    """``(index, shape, level, seen grid)`` of the objects ``which``."""
+    objects = [det.objects[k] for k in which]
+    shapes = describe_detected(det, params, objects=objects)
+    levels = object_levels([clouds[k] for k in which], shapes, params)
+    return [(k, s, lv, det.seen.get(id(o))) for k, s, lv, o in zip(which, shapes, levels, objects)]
+
+
 def detect_file(path, unit: str = "auto", params: Settings = DEFAULT, progress=None,
                 crs: str | None = None, override_crs: bool = False, on_read=None, trajectory=None) -> Detection:
     """Read a scene (``crs``: its projected CRS; one that differs from a LAS header's only with ``override_crs``)

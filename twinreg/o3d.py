@@ -10,6 +10,7 @@ imports the real module and calls its namesake, so nothing is lost: a script tha
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 import types
 
@@ -41,10 +42,35 @@ def _stand_in() -> types.ModuleType:
     return module
 
 
+#: this process's native threads once open3d was imported here (None: not imported by :func:`load`)
+_THREADS_AT_IMPORT: list = []
+
+
+def _threads() -> int | None:
+    """This process's native threads (Linux), or None where they cannot be counted."""
+    try:
+        return len(os.listdir("/proc/self/task"))
+    except OSError:
+        return None
+
+
 def load():
     """The open3d module (imported on the first call, with the stand-in for its plotly drawing)."""
-    if "open3d" not in sys.modules and DRAWING not in sys.modules:
+    first = "open3d" not in sys.modules
+    if first and DRAWING not in sys.modules:
         sys.modules[DRAWING] = _stand_in()
     import open3d
 
+    if first:
+        _THREADS_AT_IMPORT.append(_threads())
     return open3d
+
+
+def fork_safe() -> bool:
+    """Whether a child forked now may use open3d: it is not loaded, or it was loaded by :func:`load` and has started
+    no thread since (a forked child inherits none of its thread pools' workers, and would wait for them)."""
+    if "open3d" not in sys.modules:
+        return True
+    now = _threads()
+    return bool(_THREADS_AT_IMPORT) and now is not None and _THREADS_AT_IMPORT[0] is not None \
+        and now <= _THREADS_AT_IMPORT[0]

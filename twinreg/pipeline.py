@@ -15,7 +15,7 @@ from . import KERNEL_MODULES
 from .catalogue.repository import Catalogue
 from .city.build import build_city_twin
 from .city.sources import is_tiled
-from .detect import describe_detected, detect_file, object_levels, object_points, objects_seen
+from .detect import described, detect_file, objects_seen
 from .errors import ParameterError, SceneReadError
 from .export.classified import scan_classes, write_classified
 from .export.formats import TwinFiles, write_twin
@@ -169,9 +169,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
         timing["kernels"] = enable(*KERNEL_MODULES)
     say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
-    shapes = describe_detected(det, params)
-    clouds = [object_points(det, o) for o in targets]
-    levels = object_levels(clouds, shapes, params)
+    shapes, clouds, levels = described(det, params, split=True)
     timing["sections"] = time.perf_counter() - t
 
 
@@ -242,9 +240,10 @@ def _match_and_export(run: SceneRun) -> dict:
     say(progress, "prefilter and registration")
     noise = scene_noise(det.hag, det.is_ground)
     models = ModelCache(catalogue, params, prober=run.prober)
+    # a scene of many objects (a sweep) matches half its clusters in a child forked for them (the same outcomes)
     results, stats = match_objects(shapes, catalogue, labels=clusters.labels, params=params,
                                    evidence=Evidence(run.clouds, noise, seen=objects_seen(det, targets, params)),
-                                   cache=models,
+                                   cache=models, split=True,
                                    done=(lambda k, n: say(progress, "matching", k, n)) if progress else None)
     timing["prefilter"] = stats.prefilter_s
     timing["model_prep"] = stats.model_prep_s

@@ -1,5 +1,6 @@
 """Fixtures of the twinreg tests: the simulated car park of the shared cars and its twin (module scope: each module
-that uses them builds them once)."""
+that uses them builds them once); the catalogue a user starts with (the shared cars and street furniture, built
+once a session)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,22 @@ from tests.twinreg.helpers import DUBLIN
 from twinreg.cli import app
 from twinreg.io.ply import write_ply
 from twinreg.sim.scan import car_park
+
+
+@pytest.fixture(scope="session")
+def city_catalogue(catalogue16, tmp_path_factory):
+    """The 16 shared cars and the 9 shared street-furniture models (its manifest): what a user starts with."""
+    import shutil
+
+    from tests.conftest import SHARED_DATA, need
+
+    lib = tmp_path_factory.mktemp("city_catalogue") / "lib"
+    shutil.copytree(catalogue16.folder, lib)
+    folder = need(SHARED_DATA / "street_furniture")
+    res = CliRunner().invoke(app, ["import-models", str(folder), "--manifest", str(folder / "catalogue.csv"),
+                                   "--library", str(lib), "-q"])
+    assert res.exit_code == 0, res.output
+    return lib
 
 
 @pytest.fixture(scope="module")

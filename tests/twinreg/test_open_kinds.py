@@ -42,21 +42,6 @@ def _in_view(frame: str, xyz: np.ndarray) -> np.ndarray:
     return (cam[:, 2] > 0) & (u >= 0) & (u < 1242) & (v >= 0) & (v < 375) & (np.hypot(xyz[:, 0], xyz[:, 1]) <= 30)
 
 
-@pytest.fixture(scope="module")
-def city_catalogue(catalogue16, tmp_path_factory):
-    """The 16 shared cars and the 9 shared street-furniture models (its manifest): what a user starts with."""
-    import shutil
-
-    from tests.conftest import SHARED_DATA
-
-    lib = tmp_path_factory.mktemp("city_catalogue") / "lib"
-    shutil.copytree(catalogue16.folder, lib)
-    folder = need(SHARED_DATA / "street_furniture")
-    res = _run("import-models", folder, "--manifest", folder / "catalogue.csv", "--library", lib, "-q")
-    assert res.exit_code == 0, res.output
-    return lib
-
-
 def test_real_sweeps_claim_a_car_only_where_there_is_one(city_catalogue, tmp_path):
     """Three KITTI frames (real Velodyne sweeps; their bushes, walls and poles unlabelled), the 16 shared cars and
     9 street-furniture models catalogued: at most one car claimed in the cameras' views where label_2 has no

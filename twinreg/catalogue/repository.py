@@ -114,6 +114,12 @@ class Catalogue:
             self._engine = open_engine(self.folder, create=self._create)
         return self._engine
 
+    def after_fork(self) -> None:
+        """In a child forked from the process that opened the catalogue: its pooled connections are left to the
+        parent (SQLAlchemy's ``dispose(close=False)``); this process opens its own."""
+        if self._engine is not None:
+            self._engine.dispose(close=False)
+
     def session(self) -> Session:
         if self._engine is None:
             self._engine = open_engine(self.folder, create=self._create)

@@ -64,6 +64,7 @@ class MatchStats:
     n_trials_saved_by_clusters: int = 0  # by the leaders' rankings
     n_type_offered: int = 0  # members decided first among their leader's contenders
     n_type_decided: int = 0  # of them, kept the leader's model
+    n_forked: int = 0  # objects matched in a forked child (match_objects' split)
     leaders: dict = field(default_factory=dict)
 
     def add(self, other: "MatchStats") -> None:
@@ -177,7 +178,7 @@ class Evidence:
 
 def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels: np.ndarray | None = None,
                   params: Settings = DEFAULT, evidence: Evidence | None = None, cache: ModelCache | None = None,
-                  leaders: dict | None = None, done=None) -> tuple[list[ObjectMatch], MatchStats]:
+                  leaders: dict | None = None, done=None, split: bool = False) -> tuple[list[ObjectMatch], MatchStats]:
     """Match every object; returns the per-object outcomes and statistics (trials, timings); ``done(k, n)`` is
     called as each of the n objects is decided.
 
@@ -186,7 +187,8 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     ``{label: (ranking, best RMSE, type decision)}`` of clusters whose leader was matched in another call
     (``stats.leaders`` of that call): all the objects given for those labels are members, so one cluster's members
     can be matched in several batches with exactly the outcome of one call. cache : a :class:`ModelCache` to fill
-    (the export then reuses the models' rows, meshes and sections), or None.
+    (the export then reuses the models' rows, meshes and sections), or None. split : half the clusters (by their
+    expected work) matched in a child forked here, on the other core (:func:`_forked_half`): the same outcomes.
     """
     m = _Matcher(shapes, catalogue, params, evidence, ModelCache(catalogue, params) if cache is None else cache)
     # the distance fields of a model are built the first time it is tried (counted in the registration time): a
@@ -195,20 +197,131 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     groups: dict[int, list[int]] = {}
     for i in range(len(shapes)):
         groups.setdefault(int(labels[i]) if labels is not None else -1 - i, []).append(i)
+    known = {g for g in groups if leaders is not None and labels is not None and g in leaders}
     t = time.perf_counter()
-    for label, members in groups.items():
-        known = leaders is not None and labels is not None and label in leaders
-        # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
-        ranking = (list(leaders[label][0]), float(leaders[label][1]), *leaders[label][2:]) if known else None
-        for i in members:
-            ranking = m.match(i, ranking)
-            if labels is not None and not known:
-                m.stats.leaders.setdefault(label, ranking)
-            if done is not None:
-                done(m.n_done, len(shapes))
-    m.stats.registration_s = time.perf_counter() - t - m.stats.verification_s
+    there = _forked_half(m, groups, known, leaders, labels is not None) if split else None
+    mine = [g for g in groups if there is None or g not in there.groups]
+    _match_groups(m, {g: groups[g] for g in mine}, known, leaders, labels is not None, done, len(shapes))
+    if there is not None:
+        there.join(m, time.perf_counter() - t)
+    wall = time.perf_counter() - t
+    if there is not None:  # the two processes' seconds as shares of the call's
+        m.stats.verification_s *= wall / max(there.work_s, 1e-9)
+    m.stats.registration_s = wall - m.stats.verification_s
     m.stats.n_trials_saved_by_clusters = sum(len(c) for c in m.cands) - m.stats.n_trials
     return m.results, m.stats
+
+
+def _match_groups(m: "_Matcher", groups: dict, known: set, leaders: dict | None, labelled: bool, done=None,
+                  n: int = 0) -> None:
+    """Decide the objects of ``groups`` (``{label: object indices}``), each cluster's leader first; ``known``: the
+    labels whose leader was matched in another call (its ranking in ``leaders``)."""
+    for label, members in groups.items():
+        # a cluster whose leader was matched elsewhere (a batch of leaders) brings the leader's ranking along
+        ranking = (list(leaders[label][0]), float(leaders[label][1]), *leaders[label][2:]) if label in known else None
+        for i in members:
+            ranking = m.match(i, ranking)
+            if labelled and label not in known:
+                m.stats.leaders.setdefault(label, ranking)
+            if done is not None:
+                done(m.n_done, n)
+
+
+#: the fewest objects whose matching is split with a forked child (below, the fork and the answers' return cost more
+#: than half the matching)
+SPLIT_MIN_OBJECTS = 30
+
+
+def _work(m: "_Matcher", members: list[int]) -> float:
+    """A cluster's expected matching work: its leader screens every candidate, a member a few."""
+    share = max(int(m.params.matching.cluster_share), 1)
+    return 1.0 + len(m.cands[members[0]]) + sum(1.0 + min(len(m.cands[i]), share) for i in members[1:])
+
+
+class _Half:
+    """The clusters ``groups`` matched in a child forked now (:class:`~twinreg.process.helpers.Forked`), beside
+    this process's own; :meth:`join` adds its outcomes and statistics to this call's (the clusters matched here when
+    the child failed, died or did not answer in time)."""
+
+    def __init__(self, m: "_Matcher", groups: dict, known: set, leaders, labelled: bool):
+        import os
+
+        from ..process.helpers import Forked
+
+        self.groups = groups
+        self.work_s = 0.0  # both processes' seconds of matching (set by join)
+        self.job = Forked(_child_half, m, groups, known, leaders, labelled, os.getpid())
+
+    def join(self, m: "_Matcher", mine_s: float) -> None:
+        """Wait for the child's outcomes (``mine_s``: this process's seconds of matching, for the timings)."""
+        from ..process.helpers import HELPER_TIMEOUT_S
+
+        n = sum(len(v) for v in self.groups.values())
+        results, stats = self.job.wait(timeout=HELPER_TIMEOUT_S + CHILD_S_PER_OBJECT * n)
+        for i, r in results.items():
+            m.results[i] = r
+        self.work_s = mine_s + stats.registration_s + stats.verification_s
+        stats.registration_s = 0.0
+        m.stats.add(stats)
+        if self.job.ran_apart:  # (else they were matched here, and counted as they were)
+            m.n_done += len(results)
+            m.stats.n_forked += len(results)
+
+
+#: the share of a sweep's matching work that importing open3d takes (about 0.25 s of 1 s): the half that imports it
+#: before the fork (this process's) takes that much less work
+IMPORT_SHARE = 0.2
+
+#: how long the child's half may take, beyond HELPER_TIMEOUT_S, before it is stopped and its clusters matched here
+#: (s an object; a sweep's objects take about 15 ms)
+CHILD_S_PER_OBJECT = 1.0
+
+
+def _child_half(m: "_Matcher", groups: dict, known: set, leaders, labelled: bool, parent: int):
+    """In the forked child (or in ``parent`` when the child failed): the clusters ``groups`` matched; their outcomes
+    by object and the statistics of that work alone (``registration_s`` its seconds less the verification's)."""
+    import os
+
+    own = m.stats
+    m.stats = MatchStats()
+    try:
+        if os.getpid() != parent:
+            m.catalogue.after_fork()
+        t = time.perf_counter()
+        _match_groups(m, groups, known, leaders, labelled)
+        m.stats.registration_s = time.perf_counter() - t - m.stats.verification_s
+        return {i: m.results[i] for v in groups.values() for i in v}, m.stats
+    finally:
+        m.stats = own
+
+
+def _forked_half(m: "_Matcher", groups: dict, known: set, leaders, labelled: bool) -> "_Half | None":
+    """About half the clusters' work given to a forked child, or None (too few objects, no fork, helpers off, or
+    distances asked of a helper process, whose pipe one process alone may use)."""
+    import os
+    import sys
+
+    from ..o3d import fork_safe, load
+
+    if len(m.shapes) < SPLIT_MIN_OBJECTS or len(groups) < 2 or os.environ.get("TWINREG_NO_HELPER"):
+        return None
+    prober = m.cache.prober
+    if prober is not None and prober.helper is not None and not prober.here:
+        return None
+    if not fork_safe():  # open3d's thread pools, once started here, are not the child's to use
+        return None
+    work = {g: _work(m, v) for g, v in groups.items()}
+    theirs, a, b = set(), 0.0, 0.0
+    if m.evidence is not None and "open3d" not in sys.modules:
+        load()  # once, before the fork: the child's distances need it too; this half waits for it (its import)
+        a = IMPORT_SHARE * sum(work.values())
+    for g in sorted(groups, key=lambda g: -work[g]):  # the largest first, each to the lighter half
+        if a <= b:
+            a += work[g]
+        else:
+            theirs.add(g)
+            b += work[g]
+    return _Half(m, {g: v for g, v in groups.items() if g in theirs}, known, leaders, labelled)
 
 
 class _Matcher:
@@ -233,6 +346,8 @@ class _Matcher:
         self.stats.n_without_window = sum(f.outside for f in self.found)
         self.results: list[ObjectMatch | None] = [None] * len(shapes)
         self.n_done = 0
+        self.catalogue = catalogue
+
 
     def match(self, i: int, ranking: tuple | None) -> tuple:
         """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member is first decided among

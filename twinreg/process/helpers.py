@@ -180,6 +180,7 @@ class Forked:
     def __init__(self, fn, *args):
         self.fn, self.args = fn, args
         self._proc = self._conn = None
+        self.ran_apart = False  # whether wait's value came from the child (else it was computed here)
         if os.environ.get("TWINREG_NO_HELPER"):
             return
         try:
@@ -206,6 +207,7 @@ class Forked:
                     ok, value = self._conn.recv()
                     if ok:
                         self.stop()
+                        self.ran_apart = True
                         return value
             except (EOFError, OSError):  # the child died without a word
                 pass
