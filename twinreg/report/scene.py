@@ -43,7 +43,9 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
     footprint, front arrow and label. The footprints and arrows are one collection each (a sweep's hundred objects
     as a hundred patches and arrows took a second to draw), and the figure is drawn once: its margins are fixed,
     not measured by a first drawing (``bbox_inches="tight"`` or a layout engine)."""
+    from matplotlib.cm import ScalarMappable
     from matplotlib.collections import PolyCollection
+    from matplotlib.colors import Normalize
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -58,9 +60,18 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
     heights = np.where(is_ground, 0.0, hag if hag is not None else 1.0)
     cell = max(0.1, float(ext.max()) / 1500)
     img, lo = _height_image(scene_local, heights, cell)
-    shown = ax.imshow(np.clip(img.T, 0, 3), origin="lower", cmap="Greys", vmin=-0.5, vmax=3.0,
-                      extent=[lo[0], lo[0] + img.shape[0] * cell, lo[1], lo[1] + img.shape[1] * cell],
-                      interpolation="nearest")
+    # coloured here (a 256-colour table, empty cells clear): matplotlib then only places the pixels, without
+    # normalising and colour-mapping a float image of millions of cells
+    norm = Normalize(vmin=-0.5, vmax=3.0)
+    table = (plt.get_cmap("Greys")(np.linspace(0.0, 1.0, 256)) * 255).round().astype(np.uint8)
+    empty = np.isnan(img.T)
+    level = np.round(np.clip((np.where(empty, 0.0, np.clip(img.T, 0, 3)) - norm.vmin) / (norm.vmax - norm.vmin), 0, 1)
+                     * 255).astype(np.uint8)
+    rgba = table[level]
+    rgba[empty, 3] = 0
+    ax.imshow(rgba, origin="lower", extent=[lo[0], lo[0] + img.shape[0] * cell, lo[1], lo[1] + img.shape[1] * cell],
+              interpolation="nearest")
+    shown = ScalarMappable(norm=norm, cmap="Greys")
     if footprints:
         colours = np.array([fp["color"] for fp in footprints], dtype=float)[:, :3]
         ax.add_collection(PolyCollection([np.asarray(fp["corners"]) for fp in footprints],
@@ -230,17 +241,19 @@ def _object_row(o: dict) -> str:
     return "<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>"
 
 
-def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: list[dict]) -> list[Path]:
+def write_report(folder: Path, twin: dict, top_png_args: dict, section_items: list[dict] | None) -> list[Path]:
     """topview.png, confidence.png, sections.png and report.html (which also shows heatmap.png and
     dendrogram.png): the map of the twin over its scan first, then the summary (cars per model, the confidence
     histogram, the objects without a model by reason), a compact table (a no-match reason's gist, the full text on
-    demand), the pictures."""
+    demand), the pictures. ``section_items`` None: sections.png is drawn by another process
+    (:func:`plot_object_sections`), the page shows it all the same."""
     folder = Path(folder)
     top = plot_twin_top(path=folder / "topview.png", **top_png_args)
     conf = plot_confidence(twin, folder / "confidence.png")
     files = [folder / n for n in ("heatmap.png", "dendrogram.png")
              if len(twin["objects"]) >= 2 and twin.get("dissimilarity") is not None]
-    files.append(plot_object_sections(section_items, folder / "sections.png"))
+    files.append(folder / "sections.png" if section_items is None else
+                 plot_object_sections(section_items, folder / "sections.png"))
     pics = "".join(f"<h2>{text(p.stem)}</h2><img class='pic' src='{text(p.name)}' alt='{text(p.stem)}'>" for p in files)
     matched = sum(1 for o in twin["objects"] if o["match"])
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>twin of {text(twin['scene'])}</title>"
