@@ -22,7 +22,8 @@ from ..io.outdir import check_replaceable, claim, locked
 from ..progress import say
 from ..settings import DEFAULT, Settings
 from ..stages import checked_params, locate, require_models, with_targets
-from .cells import CellJob, SavedCell, process_cell
+from .cellfile import run_cell
+from .cells import CellJob, SavedCell
 from .classified import FOLDER, write_classified_cells
 from .engine import Engine
 from .export import CityRun, export_city
@@ -258,7 +259,7 @@ def _run_cells(eng: Engine, p: Plan, todo: list[str], keys: dict, store: CellSto
         done[0] += 1
         say(progress, "cells", done[0], p.n_cells)
 
-    fails = eng.run(process_cell, cell_jobs, todo, on_result=cell_done, deps=deps)
+    fails = eng.run(run_cell, cell_jobs, todo, on_result=cell_done, deps=deps)
     timing["cells"] = time.perf_counter() - t  # the splits included
     broken = [f"{Path(path).name} ({type(f.exception()).__name__}: {f.exception()})" for path, f in splits.items()
               if f.status == "error"]

@@ -24,7 +24,7 @@ from ..errors import CellFileError
 from ..io.npz import read_arrays, read_member
 from ..io.observed import Raster
 from ..io.outdir import atomic_path
-from .cells import CellObject, CellResult
+from .cells import CellJob, CellObject, CellResult, SavedCell, process_cell
 
 #: the classes a cell file may hold, by the name it gives them
 CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry, Frame, Sections, Size, Surface, Raster)}
@@ -82,6 +82,17 @@ def _decode(doc, arrays):
     if not isinstance(given, dict) or not set(given) <= fields:
         raise CellFileError(f"its {cls.__name__} has fields it should not")
     return cls(**{k: _decode(v, arrays) for k, v in given.items()})
+
+
+def run_cell(job: CellJob, *ready) -> CellResult | SavedCell:
+    """:func:`~twinreg.city.cells.process_cell` on a worker; with ``job.result_path``, the cell's file written
+    there by the worker itself (through a temporary file: a killed worker leaves none) and only its name, key and
+    object count returned (the objects never cross to the main process)."""
+    result = process_cell(job, *ready)
+    if job.result_path is None:
+        return result
+    save(result, Path(job.result_path))
+    return SavedCell(result.name, result.key, len(result.objects))
 
 
 def save(result, dst: Path) -> Path:

@@ -112,15 +112,10 @@ def read_cell(job: CellJob) -> tuple[np.ndarray, np.ndarray]:
 def process_cell(job: CellJob, *ready) -> CellResult:
     """Read, ground, detection and description of one cell; the objects whose footprint centre lies in the
     cell's half-open core (see :mod:`twinreg.city.grid`). ``ready``: the results of the tile splits it reads
-    (the engine passes them so that the cell starts as soon as its own tiles are split)."""
+    (the engine passes them so that the cell starts as soon as its own tiles are split). A city's workers run it
+    through :func:`twinreg.city.cellfile.run_cell`, which writes the cell's file where ``job.result_path`` says."""
     try:
-        result = _process_cell(job)
-        if job.result_path is None:
-            return result
-        from .cellfile import save  # (here: cellfile reads this module's classes)
-
-        save(result, Path(job.result_path))  # through a temporary file: a killed worker leaves none
-        return SavedCell(result.name, result.key, len(result.objects))
+        return _process_cell(job)
     finally:  # the worker keeps what it frees while it works on a cell (twinreg.memory), not between cells
         release_freed_memory()
 

@@ -9,7 +9,7 @@ import dataclasses
 import pytest
 
 from twinreg.city import engine
-from twinreg.city.cells import process_cell
+from twinreg.city.cellfile import run_cell
 from twinreg.city.resume import cell_key, cell_params
 from twinreg.settings import DEFAULT
 
@@ -48,7 +48,7 @@ def cells_here(monkeypatch):
     run = engine.Engine.run
 
     def local(self, fn, jobs, names, on_result=None, window=None, deps=None):
-        if fn is not process_cell:
+        if fn is not run_cell:
             return run(self, fn, jobs, names, on_result, window, deps)
         for name, job in zip(names, jobs):
             for f in (deps or {}).get(name, ()):
