@@ -3,7 +3,11 @@ default) or an existing cluster given by its scheduler's address.
 
 Tasks go out through a bounded window (at most ``per_worker`` in flight per worker, so the scheduler never holds a
 city's worth of results), each is retried once (a worker killed by its memory limit or a crash), and a task that
-fails again is reported by name while the others finish.
+fails again is reported by name while the others finish. Before a function's first task, every worker is asked to
+load it and its job's class by name: a worker that cannot (another twinreg installed there, a package missing, a
+module that cannot import) is an :class:`~twinreg.errors.EngineError` saying so, where its task would otherwise
+wait forever (a worker that cannot unpickle a task drops its link to the scheduler); an existing cluster with no
+worker is one too.
 
 The embedded cluster talks TLS with temporary credentials (``Security.temporary()``: a key and certificate made in
 memory for this run, required of both ends), so no other process on the machine can reach its scheduler or
@@ -27,6 +31,8 @@ from ..errors import EngineError
 
 #: memory limit of an embedded worker (bytes); Dask pauses it at 80 % and restarts it at 95 %
 WORKER_MEMORY = 4 * 1024 ** 3
+#: how long an existing cluster may have no worker before the run stops (s)
+WORKERS_WAIT_S = 30.0
 
 
 
@@ -58,6 +64,7 @@ class Engine:
         self.cluster = None
         self.client = None
         self.kernels_s = 0.0
+        self._loadable: set = set()  # the functions and classes every worker has loaded by name (_check_loadable)
 
     def __enter__(self) -> "Engine":
         from distributed import Client, LocalCluster
@@ -67,6 +74,11 @@ class Engine:
             if self.scheduler:
                 _reachable(self.scheduler)  # a refused port is said at once (Dask retries it for 20 s)
                 self.client = Client(self.scheduler, timeout="20s")
+                try:
+                    self.client.wait_for_workers(1, timeout=WORKERS_WAIT_S)
+                except TimeoutError as exc:
+                    raise EngineError(f"{self.scheduler}: the scheduler has had no worker for {WORKERS_WAIT_S:g} s; "
+                                      "start workers (dask worker ADDRESS) with this twinreg installed") from exc
             else:
                 n = self.workers or os.cpu_count() or 1
                 try:
@@ -90,6 +102,9 @@ class Engine:
                                                 # the workers leave when this process dies, however it dies
                                                 preload=["twinreg.process.lifeline"])
                 self.client = Client(self.cluster, security=self.cluster.security)
+        except EngineError:
+            self.__exit__(None, None, None)
+            raise
         except Exception as exc:  # unreachable, refused, a malformed address, no free port...
             self.__exit__(None, None, None)
             where = self.scheduler or "a local cluster"
@@ -122,8 +137,32 @@ class Engine:
     def n_workers(self) -> int:
         return max(len(self.client.scheduler_info(n_workers=-1)["workers"]), 1) if self.client else 1
 
+    def _check_loadable(self, fn, job=None) -> None:
+        """Every worker loads ``fn`` and ``job``'s class by their names (the standard library's
+        ``pkgutil.resolve_name``, which any worker can unpickle), once an engine; an :class:`EngineError` naming
+        what a worker could not load. Functions and classes defined inside another (sent by value), in ``__main__``
+        or built in are not asked for."""
+        import pkgutil
+
+        wanted = []
+        for what in (fn, type(job) if job is not None else None):
+            module, qual = getattr(what, "__module__", None), getattr(what, "__qualname__", "")
+            if module and module not in ("__main__", "builtins") and "<" not in qual:
+                wanted.append(f"{module}:{qual}")
+        for name in wanted:
+            if name in self._loadable:
+                continue
+            try:
+                self.client.run(pkgutil.resolve_name, name)
+            except Exception as exc:  # noqa: BLE001 - what the worker raised (ImportError, AttributeError...)
+                first = str(exc).splitlines()[0] if str(exc) else ""
+                raise EngineError(f"the Dask workers cannot load {name.replace(':', '.')} ({type(exc).__name__}: "
+                                  f"{first}); install this twinreg and its packages where the workers run") from exc
+            self._loadable.add(name)
+
     def submit(self, fn, *args, name: str):
         """One task now (retried once), e.g. one whose result later tasks wait for; returns its future."""
+        self._check_loadable(fn, args[0] if args else None)
         return self.client.submit(fn, *args, key=f"{fn.__name__}-{name}-{os.getpid()}", retries=1, pure=False)
 
     def run(self, fn, jobs: list, names: list[str], on_result=None, window: int | None = None,
@@ -133,6 +172,8 @@ class Engine:
         result)`` is called in this process as each finishes. Returns the failures."""
         from distributed import as_completed
 
+        if jobs:
+            self._check_loadable(fn, jobs[0])
         window = window or self.per_worker * self.n_workers
         pending = list(zip(names, jobs))[::-1]
         failures: list[Failure] = []

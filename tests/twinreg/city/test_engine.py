@@ -140,3 +140,39 @@ def test_workers_leave_when_the_run_is_killed(tmp_path):
         assert not alive, [p.cmdline()[:3] for p in alive]
     finally:
         proc.kill()
+
+
+def test_workers_that_cannot_load_a_task_stop_the_run_with_a_clear_error(tmp_path):
+    """A task whose module the workers cannot import (a module cycle, another twinreg or a missing package where
+    they run) once left its run waiting forever: the worker cannot unpickle it and drops its link to the
+    scheduler. The engine asks every worker to load the function by name first and stops at once, saying what."""
+    import subprocess
+    import sys
+    import time
+
+    (tmp_path / "only_here.py").write_text(
+        "import os\n"
+        "if os.environ.get('ONLY_HERE') != str(os.getpid()):\n"
+        "    raise ImportError('only_here: importable in its parent only')\n"
+        "def work(job):\n"
+        "    return job * 2\n")
+    script = ("import os, sys\n"
+              f"sys.path.insert(0, {str(tmp_path)!r})\n"
+              "from twinreg.city.engine import Engine\n"
+              "from twinreg.errors import EngineError\n"
+              "if __name__ == '__main__':\n"
+              "    os.environ['ONLY_HERE'] = str(os.getpid())\n"
+              "    import only_here\n"
+              "    with Engine(workers=2) as eng:\n"
+              "        assert eng.map(abs, [-3], ['ok']) == [3]\n"
+              "        try:\n"
+              "            eng.run(only_here.work, [1, 2], ['a', 'b'])\n"
+              "        except EngineError as exc:\n"
+              "            print(exc)\n")
+    path = tmp_path / "run.py"
+    path.write_text(script)
+    t = time.monotonic()
+    res = subprocess.run([sys.executable, str(path)], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "cannot load only_here.work (ImportError: only_here: importable in its parent only)" in res.stdout
+    assert time.monotonic() - t < 60
