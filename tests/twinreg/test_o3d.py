@@ -38,3 +38,31 @@ def test_open3d_without_plotly_until_drawn():
     assert seen["same_module"] is True
     assert seen["figure"] == "Figure" and seen["plotly_after_drawing"] is True
     assert seen["stand_in_left"] is False
+
+
+_FORK_CHILD = """
+import json
+import numpy as np
+import trimesh
+from twinreg.o3d import fork_safe, load
+from twinreg.raycast import CentredScene
+
+seen = {"before": fork_safe()}
+load()
+seen["imported"] = fork_safe()
+sphere = trimesh.creation.icosphere(5)
+scene = CentredScene(np.asarray(sphere.vertices, float), np.asarray(sphere.faces))
+for _ in range(5):
+    scene.distances(np.random.default_rng(0).random((300000, 3)))
+seen["queried"] = fork_safe()
+print(json.dumps(seen))
+"""
+
+
+def test_a_child_is_forked_with_open3d_only_before_its_thread_pools_start():
+    """The matching forks a child to share a sweep's clusters only where open3d's pools have not started here (a
+    forked child inherits none of their workers): imported is fine, queried is not."""
+    res = subprocess.run([sys.executable, "-c", _FORK_CHILD], capture_output=True, text=True, timeout=300,
+                         cwd=Path(__file__).resolve().parents[2])
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert json.loads(res.stdout.strip().splitlines()[-1]) == {"before": True, "imported": True, "queried": False}
