@@ -204,6 +204,8 @@ def match_objects(shapes: list[cosco.ObjectShape], catalogue: Catalogue, labels:
     _match_groups(m, {g: groups[g] for g in mine}, known, leaders, labels is not None, done, len(shapes))
     if there is not None:
         there.join(m, time.perf_counter() - t)
+        if done is not None:  # the child's objects counted once they are back
+            done(m.n_done, len(shapes))
     wall = time.perf_counter() - t
     if there is not None:  # the two processes' seconds as shares of the call's
         m.stats.verification_s *= wall / max(there.work_s, 1e-9)
