@@ -55,9 +55,12 @@ class ModelCache:
 
     def top(self, model_id: int) -> np.ndarray:
         """The model's top surface (:func:`twinreg.matching.decision.top_surface` of its sampled points), model
-        frame."""
+        frame, where a scan can hold points: higher than the ground band (``ground.tol``), whose points the ground
+        filter takes (a cone's base plate, a post's foot: neither seen nor missed)."""
         if model_id not in self._tops:
-            self._tops[model_id] = top_surface(self.geometry(model_id).points)
+            top = top_surface(self.geometry(model_id).points)
+            high = top[:, 2] > self.params.ground.tol
+            self._tops[model_id] = top[high] if high.any() else top
         return self._tops[model_id]
 
     def add_rows(self, rows):
