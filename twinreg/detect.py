@@ -146,25 +146,15 @@ def described(det: Detection, params: Settings = DEFAULT, split: bool = False) -
     fails or dies)."""
     import os
 
+    from .process.helpers import HELPER_TIMEOUT_S, Forked, apart
+
     objects = det.objects
     clouds = [object_points(det, o) for o in objects]
-    theirs = []
     cost = [DESCRIBE_FIXED_POINTS + len(c) for c in clouds]
-    if split and len(objects) >= 2 and sum(cost) >= SPLIT_MIN_WORK and not os.environ.get("TWINREG_NO_HELPER"):
-        a = b = 0.0
-        for k in sorted(range(len(objects)), key=lambda k: -cost[k]):
-            if a <= b:
-                a += cost[k]
-            else:
-                theirs.append(k)
-                b += cost[k]
-        theirs.sort()
+    split = split and len(objects) >= 2 and sum(cost) >= SPLIT_MIN_WORK and not os.environ.get("TWINREG_NO_HELPER")
+    theirs = apart(cost) if split else []
     mine = sorted(set(range(len(objects))) - set(theirs))
-    job = None
-    if theirs:
-        from .process.helpers import HELPER_TIMEOUT_S, Forked
-
-        job = Forked(_described_some, det, params, clouds, theirs)
+    job = Forked(_described_some, det, params, clouds, theirs) if theirs else None
     shapes, levels = [None] * len(objects), [None] * len(objects)
     for part in [_described_some(det, params, clouds, mine)] + (
             [job.wait(timeout=HELPER_TIMEOUT_S + len(theirs))] if job is not None else []):

@@ -288,7 +288,7 @@ def _child_half(m: "_Matcher", groups: dict, known: set, leaders, labelled: bool
     m.stats = MatchStats()
     try:
         if os.getpid() != parent:
-            m.catalogue.after_fork()
+            m.cache.catalogue.after_fork()  # the catalogue the child reads its models from
         t = time.perf_counter()
         _match_groups(m, groups, known, leaders, labelled)
         m.stats.registration_s = time.perf_counter() - t - m.stats.verification_s
@@ -304,6 +304,7 @@ def _forked_half(m: "_Matcher", groups: dict, known: set, leaders, labelled: boo
     import sys
 
     from ..o3d import fork_safe, load
+    from ..process.helpers import apart
 
     if len(m.shapes) < SPLIT_MIN_OBJECTS or len(groups) < 2 or os.environ.get("TWINREG_NO_HELPER"):
         return None
@@ -312,18 +313,13 @@ def _forked_half(m: "_Matcher", groups: dict, known: set, leaders, labelled: boo
         return None
     if not fork_safe():  # open3d's thread pools, once started here, are not the child's to use
         return None
-    work = {g: _work(m, v) for g, v in groups.items()}
-    theirs, a, b = set(), 0.0, 0.0
+    labels = list(groups)
+    work = [_work(m, groups[g]) for g in labels]
+    head_start = 0.0
     if m.evidence is not None and "open3d" not in sys.modules:
         load()  # once, before the fork: the child's distances need it too; this half waits for it (its import)
-        a = IMPORT_SHARE * sum(work.values())
-    for g in sorted(groups, key=lambda g: -work[g]):  # the largest first, each to the lighter half
-        if a <= b:
-            a += work[g]
-        else:
-            theirs.add(g)
-            b += work[g]
-    return _Half(m, {g: v for g, v in groups.items() if g in theirs}, known, leaders, labelled)
+        head_start = IMPORT_SHARE * sum(work)
+    return _Half(m, {labels[k]: groups[labels[k]] for k in apart(work, head_start)}, known, leaders, labelled)
 
 
 class _Matcher:
@@ -348,8 +344,6 @@ class _Matcher:
         self.stats.n_without_window = sum(f.outside for f in self.found)
         self.results: list[ObjectMatch | None] = [None] * len(shapes)
         self.n_done = 0
-        self.catalogue = catalogue
-
 
     def match(self, i: int, ranking: tuple | None) -> tuple:
         """Decide object ``i``: a leader (``ranking`` None) tries every candidate; a member is first decided among
