@@ -73,6 +73,30 @@ def test_an_unreachable_scheduler_is_one_line(tmp_path, parametric_catalogue):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_scheduler_without_workers_is_one_line(tmp_path, parametric_catalogue, monkeypatch):
+    """A reachable scheduler that has no worker: the run stops (after ``WORKERS_WAIT_S``, shortened here) with one
+    line saying so and how to start one, exit 1, no output folder; before, its tasks waited forever."""
+    import numpy as np
+    from distributed import LocalCluster
+
+    from tests.conftest import write_las
+    from twinreg.city import engine
+
+    monkeypatch.setattr(engine, "WORKERS_WAIT_S", 2.0)
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    write_las(tiles / "a.laz", np.random.default_rng(0).uniform([0, 0, 0], [50, 50, 2], (500, 3)) + [155000, 463000, 0], crs="EPSG:28992")
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None, host="127.0.0.1", protocol="tcp://",
+                      scheduler_port=0) as cluster:
+        address = cluster.scheduler_address
+        res = runner.invoke(app, ["--library", str(parametric_catalogue.folder), "build-twin", str(tiles), "--out",
+                                  str(tmp_path / "o"), "--scheduler", address])
+    assert res.exit_code == 1, res.output
+    assert f"{address}: the scheduler has had no worker for 2 s; start workers" in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
 def test_epoch_of_a_folder_that_is_not_a_simulated_city_is_one_line(tmp_path, parametric_catalogue):
     (tmp_path / "stranger").mkdir()
     (tmp_path / "stranger" / "notes.txt").write_text("not a city")
