@@ -64,7 +64,7 @@ def main() -> None:
     ids = np.array([int(f.stem) for _, f in files])
     feats = np.array([features(o.points, o.shape) for o in objects])
     print(f"read and described {len(objects)} objects in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
-    rows, calib, confusion = [], [], Counter()
+    rows, calib, confusion, cars_alone = [], [], Counter(), Counter()
     for seed in range(args.seeds):
         rng = np.random.default_rng(seed)
         refs = np.concatenate([rng.choice(np.where((kinds == k) & (ids % 2 == 0))[0], 5, replace=False)
@@ -77,6 +77,15 @@ def main() -> None:
             t = time.perf_counter()
             items = classify_objects([objects[i] for i in test], cat, params=params)
             took = time.perf_counter() - t
+            alone = Catalogue(Path(tmp) / "cars")
+            for r in refs[kinds[refs] == "car"]:
+                alone.add(files[r][1], name=f"car_{ids[r]}", category="car")
+            rest = np.setdiff1d(np.arange(len(objects)), refs[kinds[refs] == "car"])
+            for i, it in zip(rest, classify_objects([objects[j] for j in rest], alone, params=params)):
+                half = "even" if ids[i] % 2 == 0 else "odd"
+                what = "cars" if kinds[i] == "car" else "others"
+                cars_alone[f"{half}_{what}"] += 1
+                cars_alone[f"{half}_{what}_as_car"] += it["kind"] == "car"
         got = np.array([it["kind"] for it in items])
         conf = np.array([it["kind_confidence"] for it in items])
         right = got == kinds[test]
@@ -115,6 +124,9 @@ def main() -> None:
         "confusion": {f"{a}->{b}": n for (a, b), n in sorted(confusion.items())},
         "calibration": table, "types_empty_catalogue": {"n_types": int(len(np.unique(types))),
                                                         "purity": round(float(purity), 3)},
+        "cars_alone": {h: f"fences and poles called car {cars_alone[f'{h}_others_as_car']} of "
+                          f"{cars_alone[f'{h}_others']}, cars {cars_alone[f'{h}_cars_as_car']} of {cars_alone[f'{h}_cars']}"
+                       for h in ("even", "odd")},
         "classify_s_per_run": _stat([r["classify_s"] for r in rows]),
         "total_s": round(time.perf_counter() - t0, 1)}
     print(json.dumps(summary, indent=1))

@@ -140,8 +140,13 @@ class OpenWorldParams:
     bush's), ``structure`` when long and thin (at least ``structure_length`` m and ``structure_elongation`` times
     longer than wide), else unknown. A kind of two or more scanned exemplars is held to their own spread instead:
     the object's distance to its nearest exemplar at most ``scan_spread`` times the largest distance of an exemplar
-    to its kind's nearest other (at least ``min_spread``: two exemplars of one design are no measure of a kind's
-    spread). When the scan is classified (``scan_classes``, ASPRS classes in LAS/LAZ), an object at least
+    to its kind's nearest other (at least ``min_spread``: five exemplars of a kind are a small sample of its spread),
+    the distance to an exemplar adding how far apart the two surfaces are (their variation over
+    ``surface_variation_unit`` and linearity over ``surface_linearity_unit``, times ``surface_weight``: a bent
+    fence's rectangle may measure like a car, its points strung along its wires do not lie like a car's shell). A
+    kind of scanned exemplars the object does not fit is no rival to another kind, and when it is the kind voted
+    for, the next kind voted for that the object fits is named (``min_spread`` and the surface set on DALES' even
+    ids, bench/bench_kinds.py). When the scan is classified (``scan_classes``, ASPRS classes in LAS/LAZ), an object at least
     ``class_share`` of whose points are classed vegetation is ``vegetation``, building or bridge ``structure``,
     whatever its size. From the ground (points along scan lines), a plan width no more than ``resolve_spacings``
     times the object's point spacing over its seen surface is not measured (a one-sided sliver's depth, a few scan
@@ -171,7 +176,10 @@ class OpenWorldParams:
     structure_length: float = 3.0  # m, at least
     structure_elongation: float = 3.0  # length / width
     scan_spread: float = 2.0  # times the exemplars' own
-    min_spread: float = 0.3  # the least spread of a kind
+    min_spread: float = 0.5  # the least spread of a kind
+    surface_weight: float = 0.5  # of a scanned kind's surface in its spread
+    surface_variation_unit: float = 0.02  # surface variation
+    surface_linearity_unit: float = 0.05  # neighbourhoods' linearity
     scan_classes: bool = True  # read a classified scan's classes
     class_share: float = 0.5  # of its points, to take the class
     resolve_spacings: float = 2.0  # point spacings a plan side needs to be measured

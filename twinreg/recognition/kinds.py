@@ -47,6 +47,7 @@ class References:
     scanned: frozenset = frozenset()  # kinds with scanned exemplars: their surfaces are the scan's own
     spreads: dict | None = None  # {kind: distance}: scanned kinds' own spread (kind_spreads), computed once
     exemplars: frozenset = frozenset()  # ids of the exemplars `label` stored: they teach a kind, never placed
+    surfaces: np.ndarray | None = None  # (n, 2) a scanned reference's surface variation and linearity (else NaN)
 
     def __post_init__(self):
         if self.ranges is None and len(self.ids):
@@ -61,15 +62,22 @@ class References:
     def of_catalogue(cls, catalogue, params: Settings = DEFAULT) -> "References":
         """The catalogue's references, each mesh model's plan size as a scan sees it (:func:`seen_size`): what
         stands under ``params.kinds.seen_height`` m (a cone's flat base, a wheel's contact) is ground to a scan."""
+        from cosco.surface import surface_of
+
         rows = catalogue.list() if catalogue.exists else []
         refs = cls.of(rows)
         sizes = refs.sizes.copy()
+        surfaces = np.full((len(rows), 2), np.nan)
         for k, r in enumerate(rows):
+            points = catalogue.geometry(r, with_mesh=False).points
             if (r.source or "mesh") == "mesh":
-                sizes[k, :2] = seen_size(catalogue.geometry(r, with_mesh=False).points, params.kinds.seen_height,
-                                         sizes[k, :2])
+                sizes[k, :2] = seen_size(points, params.kinds.seen_height, sizes[k, :2])
+            elif len(points) >= params.open_world.linearity_min_points:  # a scan's own points: its surface
+                s = surface_of(points, params)
+                surfaces[k] = (s.variation, s.linearity)
+        refs = replace(refs, surfaces=surfaces, spreads=None)
         return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels, scanned=refs.scanned,
-                   spreads=kind_spreads(refs, params), exemplars=refs.exemplars)
+                   spreads=kind_spreads(refs, params), exemplars=refs.exemplars, surfaces=surfaces)
 
     @classmethod
     def of(cls, rows) -> "References":
@@ -212,22 +220,57 @@ def kind_spreads(refs: References, params: Settings = DEFAULT) -> dict:
         if len(idx) < 2:
             continue
         sub = References(refs.ids[idx], [refs.names[j] for j in idx], refs.kinds[idx], refs.sizes[idx],
-                         refs.levels[idx], ranges={}, spreads={})
+                         refs.levels[idx], ranges={}, spreads={},
+                         surfaces=None if refs.surfaces is None else refs.surfaces[idx])
         nearest = []
         for j in range(len(idx)):
             d = distances(sub.sizes[j], sub.levels[j], sub, params)
+            if sub.surfaces is not None:
+                d = d + surface_distances(sub.surfaces[j], sub, params)
             d[j] = np.inf
             nearest.append(d.min())
         out[kind] = float(max(nearest))
     return out
 
 
-def fits_kind(size, d_own: float, kind: str, refs: References, params: Settings = DEFAULT, loose=None) -> bool:
+def surface_distances(surface, refs: References, params: Settings = DEFAULT) -> np.ndarray:
+    """(n,) how far an object's surface (``surface``: a :class:`~cosco.surface.Surface` or its (variation,
+    linearity)) lies from each scanned reference's, in the units of :func:`distances`: the differences in variation
+    and linearity over ``open_world.surface_variation_unit`` and ``surface_linearity_unit``, times
+    ``surface_weight``; 0 for a mesh model (its samples are no scan's surface) or where either is not measured (fewer
+    than ``linearity_min_points`` points). A fence's points lie along its lines, a car's on a shell: two objects of
+    one size, two surfaces.
+
+    >>> refs = References(np.arange(2), ["a", "b"], np.array(["car", "fence"], dtype=object),
+    ...                   np.ones((2, 3)), np.array(["none"] * 2, dtype=object),
+    ...                   surfaces=np.array([[0.03, 0.52], [np.nan, np.nan]]))
+    >>> surface_distances((0.06, 0.70), refs).round(2).tolist()  # a fence's surface, to a car's and a model's
+    [2.55, 0.0]
+    """
+    k = params.open_world
+    if refs.surfaces is None or surface is None or k.surface_weight <= 0:
+        return np.zeros(len(refs))
+    if hasattr(surface, "variation"):
+        if surface.n < k.linearity_min_points:
+            return np.zeros(len(refs))
+        surface = (surface.variation, surface.linearity)
+    v, lin = (float(x) for x in surface)
+    d = (np.abs(refs.surfaces[:, 0] - v) / k.surface_variation_unit
+         + np.abs(refs.surfaces[:, 1] - lin) / k.surface_linearity_unit)
+    return k.surface_weight * np.where(np.isfinite(d), d, 0.0)
+
+
+def fits_kind(size, d_own: float, kind: str, refs: References, params: Settings = DEFAULT, loose=None,
+              d=None, surface=None) -> bool:
     """Whether an object whose nearest reference of ``kind`` is ``d_own`` away fits that kind: within the spread of
-    the kind's scanned exemplars (:func:`kind_spreads`) or, for mesh models, their range of sizes
-    (:func:`fits_size`; a side its points do not measure, ``loose``, is no smaller than theirs)."""
+    the kind's scanned exemplars (:func:`kind_spreads`; ``d``, its :func:`distances` to every reference, and its
+    ``surface`` given: the nearest by size and surface, :func:`surface_distances`) or, for mesh models, their range of
+    sizes (:func:`fits_size`; a side its points do not measure, ``loose``, is no smaller than theirs)."""
     spread = refs.spreads.get(kind)
     if spread is not None:
+        if d is not None:
+            mine = refs.kinds == kind
+            d_own = float((np.asarray(d) + surface_distances(surface, refs, params))[mine].min())
         return d_own <= params.open_world.scan_spread * max(spread, params.open_world.min_spread)
     lo, hi = refs.ranges[kind]
     loose = np.zeros(2, dtype=bool) if loose is None else np.asarray(loose, dtype=bool)
@@ -332,7 +375,7 @@ def kinds_fitted(size, d: np.ndarray, loose, refs: References, params: Settings 
     out = []
     for kind in sorted(refs.ranges, key=lambda k: float(d[refs.kinds == k].min())):
         own = float(d[refs.kinds == kind].min())
-        if (own <= params.kinds.unknown_distance and fits_kind(size, own, kind, refs, params, loose)
+        if (own <= params.kinds.unknown_distance and fits_kind(size, own, kind, refs, params, loose, d, surface)
                 and shell_of(surface, kind, refs, params)):
             out.append(kind)
     return tuple(out)
@@ -408,21 +451,42 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
     for n in near:
         votes[n.kind] = votes.get(n.kind, 0.0) + n.share
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
+
+    def fits(kind: str, bounded: bool = True) -> bool:
+        own = float(d[refs.kinds == kind].min())
+        return ((own <= params.kinds.unknown_distance or not bounded) and shell_of(surface, kind, refs, params)
+                and fits_kind(size, own, kind, refs, params, loose, d, surface))
+
+    # a kind of scanned exemplars the object does not fit (their spread, by size and surface) is no rival to
+    # another: the exemplars are the user's own scans of it; a kind of models stays one, its range of sizes says less
+    rivals = [k for k in refs.ranges if k not in refs.scanned or fits(k)]
     kind = next(iter(votes))
-    mine = refs.kinds == kind
-    shell = shell_of(surface, kind, refs, params)
-    sized = fits_kind(size, float(d[mine].min()), kind, refs, params, loose)
-    if not (sized and shell):
+    if not fits(kind, bounded=False):
+        # the kind voted for is of scanned exemplars it does not fit: the next one voted for it fits, if any
+        other = next((k for k in list(votes)[1:] if kind in refs.scanned and fits(k)), None)
+        got = _named(other, d, rivals, votes, near, refs, params) if other is not None else None
+        if got is not None and got.confidence >= params.kinds.min_kind_confidence:
+            return got
         # a sparse object's surface is its whole shape, not its skin: a model of the kind may still decide it
+        sized = fits_kind(size, float(d[refs.kinds == kind].min()), kind, refs, params, loose, d, surface)
         sparse = sized and surface is not None and surface.n < params.open_world.linearity_min_points
         return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near,
                           fitted=kind if sparse else None)
-    others = d[~mine].min() if (~mine).any() else np.inf
-    margin = float(min(others, params.kinds.unknown_distance) - d[mine].min())
+    got = _named(kind, d, rivals, votes, near, refs, params)
+    if got.confidence < params.kinds.min_kind_confidence:  # a name is a claim: too near another kind to make
+        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, got.margin, kind)
+    return got
+
+
+def _named(kind: str, d: np.ndarray, rivals: list, votes: dict, near: tuple, refs: References,
+           params: Settings) -> KindResult:
+    """``kind`` named, its confidence from its margin (``d``: the object's :func:`distances` to every reference) to
+    the nearest of the ``rivals`` kinds (at most ``kinds.unknown_distance``)."""
+    own = float(d[refs.kinds == kind].min())
+    others = min((float(d[refs.kinds == k].min()) for k in rivals if k != kind), default=np.inf)
+    margin = float(min(others, params.kinds.unknown_distance) - own)
     confidence = float(1.0 / (1.0 + np.exp(-(margin / params.kinds.confidence_scale
                                              + params.kinds.confidence_offset))))
-    if confidence < params.kinds.min_kind_confidence:  # a name is a claim: too near another kind to make
-        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, margin, kind)
     return KindResult(kind, confidence, votes, near, margin)
 
 
