@@ -75,7 +75,9 @@ class References:
             elif len(points) >= params.open_world.linearity_min_points:  # a scan's own points: its surface
                 s = surface_of(points, params)
                 surfaces[k] = (s.variation, s.linearity)
-        refs = replace(refs, surfaces=surfaces, spreads=None)
+        # the spreads of the scanned kinds, by their stored sizes and their surfaces (no ranges wanted here)
+        refs = cls(refs.ids, refs.names, refs.kinds, refs.sizes, refs.levels, ranges={}, spreads={},
+                   scanned=refs.scanned, surfaces=surfaces)
         return cls(refs.ids, refs.names, refs.kinds, sizes, refs.levels, scanned=refs.scanned,
                    spreads=kind_spreads(refs, params), exemplars=refs.exemplars, surfaces=surfaces)
 
@@ -462,7 +464,7 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
     rivals = [k for k in refs.ranges if k not in refs.scanned or fits(k)]
     kind = next(iter(votes))
     if not fits(kind, bounded=False):
-        # the kind voted for is of scanned exemplars it does not fit: the next one voted for it fits, if any
+        # the kind voted for is of scanned exemplars it does not fit: the next kind voted for that it fits, if any
         other = next((k for k in list(votes)[1:] if kind in refs.scanned and fits(k)), None)
         got = _named(other, d, rivals, votes, near, refs, params) if other is not None else None
         if got is not None and got.confidence >= params.kinds.min_kind_confidence:
