@@ -262,17 +262,13 @@ def surface_distances(surface, refs: References, params: Settings = DEFAULT) -> 
     return k.surface_weight * np.where(np.isfinite(d), d, 0.0)
 
 
-def fits_kind(size, d_own: float, kind: str, refs: References, params: Settings = DEFAULT, loose=None,
-              d=None, surface=None) -> bool:
-    """Whether an object whose nearest reference of ``kind`` is ``d_own`` away fits that kind: within the spread of
-    the kind's scanned exemplars (:func:`kind_spreads`; ``d``, its :func:`distances` to every reference, and its
-    ``surface`` given: the nearest by size and surface, :func:`surface_distances`) or, for mesh models, their range of
-    sizes (:func:`fits_size`; a side its points do not measure, ``loose``, is no smaller than theirs)."""
+def fits_kind(size, d_own: float, kind: str, refs: References, params: Settings = DEFAULT, loose=None) -> bool:
+    """Whether an object whose nearest reference of ``kind`` is ``d_own`` away (:func:`distances`, plus
+    :func:`surface_distances` to a scanned exemplar) fits that kind: within the spread of the kind's scanned
+    exemplars (:func:`kind_spreads`) or, for mesh models, their range of sizes (:func:`fits_size`; a side its points
+    do not measure, ``loose``, is no smaller than theirs)."""
     spread = refs.spreads.get(kind)
     if spread is not None:
-        if d is not None:
-            mine = refs.kinds == kind
-            d_own = float((np.asarray(d) + surface_distances(surface, refs, params))[mine].min())
         return d_own <= params.open_world.scan_spread * max(spread, params.open_world.min_spread)
     lo, hi = refs.ranges[kind]
     loose = np.zeros(2, dtype=bool) if loose is None else np.asarray(loose, dtype=bool)
@@ -370,14 +366,16 @@ def kind_of(shape, level: str, refs: References, params: Settings = DEFAULT) -> 
                           shape.n_points if lines else None)
 
 
-def kinds_fitted(size, d: np.ndarray, loose, refs: References, params: Settings = DEFAULT, surface=None) -> tuple:
+def kinds_fitted(size, d: np.ndarray, loose, refs: References, params: Settings = DEFAULT, surface=None,
+                 sd=None) -> tuple:
     """The kinds an object fits by size (``d``: its :func:`distances` to every reference, its ``loose`` sides least
     sizes, :func:`fits_kind`) and surface (:func:`shell_of`), nearest first: what its size cannot tell apart, a
     model's sections may."""
     out = []
     for kind in sorted(refs.ranges, key=lambda k: float(d[refs.kinds == k].min())):
         own = float(d[refs.kinds == kind].min())
-        if (own <= params.kinds.unknown_distance and fits_kind(size, own, kind, refs, params, loose, d, surface)
+        with_surface = own if sd is None else float((d + sd)[refs.kinds == kind].min())
+        if (own <= params.kinds.unknown_distance and fits_kind(size, with_surface, kind, refs, params, loose)
                 and shell_of(surface, kind, refs, params)):
             out.append(kind)
     return tuple(out)
@@ -429,13 +427,15 @@ def recognise_kind(size, level: str, refs: References, params: Settings = DEFAUL
         return KindResult(UNKNOWN, 0.0, {})  # CONTRACT: an empty catalogue names nothing
     loose = unresolved(size, n_points, params)
     d = distances(size, level, refs, params, loose)
-    got = _vote(size, d, loose, refs, params, surface)
+    sd = surface_distances(surface, refs, params)  # 0 but to scanned exemplars
+    got = _vote(size, d, loose, refs, params, surface, sd)
     # a side not measured: every kind the object fits, which a decided model may confirm (confirmed_by_model)
-    return replace(got, fits=kinds_fitted(size, d, loose, refs, params, surface)) if loose.any() else got
+    return replace(got, fits=kinds_fitted(size, d, loose, refs, params, surface, sd)) if loose.any() else got
 
 
-def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surface) -> KindResult:
-    """:func:`recognise_kind`'s vote, given the object's :func:`distances` ``d`` to every reference."""
+def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surface, sd) -> KindResult:
+    """:func:`recognise_kind`'s vote, given the object's :func:`distances` ``d`` to every reference and its
+    :func:`surface_distances` ``sd`` (what a scanned kind's fit adds to them)."""
     height = np.abs(np.log(max(float(np.asarray(size, dtype=np.float64)[2]), params.kinds.min_size)
                            / np.maximum(refs.sizes[:, 2], params.kinds.min_size)))
     d = np.where(height > np.log(params.kinds.max_height_ratio), np.inf, d)
@@ -454,10 +454,13 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
         votes[n.kind] = votes.get(n.kind, 0.0) + n.share
     votes = dict(sorted(votes.items(), key=lambda kv: -kv[1]))
 
+    by_surface = d + sd
+
     def fits(kind: str, bounded: bool = True) -> bool:
-        own = float(d[refs.kinds == kind].min())
-        return ((own <= params.kinds.unknown_distance or not bounded) and shell_of(surface, kind, refs, params)
-                and fits_kind(size, own, kind, refs, params, loose, d, surface))
+        mine = refs.kinds == kind
+        return ((float(d[mine].min()) <= params.kinds.unknown_distance or not bounded)
+                and shell_of(surface, kind, refs, params)
+                and fits_kind(size, float(by_surface[mine].min()), kind, refs, params, loose))
 
     # a kind of scanned exemplars the object does not fit (their spread, by size and surface) is no rival to
     # another: the exemplars are the user's own scans of it; a kind of models stays one, its range of sizes says less
@@ -470,7 +473,7 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
         if got is not None and got.confidence >= params.kinds.min_kind_confidence:
             return got
         # a sparse object's surface is its whole shape, not its skin: a model of the kind may still decide it
-        sized = fits_kind(size, float(d[refs.kinds == kind].min()), kind, refs, params, loose, d, surface)
+        sized = fits_kind(size, float(by_surface[refs.kinds == kind].min()), kind, refs, params, loose)
         sparse = sized and surface is not None and surface.n < params.open_world.linearity_min_points
         return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near,
                           fitted=kind if sparse else None)
