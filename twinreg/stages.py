@@ -20,7 +20,7 @@ from .errors import CatalogueError, require_positive, require_probability
 from .export.objects import fused_pose, place_object, pose
 from .export.twin_json import object_record
 from .geo.georef import check_area
-from .process.helpers import HELPER_TIMEOUT_S, Forked, Pending
+from .process.helpers import HELPER_TIMEOUT_S, Forked, Pending, apart
 from .progress import say
 from .recognition.classify import near_candidates
 from .recognition.decide import decide
@@ -194,18 +194,13 @@ def _points(calls: list) -> int:
 
 
 def _shared_out(calls: list, share: bool) -> tuple[list, list]:
-    """The fusing calls split in two of about equal work (their members' points): those for the helper, those for
-    this process, each in the given order; all here when not ``share``."""
+    """The fusing calls split in two of about equal work (their members' points; the largest first, each to the
+    lighter side: :func:`~twinreg.process.helpers.apart`): those for the helper, those for this process, each in
+    the given order; all here when not ``share``."""
     if not share:
         return [], calls
-    load = [0, 0]
-    side = []
-    for call in calls:
-        n = _points([call])
-        k = int(load[1] < load[0])
-        load[k] += n
-        side.append(k)
-    return [c for c, k in zip(calls, side) if k == 1], [c for c, k in zip(calls, side) if k == 0]
+    theirs = set(apart([_points([call]) for call in calls]))
+    return [c for k, c in enumerate(calls) if k in theirs], [c for k, c in enumerate(calls) if k not in theirs]
 
 
 def finish(ids: list[str], n_points: list[int], outcomes: list, shapes: list, labels, offsets: list,
