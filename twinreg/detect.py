@@ -111,13 +111,15 @@ def objects_seen(det: Detection, objects, params: Settings = DEFAULT) -> list | 
     return None if det.scene.origins is None else [object_seen(det, o, params) for o in objects]
 
 
-def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None) -> list:
-    """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``), each measured
-    from the ground surface under it (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
+def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None, clouds=None) -> list:
+    """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``; ``clouds``: their
+    points, :func:`object_points`, when the caller has them), each measured from the ground surface under it
+    (scene-local coordinates: add ``det.scene.offset`` for the file's frame)."""
     objects = det.objects if objects is None else objects
+    clouds = [object_points(det, o) for o in objects] if clouds is None else clouds
     lines = det.scene.origins is not None  # a survey from the ground, its points along its profilers' lines
-    shapes = [cosco.describe_object(object_points(det, o), params, ground_z=object_ground(det, o),
-                                    seen=object_seen(det, o, params), lines=lines) for o in objects]
+    shapes = [cosco.describe_object(c, params, ground_z=object_ground(det, o), seen=object_seen(det, o, params),
+                                    lines=lines) for o, c in zip(objects, clouds)]
     classes = det.scene.classes  # None: a scan without classes (the parameter is read only when there are some)
     if classes is None or not params.open_world.scan_classes:
         return shapes
@@ -168,8 +170,9 @@ def described(det: Detection, params: Settings = DEFAULT, split: bool = False) -
 def _described_some(det: Detection, params: Settings, clouds: list, which: list) -> list:
     """``(index, shape, level, seen grid)`` of the objects ``which``."""
     objects = [det.objects[k] for k in which]
-    shapes = describe_detected(det, params, objects=objects)
-    levels = object_levels([clouds[k] for k in which], shapes, params)
+    mine = [clouds[k] for k in which]
+    shapes = describe_detected(det, params, objects=objects, clouds=mine)
+    levels = object_levels(mine, shapes, params)
     return [(k, s, lv, det.seen.get(id(o))) for k, s, lv, o in zip(which, shapes, levels, objects)]
 
 

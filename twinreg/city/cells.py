@@ -201,8 +201,8 @@ def _owned_objects(det, cell, out: CellResult) -> list:
 def _describe_owned(job: CellJob, out: CellResult, det, owned: list, offset: np.ndarray) -> None:
     """Each owned object described (sections, level of symmetry, a sample of its points) into ``out``."""
     params, cell = job.params, job.cell
-    shapes = describe_detected(det, params, objects=owned)
     clouds = [object_points(det, o) for o in owned]
+    shapes = describe_detected(det, params, objects=owned, clouds=clouds)
     levels = object_levels(clouds, shapes, params)
     for k, (o, shape, level, cloud) in enumerate(zip(owned, shapes, levels, clouds)):
         out.objects.append(CellObject(
