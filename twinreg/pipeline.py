@@ -32,7 +32,7 @@ from .matching.match import Evidence, ModelCache, match_objects
 from .matching.prober import Prober
 from .process.helpers import HELPER_TIMEOUT_S, Forked, Painter, Pending
 from .progress import say
-from .report.scene import plot_object_sections, plot_taxonomy, warm_up, write_report
+from .report.scene import plot_object_sections, plot_taxonomy, write_report
 from .settings import DEFAULT, Settings
 from .stages import (
     checked_params,
@@ -133,9 +133,7 @@ def _locked_build(scene_path, catalogue, georef, out, unit, params, progress, t_
     params = with_targets(catalogue, params)
 
     prober = Prober.start()  # open3d loads in a helper while this process detects and registers
-    if prober:  # and matplotlib after it, for the sections' picture it draws at the end
-        prober.helper.submit(warm_up)
-    painter = Painter.start()  # warmed once the scan is read (below): the detection keeps a core to itself
+    painter = Painter.start()  # the pictures (SVG: no import to warm), the fused shapes' half
     try:
         return _build(scene_path, catalogue, georef, out, unit, params, progress, painter, t_start, timing, ply,
                       date, templates, prober, trajectory)
@@ -159,8 +157,6 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     det = detect_file(scene_path, unit=unit, params=params, crs=georef.crs if given else None,
                       override_crs=given and georef.override, on_read=placed, trajectory=trajectory)
     georef = located["georef"]
-    if painter:
-        painter.submit(warm_up)
     timing.update(det.timing_s)
     targets = det.objects
     if not targets:
@@ -269,14 +265,14 @@ def _match_and_export(run: SceneRun) -> dict:
                        viewpoints=viewpoints_doc(sc, run.trajectory))
     twin = twin_document(scan, georef, objects, clusters, params, MatchSummary(stats, catalogue.count()))
     sections = [section_item(p) for p in placed]
-    # the pictures are drawn by the helper process (already warm), the sections' picture and the KMZ by the distance
-    # helper (done with its queries, its matplotlib warmed while it waited), while this one writes the other files
+    # the pictures are drawn by the helper process, the sections' picture and the KMZ by the distance helper (done
+    # with its queries), while this one writes the other files
     helper = run.prober.helper if run.prober else None
-    section_png = Pending(helper, plot_object_sections, sections, stage / "sections.png") if helper else None
+    section_pic = Pending(helper, plot_object_sections, sections, stage / "sections.svg") if helper else None
     report_args = (stage, twin | {"timing_s": {"total": time.perf_counter() - t_start}},
                    {"scene_local": local, "is_ground": det.is_ground, "footprints": [p.footprint() for p in placed],
                     "hag": det.hag, "title": f"{scene_path.name}: {len(objects)} objects"},
-                   None if section_png else sections)
+                   None if section_pic else sections)
     report = Pending(painter, write_report, *report_args)
     rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
     files = TwinFiles(stage, scene_path.name, placed, georef, models, [("scene", list(range(len(placed))))],
@@ -301,7 +297,7 @@ def _match_and_export(run: SceneRun) -> dict:
         scans.stop()
     # each job done there or, when its helper is missing, stuck or failed, here (the pictures within one deadline)
     deadline = time.monotonic() + HELPER_TIMEOUT_S
-    for job in (taxonomy, report, section_png):
+    for job in (taxonomy, report, section_pic):
         if job is not None:
             job.wait(timeout=max(deadline - time.monotonic(), 0.0))
     timing["export"] = time.perf_counter() - t

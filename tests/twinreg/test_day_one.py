@@ -288,7 +288,7 @@ def test_the_console_counts_by_kind_and_model_and_lists_objects_with_v(street_tw
 
 
 def test_pictures_stay_pictures(tmp_path):
-    import struct
+    from xml.etree import ElementTree
 
     from twinreg.report.scene import MAX_SECTION_ROWS, plot_object_sections
 
@@ -297,8 +297,9 @@ def test_pictures_stay_pictures(tmp_path):
               "object": {"lon": rng.uniform([-2, 0], [2, 1.5], (40, 2)), "tra": rng.uniform([-0.9, 0], [0.9, 1.5],
                                                                                            (20, 2))}}
              for k in range(400)]
-    path = plot_object_sections(items, tmp_path / "sections.png")
-    width, height = struct.unpack(">II", Path(path).read_bytes()[16:24])
+    path = plot_object_sections(items, tmp_path / "sections.svg")
+    svg = ElementTree.parse(path).getroot()
+    width, height = float(svg.get("width")), float(svg.get("height"))
     assert height < 120 * (MAX_SECTION_ROWS + 5) and width < 2000
 
 

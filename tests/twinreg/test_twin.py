@@ -128,7 +128,7 @@ def test_twin_ply_carries_offset_and_georef(twin):
     pts = read_points(out / "twin.ply").points + offset
     centre = np.array([o["centroid"] for o in doc["objects"]])
     assert np.abs(pts[:, :2].mean(0) - centre[:, :2].mean(0)).max() < 1.0
-    assert (out / "report.html").exists() and (out / "sections.png").stat().st_size > 10_000
+    assert (out / "report.html").exists() and (out / "sections.svg").stat().st_size > 10_000
 
 
 def _state(folder):
@@ -174,9 +174,8 @@ def test_bad_inputs_leave_nothing_half_written(tmp_path, park, catalogue16):
 
 def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_path, monkeypatch):
     """Without the helper process (TWINREG_NO_HELPER=1, or a helper that cannot start) this process draws the
-    same pictures, pixel for pixel, and no child process is started for them."""
+    same pictures, byte for byte, and no child process is started for them."""
     import psutil
-    from matplotlib.image import imread
 
     from twinreg.geo.georef import georef_from_options
     from twinreg.pipeline import build_twin
@@ -191,11 +190,10 @@ def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_pat
     twin = build_twin(park["path"], catalogue16, georef, tmp_path / "here")
     assert len(twin["objects"]) == 12 and not started
     assert {p.pid for p in psutil.Process().children(recursive=True)} <= before
-    for name in ("topview.png", "heatmap.png", "dendrogram.png", "sections.png", "confidence.png"):
-        a, b = imread(tmp_path / "helper" / name), imread(tmp_path / "here" / name)
-        assert a.shape == b.shape and np.array_equal(a, b), name
+    for name in ("topview.svg", "heatmap.svg", "dendrogram.svg", "sections.svg", "confidence.svg"):
+        assert (tmp_path / "helper" / name).read_bytes() == (tmp_path / "here" / name).read_bytes(), name
     page = (tmp_path / "here" / "report.html").read_text()
-    assert all(f"src='{name}'" in page for name in ("topview.png", "sections.png", "confidence.png"))
+    assert all(f"src='{name}'" in page for name in ("topview.svg", "sections.svg", "confidence.svg"))
     # the scan's files, written by a forked child with the helpers, the same written here
     import laspy
 
@@ -243,7 +241,7 @@ def test_a_stuck_helper_does_not_hang_build_twin(park, catalogue16, tmp_path, mo
     georef = georef_from_options(53.35116, -6.261601)
     twin = pipeline.build_twin(park["path"], catalogue16, georef, tmp_path / "out")
     assert len(twin["objects"]) == 12
-    for name in ("topview.png", "sections.png", "report.html"):  # drawn here when the helper was stuck
+    for name in ("topview.svg", "sections.svg", "report.html"):  # drawn here when the helper was stuck
         assert (tmp_path / "out" / name).stat().st_size > 1000
     assert not list((tmp_path / "out").rglob(".tmp-*"))
     assert _children(earlier) == []  # the helper was stopped, not left behind
