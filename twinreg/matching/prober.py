@@ -24,8 +24,11 @@ _SURFACES: dict = {}
 
 
 def warm_up() -> bool:
-    """Import open3d (the helper's first call)."""
+    """Import open3d (the helper's first call), and pymeshlab, which the fused shapes' half sent here later uses
+    (its import and plugins, 0.1-0.2 s, paid while this helper waits for the detection rather than after it)."""
     load()
+    import pymeshlab  # noqa: F401
+
     return True
 
 

@@ -228,19 +228,20 @@ class Forked:
         self._proc = None
 
 
-def apart(costs, head_start: float = 0.0) -> list[int]:
+def apart(costs, head_start: float = 0.0, slower: float = 1.0) -> list[int]:
     """Which of the jobs of ``costs`` (their expected work) a second process takes so that both hold about equal
     work: the largest first, each to the lighter half (this one's on a tie); ``head_start``: the work this process
-    has before any of them (an import the other inherits). The indices, in order.
+    has before any of them (an import the other inherits); ``slower``: how much longer a job takes the other
+    process (one without this one's compiled kernels). The indices, in order.
 
-    >>> apart([5, 4, 3, 2]), apart([5, 4, 3, 2], head_start=4)
-    ([1, 2], [0, 2])
+    >>> apart([5, 4, 3, 2]), apart([5, 4, 3, 2], head_start=4), apart([5, 4, 3, 2], slower=2.0)
+    ([1, 2], [0, 2], [1])
     """
     mine, theirs, out = float(head_start), 0.0, []
     for k in sorted(range(len(costs)), key=lambda k: -costs[k]):
         if mine <= theirs:
             mine += costs[k]
         else:
-            theirs += costs[k]
+            theirs += costs[k] * slower
             out.append(k)
     return sorted(out)
