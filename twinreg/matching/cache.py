@@ -15,6 +15,11 @@ from .decision import top_surface
 from .prefilter import SizeIndex
 
 
+#: the most models whose distance indexes are built ahead of their first queries (each a mesh sent and an index held
+#: by the helper: a large catalogue's wide prefilter windows would send many never verified)
+PREPARED_MODELS = 48
+
+
 class ModelCache:
     """Catalogue models loaded once (arrays, section pairs and frames)."""
 
@@ -97,6 +102,12 @@ class ModelCache:
         if key not in self._meshes:
             self._meshes[key] = self.catalogue.ge_mesh(self._rows[model_id], max_faces)
         return self._meshes[key]
+
+    def prepare_surfaces(self, model_ids) -> None:
+        """Have the distance helper build these models' indexes ahead of their first queries (at most
+        :data:`PREPARED_MODELS`, in the order given); nothing without a helper."""
+        if self.prober is not None:
+            self.prober.prepare([(m, lambda m=m: self.mesh(m)) for m in list(model_ids)[:PREPARED_MODELS]])
 
     def surface(self, model_id: int):
         """The twin's mesh of the model as a :class:`~twinreg.matching.acceptance.SurfaceIndex` (distance queries)."""

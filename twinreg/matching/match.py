@@ -22,6 +22,7 @@
 from __future__ import annotations
 
 import time
+from collections import Counter
 from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
@@ -339,6 +340,9 @@ class _Matcher:
         self.found = [index.candidates(s, self.spacings[i], params) for i, s in enumerate(shapes)]
         self.cands = [f.all for f in self.found]
         cache.add_rows(catalogue.rows(sorted({m for c in self.cands for m in c} - set(cache.known()))))
+        # the most tried models first: their distance indexes are built on the helper while this process registers
+        tried = Counter(m for c in self.cands for m in c)
+        cache.prepare_surfaces(sorted(tried, key=lambda m: (-tried[m], m)))
         self.stats.prefilter_s = time.perf_counter() - t
         self.stats.n_pairs_without_prefilter = len(index) * len(shapes)
         self.stats.n_without_window = sum(f.outside for f in self.found)

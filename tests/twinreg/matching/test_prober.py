@@ -38,6 +38,10 @@ try:
     want = SurfaceIndex(v, f).distances(pts)
     seen["helper_vs_here"] = float(np.abs(got - want).max())
     seen["kept_vs_here"] = float(np.abs(small - want[:10]).max())
+    prober.prepare([(8, lambda: (v, f))])  # built there ahead of its first query: the mesh is not sent again
+    ahead = prober.surface(8, lambda: (_ for _ in ()).throw(AssertionError("the mesh was sent twice")))
+    seen["prepared_vs_here"] = float(np.abs(ahead.distances(pts) - want).max())
+    seen["prepared_in_helper"] = prober.helper is not None
     seen["second_start"] = Prober.start() is not None  # open3d is loaded here now: a helper would load it again
     prober.answer_here()  # a scene of many objects: the queries here, the helper kept for other calls
     seen["answered_here_vs_here"] = float(np.abs(surface.distances(pts) - want).max())
@@ -71,6 +75,7 @@ def test_helper_distances_are_open3ds_and_a_dead_helper_is_replaced():
     assert seen["started"] and seen["helper_answered"] and seen["helper_kept_the_mesh"]
     assert seen["open3d_loaded_here"] is False  # the distances came from the helper
     assert seen["helper_vs_here"] == 0.0 and seen["kept_vs_here"] == 0.0
+    assert seen["prepared_vs_here"] == 0.0 and seen["prepared_in_helper"]
     assert seen["second_start"] is False
     assert seen["answered_here_vs_here"] == 0.0 and seen["helper_kept"]
     assert seen["after_kill_vs_here"] == 0.0 and seen["helper_dropped"]
