@@ -56,7 +56,7 @@ def main() -> None:
                   f"{sum(x['outside_tolerance'] for x in m)} | {sum(bool(x['ambiguous_with']) for x in m)} | "
                   f"{conf[len(conf) // 2] if conf else 0:.2f} | "
                   + "; ".join(f"{n} {r}" for r, n in why.most_common()) + f" | {elapsed:.1f} s |")
-            shutil.copy(out / "topview.png", args.docs / f"twin_{name}.png")
+            shutil.copy(out / "topview.svg", args.docs / f"twin_{name}.svg")  # the report's map
 
 
 if __name__ == "__main__":
