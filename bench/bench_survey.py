@@ -73,20 +73,43 @@ def _cells_done(out: Path) -> int:
     return len(list((out / ".cells").glob("*.npz"))) if (out / ".cells").is_dir() else 0
 
 
-def run_killed(cmd: list[str], out: Path, kill_after: int | None) -> tuple[float, int, str, bool]:
+def _tree_memory(tree: list) -> tuple[int, int, int]:
+    """(summed RSS, summed PSS, the first process's RSS) bytes of a process tree. The RSS sum counts a page
+    shared by a forked child and its parent (or by the workers' common libraries) once a process; the PSS sum
+    counts it once, split between its sharers: the tree's actual use."""
+    import psutil
+
+    rss = pss = first = 0
+    for k, c in enumerate(tree):
+        try:
+            m = c.memory_full_info()
+        except psutil.Error:
+            continue
+        rss += m.rss
+        pss += getattr(m, "pss", m.rss)
+        first = m.rss if k == 0 else first
+    return rss, pss, first
+
+
+def run_killed(cmd: list[str], out: Path, kill_after: int | None, tag: str = "run") -> tuple[float, int, str, bool]:
     """Run ``cmd``; with ``kill_after``, kill its whole process tree once that many cells are stored. Returns
-    (wall s, peak summed RSS bytes, stdout, whether it was killed)."""
+    (wall s, peak summed RSS bytes, stdout, whether it was killed); the peak summed PSS and the memory over time
+    (``OUT.TAG.memory.csv``: seconds, processes, summed RSS, summed PSS, the main process's RSS, its last progress
+    line) are in :data:`PSS_PEAKS` and beside OUT."""
     import psutil
 
     t = time.perf_counter()
     sink = open(out.parent / f"{out.name}.stdout", "w+")
-    p = subprocess.Popen(cmd, stdout=sink, stderr=subprocess.DEVNULL, text=True, start_new_session=True)
+    log = open(out.parent / f"{out.name}.{tag}.stderr", "w+")
+    p = subprocess.Popen(cmd, stdout=sink, stderr=log, text=True, start_new_session=True)
     proc = psutil.Process(p.pid)
-    peak, killed, last = 0, False, 0.0
+    peak, pss_peak, killed, last, rows = 0, 0, False, 0.0, []
     while p.poll() is None:
         try:
             tree = [proc] + proc.children(recursive=True)
-            peak = max(peak, sum(c.memory_info().rss for c in tree))
+            rss, pss, main_rss = _tree_memory(tree)
+            peak, pss_peak = max(peak, rss), max(pss_peak, pss)
+            rows.append((round(time.perf_counter() - t, 1), len(tree), rss, pss, main_rss, _last_line(log)))
         except psutil.Error:
             pass
         if kill_after is not None and time.perf_counter() - last > 1.0:
@@ -102,11 +125,32 @@ def run_killed(cmd: list[str], out: Path, kill_after: int | None) -> tuple[float
                 break
         time.sleep(0.1)
     secs = time.perf_counter() - t
+    PSS_PEAKS[tag] = pss_peak
+    with open(out.parent / f"{out.name}.{tag}.memory.csv", "w") as fh:
+        fh.write("seconds,processes,rss_sum,pss_sum,main_rss,stage\n")
+        fh.writelines(f"{a},{b},{c},{d},{e},{json.dumps(f)}\n" for a, b, c, d, e, f in rows)
     sink.seek(0)
     text = sink.read()
     if p.returncode and not killed:
         raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode})")
     return secs, peak, text, killed
+
+
+#: each run's peak summed PSS (bytes), by its tag
+PSS_PEAKS: dict = {}
+
+
+def _last_line(log) -> str:
+    """The last progress line the run wrote to stderr so far (its stage)."""
+    try:
+        log.flush()
+        size = log.seek(0, 2)
+        log.seek(max(0, size - 400))
+        tail = log.read().replace("\r", "\n").strip().splitlines()
+        log.seek(0, 2)
+        return tail[-1][:80] if tail else ""
+    except (OSError, ValueError):
+        return ""
 
 
 def compare(survey: dict, reference: dict, places, step: float) -> dict:
@@ -215,16 +259,18 @@ def main():
     n_cells = plan(open_sources([a.work / "tiles"]), cell).n_cells
     kill_after = max(1, int(a.kill_at * n_cells))
     print(f"{len(places)} copies, {n_cells} cells, shift {step:g} m; killing after {kill_after} cells", flush=True)
-    s1, p1, _, killed = run_killed(cmd, out, kill_after)
+    s1, p1, _, killed = run_killed(cmd, out, kill_after, "first")
     kept = _cells_done(out)
     print(f"first run: {s1:.1f} s, peak {p1 / 2**30:.2f} GiB, killed={killed}, {kept} cells kept", flush=True)
-    s2, p2, text, _ = run_killed(cmd, out, None)
+    s2, p2, text, _ = run_killed(cmd, out, None, "resume")
     twin = json.loads(text)
     result = {"machine": machine(), "copies": len(places), "shift_m": step, "cell_m": cell, "n_cells": n_cells,
               "n_points": twin["n_points"], "n_objects": len(twin["objects"]),
               "first_run_s": round(s1, 1), "first_run_peak_gib": round(p1 / 2**30, 2), "killed": killed,
               "cells_kept": kept, "resume_s": round(s2, 1), "resume_peak_gib": round(p2 / 2**30, 2),
               "total_s": round(s1 + s2, 1), "peak_gib": round(max(p1, p2) / 2**30, 2),
+              "first_run_peak_pss_gib": round(PSS_PEAKS["first"] / 2**30, 2),
+              "resume_peak_pss_gib": round(PSS_PEAKS["resume"] / 2**30, 2),
               "n_cells_reused": twin["grid"]["n_cells_reused"], "timing_s": twin["timing_s"]}
     if reference:
         result["against_reference"] = compare(twin, reference, places, step)

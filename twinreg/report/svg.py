@@ -97,6 +97,14 @@ def _num(a) -> np.ndarray:
     return np.round(np.asarray(a, dtype=np.float64), 1)
 
 
+def _image(x, y, w, h, pixels: np.ndarray, smooth: bool = False) -> str:
+    """An ``<image>`` element of the raster ``pixels`` (a PNG inline) over the pixel box."""
+    data = base64.b64encode(png(pixels)).decode("ascii")
+    look = "" if smooth else " style='image-rendering:pixelated' image-rendering='optimizeSpeed'"
+    return (f"<image x='{x:.1f}' y='{y:.1f}' width='{w:.1f}' height='{h:.1f}' preserveAspectRatio='none'{look} "
+            f"href='data:image/png;base64,{data}'/>")
+
+
 class Figure:
     """An SVG picture of ``width`` x ``height`` pixels (a white background), its elements in drawing order."""
 
@@ -134,10 +142,7 @@ class Figure:
 
     def image(self, x, y, w, h, pixels: np.ndarray, smooth: bool = False) -> None:
         """A raster (see :func:`png`) stretched over the box, its pixels kept sharp unless ``smooth``."""
-        data = base64.b64encode(png(pixels)).decode("ascii")
-        look = "" if smooth else " style='image-rendering:pixelated' image-rendering='optimizeSpeed'"
-        self.add(f"<image x='{x:.1f}' y='{y:.1f}' width='{w:.1f}' height='{h:.1f}' preserveAspectRatio='none'"
-                 f"{look} href='data:image/png;base64,{data}'/>")
+        self.add(_image(x, y, w, h, pixels, smooth))
 
     def to_string(self) -> str:
         return (f"<svg xmlns='http://www.w3.org/2000/svg' width='{self.width:.0f}' height='{self.height:.0f}' "
@@ -272,9 +277,7 @@ class Axes:
         x0, x1, y0, y1 = extent
         px0, px1 = float(self.px(x0)), float(self.px(x1))
         py0, py1 = float(self.py(y1)), float(self.py(y0))
-        body = Figure(0, 0)
-        body.image(px0, py0, px1 - px0, py1 - py0, pixels)
-        self._in(body.parts[0])
+        self._in(_image(px0, py0, px1 - px0, py1 - py0, pixels))
 
     def bars(self, lefts, widths, heights, colour="#2c7fb8") -> None:
         lefts, widths, heights = (np.asarray(v, dtype=np.float64) for v in (lefts, widths, heights))
