@@ -145,8 +145,11 @@ def _document(run: CityRun, docs: list[dict], by_cell: dict) -> dict:
 
 def _write_files(run: CityRun, stage: Path, twin: dict, placed: list, by_cell: dict) -> None:
     """Every file of the twin but twin.json into ``stage``: the twin's formats (:func:`~twinreg.export.formats.
-    write_twin`: the records' in a forked child, a third of the export at 100M points; a KMZ folder and PLY file a
-    cell) and the report; then the classified scan the workers wrote and the observation record."""
+    write_twin`; a KMZ folder and PLY file a cell) and the report; then the classified scan the workers wrote and
+    the observation record. The records' formats are written on a thread here, not in a forked child: the child
+    copied the pages of every record it read (Python's reference counts write to them), 35 kB an object, and at
+    47,040 objects its 1.6 GB made the survey's peak (docs/PERFORMANCE.md); the thread costs the 97M-point city's
+    formats 2 s more."""
     results, objects, georef, plan = run.results, run.objects, run.georef, run.plan
     t = time.perf_counter()
     rows: dict = {}
@@ -159,7 +162,7 @@ def _write_files(run: CityRun, stage: Path, twin: dict, placed: list, by_cell: d
     files = TwinFiles(stage, twin["scene"], placed, georef, run.models, [(r.name, rows[r.name]) for r in cells],
                       [(r.name, r.scan_tiles) for r in results if r.scan_tiles], ply="groups" if run.ply else None,
                       regions={r.name: _cell_bounds(georef, plan.cells[r.name]) for r in cells}, templates=True,
-                      seq=True, fork=True)
+                      seq=True)
     twin |= write_twin(files, beside=lambda: write_city_report(stage, twin, results, objects, run.outcomes, plan))
     run.timing["formats"] = time.perf_counter() - t
     if run.classified is not None:  # the cells' classified COPC files, written on the workers

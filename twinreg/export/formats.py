@@ -39,8 +39,9 @@ class TwinFiles:
     tiles), or None; ``ply``: None, ``"twin"`` (twin.ply and twin.prj) or ``"groups"`` (``ply/<group>.ply``);
     ``regions``: group name -> WGS84 bounds for a KMZ with a Folder and Region a group (None: one list);
     ``templates``: CityJSON with geometry templates; ``seq``: also twin.city.jsonl; ``fork``: the record formats
-    in a forked child (a city's thousands of objects) instead of a thread; ``helper``: the helper process that
-    writes the KMZ (None: this one)."""
+    in a forked child instead of a thread (faster where JSON encoding is a large share of the export, but the
+    child copies the pages of the records it reads: a city writes them on a thread); ``helper``: the helper
+    process that writes the KMZ (None: this one)."""
 
     stage: Path
     scene: str
@@ -206,7 +207,7 @@ def _gpkg(v: RecordView) -> None:
                unit_name(v.georef.crs_unit_m if crs is not None else 1.0))
 
 
-#: the formats written from the objects' records, in order (a scene's on a thread, a city's in a forked child): a
+#: the formats written from the objects' records, in order (on a thread, or in a forked child with ``fork``): a
 #: new format of the records is its module and one line here
 RECORD_FORMATS = (_cityjson, _geojson, _sections, _gpkg)
 
@@ -226,7 +227,7 @@ def gpkg_crs(georef) -> str | None:
 
 
 class _Threaded:
-    """The JSON formats written on a thread beside the tiles' numpy work (a scene's few objects)."""
+    """The JSON formats written on a thread beside the tiles' numpy work (a scene's, a city's)."""
 
     def __init__(self, *args):
         self._pool = ThreadPoolExecutor(1)
