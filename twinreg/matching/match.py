@@ -339,9 +339,9 @@ class _Matcher:
             point_spacing(np.asarray(c)) if c is not None and len(c) >= 3 else 0.0 for c in clouds]
         self.found = [index.candidates(s, self.spacings[i], params) for i, s in enumerate(shapes)]
         self.cands = [f.all for f in self.found]
-        cache.add_rows(catalogue.rows(sorted({m for c in self.cands for m in c} - set(cache.known()))))
+        tried = Counter(m for c in self.cands for m in c)  # each candidate model: how many objects try it
+        cache.add_rows(catalogue.rows(sorted(set(tried) - set(cache.known()))))
         # the most tried models first: their distance indexes are built on the helper while this process registers
-        tried = Counter(m for c in self.cands for m in c)
         cache.prepare_surfaces(sorted(tried, key=lambda m: (-tried[m], m)))
         self.stats.prefilter_s = time.perf_counter() - t
         self.stats.n_pairs_without_prefilter = len(index) * len(shapes)

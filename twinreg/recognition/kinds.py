@@ -468,7 +468,7 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
     kind = next(iter(votes))
     if not fits(kind, bounded=False):
         # the kind voted for is of scanned exemplars it does not fit: the next kind voted for that it fits, if any
-        other = next((k for k in list(votes)[1:] if kind in refs.scanned and fits(k)), None)
+        other = next((k for k in list(votes)[1:] if fits(k)), None) if kind in refs.scanned else None
         got = _named(other, d, rivals, votes, near, refs, params) if other is not None else None
         if got is not None and got.confidence >= params.kinds.min_kind_confidence:
             return got

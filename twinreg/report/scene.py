@@ -13,8 +13,10 @@ import numpy as np
 
 from .svg import BLUE, GREY, ORANGE, TAB10, Axes, Figure, colour_bar, colour_table, nice_ticks, text
 
-#: the top view's heights above ground (m) from white to black; its longest side (px)
+#: the top view's heights above ground (m) from white to black, its grey ramp (256 levels, the lowest first); its
+#: longest side (px)
 TOP_HEIGHTS = (-0.5, 3.0)
+GREY_RAMP = np.linspace(255, 0, 256).round().astype(np.uint8)
 TOP_SIDE_PX = 1200
 
 
@@ -36,7 +38,7 @@ def _grey_pixels(img: np.ndarray) -> np.ndarray:
     t = img.T[::-1]
     empty = np.isnan(t)
     level = np.clip((np.where(empty, 0.0, np.clip(t, 0.0, hi)) - lo) / (hi - lo), 0.0, 1.0)
-    return np.stack([np.round(255 * (1.0 - level)).astype(np.uint8), np.where(empty, 0, 255).astype(np.uint8)], -1)
+    return np.stack([GREY_RAMP[np.round(level * 255).astype(np.intp)], np.where(empty, 0, 255).astype(np.uint8)], -1)
 
 
 def _legend(fig: Figure, y: float, x0: float) -> None:
@@ -77,9 +79,8 @@ def plot_twin_top(scene_local: np.ndarray, is_ground: np.ndarray, footprints: li
         ax.arrows(centre, np.array([fp["front"] for fp in footprints], dtype=float) - centre, head=6.0)
         ax.labels(centre, [fp["label"] for fp in footprints], size=float(np.clip(scale * 0.25, 7.0, 12.0)))
     ax.frame("x (m, east in the scan's frame)", "y (m, north)", title)
-    grey = np.repeat(np.linspace(255, 0, 256).round().astype(np.uint8)[:, None], 3, axis=1)
-    colour_bar(fig, (left + w + 18, top + 0.1 * h, 12, 0.8 * h), grey, *TOP_HEIGHTS,
-               "scan: height above ground (m)", ticks=[0, 1, 2, 3])
+    colour_bar(fig, (left + w + 18, top + 0.1 * h, 12, 0.8 * h), np.repeat(GREY_RAMP[:, None], 3, axis=1),
+               *TOP_HEIGHTS, "scan: height above ground (m)", ticks=[0, 1, 2, 3])
     _legend(fig, top + h + 62, left)
     return fig.save(path)
 

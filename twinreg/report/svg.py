@@ -15,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..export.twin_ply import PALETTE
 from ..io.outdir import atomic_path
 
-#: matplotlib's tab10, the palette of the exports' types
-TAB10 = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
+#: the exports' palette of types (matplotlib's tab10), as SVG colours
+TAB10 = tuple(f"#{r:02x}{g:02x}{b:02x}" for r, g, b in PALETTE.tolist())
 BLUE, ORANGE, GREY = TAB10[0], TAB10[1], "#888888"
 #: coolwarm's anchors (matplotlib's diverging map: blue, light grey, red), interpolated linearly
 COOLWARM = ((0.0, (59, 76, 192)), (0.25, (141, 176, 254)), (0.5, (221, 221, 221)), (0.75, (244, 154, 123)),
