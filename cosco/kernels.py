@@ -194,17 +194,23 @@ def enable(*modules: str) -> float:
 
 
 def _warm_all() -> None:
+    """Every registered kernel not warmed yet in this process called through its entry on its example."""
     import numpy as np
 
+    warmed = _STATE.setdefault("warmed", set())
     for k in kernels():
-        entry, example = k.entry_and_example()
-        entry(*example(np.random.default_rng(0)))
+        if k.name not in warmed:
+            entry, example = k.entry_and_example()
+            entry(*example(np.random.default_rng(0)))
+            warmed.add(k.name)
 
 
 def warm() -> float:
     """Compile (or load from the cache) every registered kernel, when they are in use, by calling each one's entry
-    on its example; seconds taken. A cache file that cannot be read (a corrupt or foreign index: numba's
-    unpickling fails) is dropped with the rest of the cache folder, and the kernels compiled anew."""
+    on its example; seconds taken. A kernel already warmed in this process is not called again (a second
+    :func:`enable` warms only the kernels of modules imported since). A cache file that cannot be read (a corrupt
+    or foreign index: numba's unpickling fails) is dropped with the rest of the cache folder, and the kernels
+    compiled anew."""
     t = time.perf_counter()
     if in_use():
         with _one_writer(trusted_cache_dir()):
@@ -218,6 +224,7 @@ def warm() -> float:
                                  "compiling anew\n")
                 clear(folder)
                 _STATE.pop("compiled", None)
+                _STATE.pop("warmed", None)
                 _warm_all()
     return time.perf_counter() - t
 

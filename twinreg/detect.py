@@ -45,11 +45,13 @@ class Detection:
         return [(f"obj{k + 1}", o) for k, o in enumerate(objs)]
 
 
-def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, keep=None) -> Detection:
+def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, keep=None,
+                  on_components=None) -> Detection:
     """Ground removal and connectivity-based object detection on a read scene (points far from the scan are
     dropped first and counted in ``scene.n_outliers``). ``keep``: a function of the (n, 3) scene points giving
     the (n,) mask of those to search for objects after the ground is computed on all of them (a tile read wider
-    for its ground), or None for all."""
+    for its ground), or None for all. ``on_components``: called with the segmentation's number of components
+    before its passes (:func:`cosco.segment.segment_objects`)."""
     t0 = time.perf_counter()
     local = scene.local
     outliers = far_outliers(local, params)
@@ -67,7 +69,7 @@ def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, ke
     t1 = time.perf_counter()
     say(progress, "ground")
     if len(local):
-        seg = segment_objects(local, hag, params, is_ground=is_ground)
+        seg = segment_objects(local, hag, params, is_ground=is_ground, on_components=on_components)
     else:  # a tile's margin held points, the part searched for objects none
         seg = Segmentation(np.zeros(0, dtype=np.int64), [], 0, 0)
     t2 = time.perf_counter()
@@ -177,10 +179,12 @@ def _described_some(det: Detection, params: Settings, clouds: list, which: list)
 
 
 def detect_file(path, unit: str = "auto", params: Settings = DEFAULT, progress=None,
-                crs: str | None = None, override_crs: bool = False, on_read=None, trajectory=None) -> Detection:
+                crs: str | None = None, override_crs: bool = False, on_read=None, trajectory=None,
+                on_components=None) -> Detection:
     """Read a scene (``crs``: its projected CRS; one that differs from a LAS header's only with ``override_crs``)
     and detect its objects; ``on_read(scene)`` is called once the points are read, before the detection (to
-    refuse a scene early); ``trajectory``: a mobile survey's trajectory file (each point's scanner position)."""
+    refuse a scene early); ``trajectory``: a mobile survey's trajectory file (each point's scanner position);
+    ``on_components``: as :func:`detect_points`."""
     t = time.perf_counter()
     scene = read_points(path, unit=unit, crs=crs, override_crs=override_crs, trajectory=trajectory)
     if on_read is not None:
@@ -189,7 +193,7 @@ def detect_file(path, unit: str = "auto", params: Settings = DEFAULT, progress=N
         raise SceneReadError(f"{path}: only {len(scene.points)} points; a scene needs at least 100")
     read_s = time.perf_counter() - t
     say(progress, "read")
-    det = detect_points(scene, params, progress)
+    det = detect_points(scene, params, progress, on_components=on_components)
     det.timing_s = {"read": read_s, **det.timing_s}
     return det
 

@@ -154,10 +154,16 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
         located["georef"] = locate(scene_georef(georef, scene), scene.points.min(0), scene.points.max(0),
                                    str(scene_path))
 
+    def many(n_components: int) -> None:  # a street's clutter: the kernels pay from its joins on (cosco.kernels)
+        if n_components >= params.jit_min_components:
+            timing["kernels"] = enable(*KERNEL_MODULES)
+
     det = detect_file(scene_path, unit=unit, params=params, crs=georef.crs if given else None,
-                      override_crs=given and georef.override, on_read=placed, trajectory=trajectory)
+                      override_crs=given and georef.override, on_read=placed, trajectory=trajectory,
+                      on_components=many)
     georef = located["georef"]
     timing.update(det.timing_s)
+    timing["objects"] -= timing.get("kernels", 0.0)  # loaded during the detection: counted once, as the kernels
     targets = det.objects
     if not targets:
         what = "objects" if params.segment.targets == "all" else "car-sized objects"
@@ -166,7 +172,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     if len(targets) >= params.jit_min_objects:  # the compiled kernels pay for numba's import (cosco.kernels)
         if prober:  # and the distances here pay for open3d's import (the fused shapes load it here anyway)
             prober.answer_here()
-        timing["kernels"] = enable(*KERNEL_MODULES)
+        timing["kernels"] = timing.get("kernels", 0.0) + enable(*KERNEL_MODULES)
     say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes, clouds, levels = described(det, params, split=True)

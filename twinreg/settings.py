@@ -223,7 +223,9 @@ class Settings(CoscoParams):
     """The method's groups and twinreg's, with the run's own values: ``min_confidence``, the floor under which a
     model is not claimed (``--min-confidence``, chosen on the calibration of docs/PERFORMANCE.md, "Kinds"), and
     ``jit_min_objects``, the scene size from which the compiled kernels pay for numba's import and loading (a city:
-    always; 50: a 99-object street sweep gains 1.3-1.7 s for 0.6-0.7 s of loading, a 12-car park would lose)."""
+    always; 50: a 99-object street sweep gains 1.3-1.7 s for 0.6-0.7 s of loading, a 12-car park would lose), or
+    already once the detection counts ``jit_min_components`` components (a street sweep's clutter: 1,000-2,100
+    in KITTI's and nuScenes' sweeps, 28 in a car park of 12 cars), so that its joins and cuts run compiled too."""
 
     matching: MatchingParams = MatchingParams()
     kinds: KindParams = KindParams()
@@ -232,6 +234,7 @@ class Settings(CoscoParams):
     change: ChangeParams = ChangeParams()
     min_confidence: float = 0.3
     jit_min_objects: int = 50
+    jit_min_components: int = 500
 
     def with_(self, **changes):
         """A copy with some values changed (:func:`cosco.params.with_groups`).

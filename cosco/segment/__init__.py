@@ -36,14 +36,16 @@ __all__ = ["DetectedObject", "Segmentation", "far_outliers", "lowest_runs", "n_c
            "segment_objects", "voxel_components"]
 
 
-def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) -> Segmentation:
+def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, on_components=None) -> Segmentation:
     """Objects of a scene from its points and their heights above ground, pass by pass: the candidates (off the
     ground, under the ceiling, the lowest run of each column), the cores' patches and components with the low
     points joined, the cars' passes (:mod:`.cars`), a street's (:mod:`.street`, ``segment.targets="all"``), then the
     objects described and kept by size.
 
     points : (n, 3) float, metres. hag : (n,) height above ground (m). is_ground : (n,) bool, or None to use
-    ``hag < params.ground.tol``. Objects are ordered by x then y of their centre.
+    ``hag < params.ground.tol``. on_components : called with the number of components once they are known, before
+    the passes that join and cut them (a caller may then choose how the rest runs), or None. Objects are ordered by
+    x then y of their centre.
     """
     pts = as_points(points)
     hag = np.asarray(hag, dtype=np.float64)
@@ -58,6 +60,8 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None) 
     if found is None:
         return Segmentation(labels, [], 0, 0)
     cand, comp, n_patches, n_comp, spacing, voxel = found
+    if on_components is not None:
+        on_components(n_comp)
     cell = max(0.1, spacing)  # footprint cells: each point stands for about one spacing squared
     # the cars' passes: pieces joined to their car, too large objects cut, a bonnet or a boot joined in line
     comp = absorb_fragments(pts[cand, :2], hag[cand], comp, params)

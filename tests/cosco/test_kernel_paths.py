@@ -5,6 +5,7 @@ references and with the compiled kernels."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import cosco
 from cosco.ground import remove_ground
@@ -51,3 +52,34 @@ def test_a_scene_is_the_same_by_both_paths(kernel_path):
     for (sa, ha, pa, la), (sb, hb, pb, lb) in zip(a["shapes"], b["shapes"]):
         assert np.allclose(sa, sb, atol=1e-9) and abs(ha - hb) < 1e-9 and abs(pa - pb) < 1e-9
         assert np.allclose(la, lb, atol=1e-9)
+
+
+def test_the_kernels_switched_on_between_the_components_and_their_passes(monkeypatch):
+    """What build-twin does on a street sweep (``Settings.jit_min_components``): the segmentation tells its caller
+    how many components it found before it joins and cuts them, and the kernels turned on there give the
+    references' objects."""
+    from cosco import kernels
+
+    monkeypatch.setattr(kernels, "_STATE", {})
+    monkeypatch.delenv("TWINREG_JIT", raising=False)
+    monkeypatch.delenv("TWINREG_NO_NUMBA", raising=False)
+    pts = _scene()
+    kept = pts[~far_outliers(pts)]
+    is_ground, hag, _ = remove_ground(kept)
+    params = DEFAULT.with_(segment={"targets": "all"})
+    assert not kernels.in_use()
+    reference = segment_objects(kept, hag, params, is_ground=is_ground)
+    counts = []
+
+    def switch(n: int) -> None:
+        counts.append((n, kernels.in_use()))
+        kernels.enable()
+
+    switched = segment_objects(kept, hag, params, is_ground=is_ground, on_components=switch)
+    if not kernels.in_use():
+        pytest.skip("numba is not installed")
+    assert counts == [(reference.n_components, False)]
+    assert np.array_equal(switched.labels, reference.labels)
+    assert [o.indices.tolist() for o in switched.objects] == [o.indices.tolist() for o in reference.objects]
+    assert np.allclose([(o.length, o.width, o.height) for o in switched.objects],
+                       [(o.length, o.width, o.height) for o in reference.objects], rtol=0, atol=1e-9)
