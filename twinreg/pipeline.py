@@ -200,6 +200,12 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     return twin
 
 
+#: a scene of at most this many objects writes its records' formats (CityJSON, GeoJSON, GeoPackage, sections.json)
+#: in a forked child, on the other core (on a thread they share this process's lock: KITTI 000000's main process
+#: 5.56 -> 4.55 CPU-s); above it on a thread, as a city does: the child copies the pages of every record it reads
+#: (about 35 kB an object, docs/PERFORMANCE.md, "The survey's resume under 4 GiB")
+RECORDS_FORK_MAX_OBJECTS = 5000
+
 #: how long the scan's files (the classified COPC, the observation record) may take in their forked child, beyond
 #: HELPER_TIMEOUT_S, before this process writes them itself (s a point; about 1 us a point is usual)
 SCAN_FILES_S_PER_POINT = 5e-6
@@ -283,7 +289,8 @@ def _match_and_export(run: SceneRun) -> dict:
     rows, colours = scan_sample(det.scene.points, det.hag, det.is_ground)
     files = TwinFiles(stage, scene_path.name, placed, georef, models, [("scene", list(range(len(placed))))],
                       [("scene", det.scene.points[rows], colours)], ply="twin" if ply else None,
-                      templates=run.templates, helper=run.prober.helper if run.prober else None)
+                      templates=run.templates, helper=run.prober.helper if run.prober else None,
+                      fork=len(placed) <= RECORDS_FORK_MAX_OBJECTS)
 
     def scan_files():  # the classified scan and the observation record, while the formats are written
         classes, ids = scan_classes(len(det.scene.points), det.is_ground, targets,

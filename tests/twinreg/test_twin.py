@@ -194,7 +194,9 @@ def test_pictures_drawn_in_process_without_the_helper(park, catalogue16, tmp_pat
         assert (tmp_path / "helper" / name).read_bytes() == (tmp_path / "here" / name).read_bytes(), name
     page = (tmp_path / "here" / "report.html").read_text()
     assert all(f"src='{name}'" in page for name in ("topview.svg", "sections.svg", "confidence.svg"))
-    # the scan's files, written by a forked child with the helpers, the same written here
+    # the records' formats and the scan's files, written by forked children with the helpers, the same written here
+    for name in ("twin.city.json", "twin.geojson", "sections.json"):
+        assert (tmp_path / "helper" / name).read_bytes() == (tmp_path / "here" / name).read_bytes(), name
     import laspy
 
     a, b = (laspy.read(tmp_path / out / "scan.copc.laz") for out in ("helper", "here"))
