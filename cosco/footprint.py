@@ -67,8 +67,15 @@ def min_area_rectangle(xy: np.ndarray) -> Rectangle:
     return min_area_rectangle_numpy(xy)
 
 
+#: rectangles whose areas differ by less than this share are tied, and the one at the smallest angle (mod pi/2) is
+#: taken: a triangle or a square has several of equal area, which rounding alone would otherwise choose between
+#: (the hull's start and turning sense differ between scipy's and the kernel's), giving one piece two lengths
+TIE = 1e-9
+
+
 def min_area_rectangle_numpy(xy: np.ndarray) -> Rectangle:
-    """The numpy reference of :func:`min_area_rectangle` (scipy's hull)."""
+    """The numpy reference of :func:`min_area_rectangle` (scipy's hull); of tied rectangles (:data:`TIE`), the one
+    at the smallest angle mod pi/2."""
     xy = as_points(xy, dim=2)
     hull = xy[hull_rows(xy)]
     edges = np.roll(hull, -1, axis=0) - hull
@@ -81,7 +88,8 @@ def min_area_rectangle_numpy(xy: np.ndarray) -> Rectangle:
     v = -hull[:, 0][None, :] * s[:, None] + hull[:, 1][None, :] * c[:, None]
     du = u.max(1) - u.min(1)
     dv = v.max(1) - v.min(1)
-    best = int(np.argmin(du * dv))
+    area = du * dv
+    best = int(np.flatnonzero(area <= area.min() * (1.0 + TIE))[0])  # ties: the smallest angle
     a, lu, lv = angles[best], du[best], dv[best]
     cu = (u[best].max() + u[best].min()) / 2
     cv = (v[best].max() + v[best].min()) / 2
@@ -225,8 +233,7 @@ def _min_area_rectangle_fast(xy):
         nxt = (k + 1) % h
         angles[k] = np.arctan2(hull[nxt, 1] - hull[k, 1], hull[nxt, 0] - hull[k, 0]) % quarter
     angles.sort()
-    best_area = np.inf
-    best = (0.0, 0.0, 0.0, 0.0, 0.0)
+    areas = np.full(h, np.inf)  # by angle, ascending (a repeated angle's stays inf)
     for k in range(h):
         a = angles[k]
         if k > 0 and a == angles[k - 1]:
@@ -237,9 +244,17 @@ def _min_area_rectangle_fast(xy):
             u = hull[q, 0] * c + hull[q, 1] * s
             v = -hull[q, 0] * s + hull[q, 1] * c
             u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
-        area = (u1 - u0) * (v1 - v0)
-        if area < best_area:
-            best_area = area
-            cu, cv = (u1 + u0) / 2, (v1 + v0) / 2
-            best = (a, u1 - u0, v1 - v0, cu * c - cv * s, cu * s + cv * c)
-    return best[0], best[1], best[2], best[3], best[4], True
+        areas[k] = (u1 - u0) * (v1 - v0)
+    least = areas.min()
+    k = 0
+    while areas[k] > least * (1.0 + TIE):  # ties: the smallest angle
+        k += 1
+    a = angles[k]
+    c, s = np.cos(a), np.sin(a)
+    u0, u1, v0, v1 = np.inf, -np.inf, np.inf, -np.inf
+    for q in range(h):
+        u = hull[q, 0] * c + hull[q, 1] * s
+        v = -hull[q, 0] * s + hull[q, 1] * c
+        u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
+    cu, cv = (u1 + u0) / 2, (v1 + v0) / 2
+    return a, u1 - u0, v1 - v0, cu * c - cv * s, cu * s + cv * c, True

@@ -198,6 +198,31 @@ def test_min_area_rectangle_agrees_with_scipys_hull(seed):
         assert min(turn, np.pi - turn) < 1e-9 or abs(want.length - want.width) < 1e-9
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_tied_rectangles_are_chosen_alike(seed):
+    """An acute triangle, a square, a regular polygon have several rectangles of one area: the compiled rectangle
+    and the reference take the same one (the smallest angle), not the one rounding favours. A segmentation's
+    pieces of 3-8 points are such shapes: before, Autzen's scene and a city's cells cut it into 455 and 456
+    objects."""
+    from cosco.footprint import min_area_rectangle, min_area_rectangle_numpy
+
+    rng = np.random.default_rng(seed)
+    clouds = []
+    for _ in range(40):
+        t = np.sort(rng.uniform(0, 2 * np.pi, 3))
+        if np.all(np.diff(np.r_[t, t[0] + 2 * np.pi]) < np.pi):  # an acute triangle: three rectangles of 2x its area
+            clouds.append(np.c_[np.cos(t), np.sin(t)] * rng.uniform(0.2, 2))
+    n = rng.integers(3, 9)
+    clouds += [np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) * rng.uniform(0.2, 2),
+               np.c_[np.cos(np.arange(n) * 2 * np.pi / n), np.sin(np.arange(n) * 2 * np.pi / n)]]
+    for xy in clouds:
+        a = rng.uniform(0, np.pi)
+        xy = xy @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) + rng.uniform(-500, 500, 2)
+        want, got = min_area_rectangle_numpy(xy), min_area_rectangle(xy)
+        assert abs(got.length - want.length) < 1e-9 and abs(got.width - want.width) < 1e-9, (xy, got, want)
+        assert np.allclose(got.centre, want.centre, rtol=0, atol=1e-9)
+
+
 def test_min_area_rectangle_of_collinear_points_is_the_references():
     """Points on one line have no hull of three corners: the reference answers (the same rectangle either way)."""
     from cosco.footprint import min_area_rectangle, min_area_rectangle_numpy
