@@ -104,3 +104,20 @@ def test_svg_pictures_are_well_formed_and_show_strangers_text_as_text(tmp_path):
     image = ElementTree.parse(top).getroot().find(".//{http://www.w3.org/2000/svg}image")
     shown = np.asarray(Image.open(io.BytesIO(base64.b64decode(image.get("href").split(",", 1)[1]))))
     assert shown.shape[2] == 2 and (shown[:, :, 1] == 255).sum() > 1000  # grey and alpha, the scan's cells opaque
+
+
+def test_a_twin_without_models_says_so_and_claims_no_background_confidence():
+    """A sweep whose objects no catalogue model fits: no empty model table or confidence chart but a sentence, and
+    no median confidence for unknown, vegetation or structure (they claim no catalogued kind); a named kind keeps
+    its median."""
+    from twinreg.report.scene import _summary_tables, kinds_table
+
+    objs = [{"kind": k, "kind_confidence": c, "match": None, "reason": "no catalogue model within the size tolerance"}
+            for k, c in (("vegetation", 0.0), ("vegetation", 0.0), ("unknown", 0.0), ("car", 0.6), ("car", 0.8))]
+    page = _summary_tables({"objects": objs})
+    assert "No catalogue model was placed" in page and "confidence.svg" not in page and "<th>make</th>" not in page
+    rows = {r.split("</td>")[0]: r for r in kinds_table(objs).split("<tr><td>")[1:]}
+    assert all("<td></td></tr>" in rows[k] for k in ("vegetation", "unknown"))
+    assert "<td>0.70</td>" in rows["car"]
+    placed = objs + [{"kind": "car", "kind_confidence": 0.9, "reason": "", "match": {"name": "Prius", "confidence": 0.9}}]
+    assert "confidence.svg" in _summary_tables({"objects": placed})

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..recognition.kinds import NO_MODEL
 from .svg import BLUE, GREY, ORANGE, TAB10, Axes, Figure, colour_bar, colour_table, nice_ticks, text
 
 #: the top view's heights above ground (m) from white to black, its grey ramp (256 levels, the lowest first); its
@@ -251,16 +252,20 @@ STYLE = ("body{font-family:sans-serif;margin:1.2em 2em;color:#222}h1{font-size:1
 
 def kinds_table(objects: list[dict]) -> str:
     """The objects by kind (most common first): how many, how many with a model, with a fused shape (their type's,
-    or the kind's template), their median kind confidence."""
+    or the kind's template), their median kind confidence (none for ``unknown``, ``vegetation`` and ``structure``:
+    no claim of a catalogued kind, no calibrated confidence)."""
     by = defaultdict(list)
     for o in objects:
         by[o.get("kind") or "unknown"].append(o)
+
+    def median(k: str, v: list) -> str:
+        claimed = [o["kind_confidence"] for o in v if o.get("kind_confidence") is not None]
+        return "" if k in NO_MODEL or not claimed else f"{statistics.median(claimed):.2f}"
+
     rows = "".join(
         f"<tr><td>{text(k)}</td><td>{len(v)}</td><td>{sum(1 for o in v if o['match'])}</td>"
         f"<td>{sum(1 for o in v if (o.get('shape') or {}).get('source') in ('fused', 'generic'))}</td><td>"
-        + text("" if not [o for o in v if o.get("kind_confidence") is not None] else
-               f"{statistics.median(o['kind_confidence'] for o in v if o.get('kind_confidence') is not None):.2f}")
-        + "</td></tr>" for k, v in sorted(by.items(), key=lambda kv: -len(kv[1])))
+        + text(median(k, v)) + "</td></tr>" for k, v in sorted(by.items(), key=lambda kv: -len(kv[1])))
     return ("<table><tr><th>kind</th><th>objects</th><th>with a model</th><th>with a fused shape</th>"
             "<th>median kind confidence</th></tr>"
             f"{rows}</table>")
@@ -271,8 +276,11 @@ def _summary_tables(twin: dict) -> str:
     why = Counter(short_reason(o.get("reason", "")) for o in twin["objects"] if not o["match"])
     models = "".join(f"<tr><td>{text(n)}</td><td>{text(m)}</td><td>{c}</td></tr>" for (n, m), c in per_model.most_common())
     reasons = "".join(f"<tr><td>{text(r)}</td><td>{c}</td></tr>" for r, c in why.most_common())
-    return (kinds_table(twin["objects"]) + f"<table><tr><th>model</th><th>make</th><th>objects</th></tr>{models}</table>"
-            f"<img class='pic' src='confidence.svg' alt='confidence of the matches'>"
+    placed = (f"<table><tr><th>model</th><th>make</th><th>objects</th></tr>{models}</table>"
+              "<img class='pic' src='confidence.svg' alt='confidence of the matches'>" if per_model else
+              "<p>No catalogue model was placed: every object keeps its type, kind and fused shape or box (the "
+              "reasons follow, and each object's in the table below).</p>")
+    return (kinds_table(twin["objects"]) + placed
             + (f"<table><tr><th>without a model, because</th><th>objects</th></tr>{reasons}</table>" if why else ""))
 
 
