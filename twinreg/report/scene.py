@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..recognition.kinds import NO_MODEL
 from .svg import BLUE, GREY, ORANGE, TAB10, Axes, Figure, colour_bar, colour_table, nice_ticks, text
 
 #: the top view's heights above ground (m) from white to black, its grey ramp (256 levels, the lowest first); its
@@ -252,20 +251,20 @@ STYLE = ("body{font-family:sans-serif;margin:1.2em 2em;color:#222}h1{font-size:1
 
 def kinds_table(objects: list[dict]) -> str:
     """The objects by kind (most common first): how many, how many with a model, with a fused shape (their type's,
-    or the kind's template), their median kind confidence (none for ``unknown``, ``vegetation`` and ``structure``:
-    no claim of a catalogued kind, no calibrated confidence)."""
+    or the kind's template), their median kind confidence (none where no object claims it: ``unknown``,
+    ``vegetation`` and ``structure`` are no catalogued kind's claim, their confidence 0 no calibrated figure)."""
     by = defaultdict(list)
     for o in objects:
         by[o.get("kind") or "unknown"].append(o)
 
-    def median(k: str, v: list) -> str:
+    def median(v: list) -> str:
         claimed = [o["kind_confidence"] for o in v if o.get("kind_confidence") is not None]
-        return "" if k in NO_MODEL or not claimed else f"{statistics.median(claimed):.2f}"
+        return f"{statistics.median(claimed):.2f}" if any(c > 0 for c in claimed) else ""
 
     rows = "".join(
         f"<tr><td>{text(k)}</td><td>{len(v)}</td><td>{sum(1 for o in v if o['match'])}</td>"
         f"<td>{sum(1 for o in v if (o.get('shape') or {}).get('source') in ('fused', 'generic'))}</td><td>"
-        + text(median(k, v)) + "</td></tr>" for k, v in sorted(by.items(), key=lambda kv: -len(kv[1])))
+        + text(median(v)) + "</td></tr>" for k, v in sorted(by.items(), key=lambda kv: -len(kv[1])))
     return ("<table><tr><th>kind</th><th>objects</th><th>with a model</th><th>with a fused shape</th>"
             "<th>median kind confidence</th></tr>"
             f"{rows}</table>")
