@@ -234,6 +234,7 @@ def _min_area_rectangle_fast(xy):
         angles[k] = np.arctan2(hull[nxt, 1] - hull[k, 1], hull[nxt, 0] - hull[k, 0]) % quarter
     angles.sort()
     areas = np.full(h, np.inf)  # by angle, ascending (a repeated angle's stays inf)
+    extents = np.empty((h, 4))  # u0, u1, v0, v1 of the hull in each angle's frame
     for k in range(h):
         a = angles[k]
         if k > 0 and a == angles[k - 1]:
@@ -245,16 +246,13 @@ def _min_area_rectangle_fast(xy):
             v = -hull[q, 0] * s + hull[q, 1] * c
             u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
         areas[k] = (u1 - u0) * (v1 - v0)
+        extents[k, 0], extents[k, 1], extents[k, 2], extents[k, 3] = u0, u1, v0, v1
     least = areas.min()
     k = 0
     while areas[k] > least * (1.0 + TIE):  # ties: the smallest angle
         k += 1
     a = angles[k]
     c, s = np.cos(a), np.sin(a)
-    u0, u1, v0, v1 = np.inf, -np.inf, np.inf, -np.inf
-    for q in range(h):
-        u = hull[q, 0] * c + hull[q, 1] * s
-        v = -hull[q, 0] * s + hull[q, 1] * c
-        u0, u1, v0, v1 = min(u0, u), max(u1, u), min(v0, v), max(v1, v)
+    u0, u1, v0, v1 = extents[k, 0], extents[k, 1], extents[k, 2], extents[k, 3]
     cu, cv = (u1 + u0) / 2, (v1 + v0) / 2
     return a, u1 - u0, v1 - v0, cu * c - cv * s, cu * s + cv * c, True
