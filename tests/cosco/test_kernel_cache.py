@@ -41,7 +41,7 @@ def _env(cache_home: Path) -> dict:
 CHOSEN = "import cosco.kernels as k; print(k.trusted_cache_dir())"  # the folder taken, nothing compiled
 #: one kernel compiled (or loaded from the cache) through its entry, as a run calls it: what the cache folder decides
 #: holds for every kernel alike, in seconds rather than the minute of compiling them all
-ONE = ("import numpy as np, cosco.kernels as k, cosco.footprint as f; k._STATE['enabled'] = True; "
+ONE = ("import os; os.environ['TWINREG_JIT'] = '1'; import numpy as np, cosco.kernels as k, cosco.footprint as f; "
        "f.min_area_rectangle(*f._example(np.random.default_rng(0))); print(k.trusted_cache_dir(), k.in_use())")
 
 

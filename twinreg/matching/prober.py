@@ -32,20 +32,24 @@ def warm_up() -> bool:
     return True
 
 
-def _prepare(meshes: list) -> int:
-    """Build the SurfaceIndex of each (model id, mesh) of ``meshes`` now, before its first query; how many."""
-    for model_id, mesh in meshes:
-        if model_id not in _SURFACES:
-            _SURFACES[model_id] = SurfaceIndex(*mesh)
-    return len(meshes)
-
-
-def _distances(model_id: int, mesh, points: np.ndarray) -> np.ndarray:
+def _surface(model_id: int, mesh) -> SurfaceIndex:
+    """The helper's SurfaceIndex of a model, built from ``mesh`` the first time (None: sent before)."""
     if model_id not in _SURFACES:
         if mesh is None:
             raise HelperError(f"model {model_id}: no mesh sent")
         _SURFACES[model_id] = SurfaceIndex(*mesh)
-    return _SURFACES[model_id].distances(points)
+    return _SURFACES[model_id]
+
+
+def _prepare(meshes: list) -> int:
+    """Build the SurfaceIndex of each (model id, mesh) of ``meshes`` now, before its first query; how many."""
+    for model_id, mesh in meshes:
+        _surface(model_id, mesh)
+    return len(meshes)
+
+
+def _distances(model_id: int, mesh, points: np.ndarray) -> np.ndarray:
+    return _surface(model_id, mesh).distances(points)
 
 
 class Prober:
