@@ -267,11 +267,16 @@ class TaxonomyParams:
 class SurfaceParams:
     """An object's surface at the scale of its point spacing (cosco/surface.py): each point's ``k`` nearest
     neighbours, on at most ``max_points`` points of an object spread evenly through it; a point is on a horizontal
-    surface when its normal is within ``horizontal_deg`` degrees of vertical."""
+    surface when its normal is within ``horizontal_deg`` degrees of vertical. A roughness is the median of at least
+    ``rough_min_points`` chords; the scan's smoothness, of its ground in ``smooth_windows`` squares ``smooth_window``
+    m across."""
 
     k: int = 12  # neighbours
     max_points: int = 1500  # points measured
     horizontal_deg: float = 35.0  # degrees from vertical
+    rough_min_points: int = 20  # chords measured, for a roughness
+    smooth_windows: int = 16  # windows of the ground measured for the scan's smoothness
+    smooth_window: float = 2.0  # m across
 
 
 @dataclass(frozen=True)

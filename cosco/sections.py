@@ -237,7 +237,8 @@ def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
 
 
 def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | None = None,
-                    front_hint: float | None = None, seen=None, lines: bool = False) -> ObjectShape:
+                    front_hint: float | None = None, seen=None, lines: bool = False,
+                    smooth: float | None = None) -> ObjectShape:
     """Symmetry, frame, sections, size and footprint centre of one object's points.
 
     points : (n, 3) float, metres (at least 10 distinct points, not all on a line: see
@@ -245,7 +246,8 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     object (m); the lowest point when None. front_hint : direction (rad) the heading should point to when known (see
     :func:`object_frame`). seen : where the object's scanners could see (:class:`~cosco.visibility.SeenGrid`, the
     points' frame; None: everywhere, as from the air), for the symmetry's mirror images. lines : the points lie along
-    a ground scanner's lines (a mobile survey's: :func:`~cosco.surface.surface_of`).
+    a ground scanner's lines (a mobile survey's: :func:`~cosco.surface.surface_of`). smooth : the scan's smooth
+    surface's roughness (m, :func:`~cosco.surface.scan_smoothness`; None: not known), the object's told against it.
 
     >>> rng = np.random.default_rng(1)
     >>> box = rng.uniform([-2.2, -0.9, 0], [2.2, 0.9, 1.5], (3000, 3)) + [100.0, 50.0, 3.0]
@@ -265,4 +267,4 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
         v_centre = (lo + hi) / 2
     centre = frame.to_scene(np.array([[0.0, v_centre, size.height / 2]]))[0]
     return ObjectShape(n_points=len(pts), symmetry=sym, frame=frame, sections=sections, size=size, centroid=centre,
-                       surface=surface_of(pts, params, lines))
+                       surface=surface_of(pts, params, lines, smooth))

@@ -16,7 +16,15 @@ the surface's curvature. For such points (``lines``) the object's *thickness* is
 lie from the one plane that fits them best (an upright board or a wall: centimetres; the side and roof of a car
 seen from the street: decimetres).
 
-Pure numpy and a KD-tree: points in, three numbers out, on at most ``surface.max_points`` points spread evenly
+A bush's outer leaves can also be sampled as thinly as a shell: a single-return sweep 25 m from a hedge puts one point
+a leaf, and the hedge's variation is a car's. Its points still stand in and out of the surface their neighbours
+span: the *roughness* is the median distance of a point from the chord between its two nearest neighbours where
+these lie on either side of it (along a scan line, as a profiler or a rotating scanner strings them). On a shell or
+a road it is the range noise's; in foliage the depth between leaves. It is told in units of the scan's own smooth
+surface, its ground (:func:`scan_smoothness`): a rotating scanner's range noise along its rings is millimetres, a
+simulated scan's isotropic noise centimetres, and both measure their ground as they measure a car.
+
+Pure numpy and a KD-tree: points in, a few numbers out, on at most ``surface.max_points`` points spread evenly
 through the object (the neighbours are sought among all its points), so the cost is bounded per object. Where the
 compiled kernels are in use (:mod:`cosco.kernels`: a city's cells, a scene of many objects) the neighbourhoods come
 from :func:`_shapes_fast` (the nearest neighbours on a voxel grid, each covariance's eigenvalues by Jacobi turns),
@@ -33,6 +41,12 @@ from .kernels import fast, kernel
 from .nearest import _grid_build_fast
 from .params import DEFAULT, CoscoParams
 
+#: the least smoothness (m) a scan's roughness is told in units of (a noise-free simulated ground measures 0)
+SMOOTH_FLOOR = 0.001
+#: a point's two nearest neighbours lie on either side of it when the angle between them, seen from it, is wider
+#: than 120 degrees (its cosine below this)
+CHORD_MAX_COS = -0.5
+
 
 @dataclass(frozen=True)
 class Surface:
@@ -46,6 +60,16 @@ class Surface:
     horizontal: float
     n: int
     thickness: float | None = None
+    roughness: float | None = None  # m, the points' median distance from their neighbours' chords (None: too few)
+    smooth: float | None = None  # m, the scan's smooth surface's (its ground's) roughness, None: not known
+
+    @property
+    def rough(self) -> float | None:
+        """The roughness in units of the scan's smooth surface (:data:`SMOOTH_FLOOR` m at least), None where either
+        is not known: about 1 on a car's shell, several in foliage."""
+        if self.roughness is None or self.smooth is None:
+            return None
+        return self.roughness / max(self.smooth, SMOOTH_FLOOR)
 
     @property
     def along_lines(self) -> bool:
@@ -54,14 +78,15 @@ class Surface:
 
 
 def neighbourhood_shapes(points: np.ndarray, k: int, at: np.ndarray | None = None) -> tuple:
-    """Each of ``at``'s points' (all ``points`` when None) ``k`` nearest neighbours among ``points``: their
-    covariance's eigenvalues, ascending (m, 3), and the eigenvector of the smallest, the normal (m, 3; its largest
-    component positive).
+    """Each of ``at``'s points' (all ``points`` when None; ``at``'s points are among ``points``) ``k`` nearest
+    neighbours among ``points``: their covariance's eigenvalues, ascending (m, 3), the eigenvector of the smallest,
+    the normal (m, 3; its largest component positive), and the point's distance from the chord between its two
+    nearest others (m, :func:`chord_distance`; NaN where they do not lie on either side of it, or k < 3).
 
     >>> g = np.stack(np.meshgrid(np.arange(10.0), np.arange(10.0)), -1).reshape(-1, 2)
-    >>> ev, normal = neighbourhood_shapes(np.c_[g, np.zeros(100)], 8)
-    >>> float(ev[:, 0].max()), float(np.abs(normal[:, 2]).min())
-    (0.0, 1.0)
+    >>> ev, normal, chord = neighbourhood_shapes(np.c_[g, np.zeros(100)], 8)
+    >>> float(ev[:, 0].max()), float(np.abs(normal[:, 2]).min()), float(np.nanmax(chord))
+    (0.0, 1.0, 0.0)
     """
     p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
     q = p if at is None else np.ascontiguousarray(at, dtype=np.float64).reshape(-1, 3)
@@ -70,22 +95,46 @@ def neighbourhood_shapes(points: np.ndarray, k: int, at: np.ndarray | None = Non
     if kernel_fn is not None and k >= 1 and len(q):
         cell = _neighbour_cell(p, k)
         grid_pts, _, starts, lo, shape = fast(_grid_build_fast)(p, cell)
-        ev, normal = kernel_fn(q, k, grid_pts, starts, lo, shape, cell)
+        ev, normal, chord = kernel_fn(q, k, grid_pts, starts, lo, shape, cell)
     else:
-        ev, normal = _shapes_numpy(p, q, k)
-    return np.maximum(ev, 0.0), _signed(normal)
+        ev, normal, chord = _shapes_numpy(p, q, k)
+    return np.maximum(ev, 0.0), _signed(normal), chord
 
 
-def _shapes_numpy(p: np.ndarray, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The reference of :func:`_shapes_fast`: a KD-tree's ``k`` nearest, LAPACK's eigenvalues and vectors."""
-    from scipy.spatial import cKDTree  # deferred: the catalogue's listing imports the shapes, not scipy
+def _shapes_numpy(p: np.ndarray, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reference of :func:`_shapes_fast`: a KD-tree's ``k`` nearest, LAPACK's eigenvalues and vectors, and
+    :func:`chord_distance` to the second and third nearest (the first is the point itself)."""
+    from scipy.spatial import \
+        cKDTree  # deferred: the catalogue's listing imports the shapes, not scipy
 
     _, idx = cKDTree(p).query(q, k)
-    nb = p[idx.reshape(len(q), k)]
+    idx = idx.reshape(len(q), k)
+    nb = p[idx]
+    a, b = (nb[:, 1], nb[:, 2]) if k >= 3 else (None, None)
     nb = nb - nb.mean(axis=1, keepdims=True)
     cov = np.einsum("nki,nkj->nij", nb, nb) / k
     ev, vec = np.linalg.eigh(cov)
-    return ev, vec[:, :, 0]
+    chord = chord_distance(q, a, b) if k >= 3 else np.full(len(q), np.nan)
+    return ev, vec[:, :, 0], chord
+
+
+def chord_distance(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(m,) each (m, 3) point ``q``'s distance (m) from the line through its neighbours ``a`` and ``b`` where they
+    lie on either side of it (the angle a-q-b wider than 120 degrees), else NaN. Along a scan line the neighbours
+    are the line's, and the distance is how far the point stands out of it: the range noise on a shell or a road,
+    the depth between leaves in foliage.
+
+    >>> q = np.array([[0.0, 0.0, 0.01], [0.0, 0.0, 0.0]])
+    >>> chord_distance(q, np.array([[-1.0, 0, 0], [1.0, 0, 0]]), np.array([[1.0, 0, 0], [1.0, 0.1, 0]])).tolist()
+    [0.01, nan]
+    """
+    u, v = a - q, b - q
+    nu, nv = np.linalg.norm(u, axis=1), np.linalg.norm(v, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        across = np.einsum("ij,ij->i", u, v) < CHORD_MAX_COS * nu * nv
+        ab = b - a
+        d = np.linalg.norm(np.cross(ab, q - a), axis=1) / np.linalg.norm(ab, axis=1)
+    return np.where(across & (nu > 0) & (nv > 0), d, np.nan)
 
 
 def _signed(normal: np.ndarray) -> np.ndarray:
@@ -208,10 +257,12 @@ def _k_nearest_into(best, rows, k, x, y, z, grid_pts, starts, lo, shape, cell) -
 @kernel(entry="neighbourhood_shapes", example="_example", tolerance=1e-12)
 def _shapes_fast(at, k, grid_pts, starts, lo, shape, cell):
     """(m, 3) eigenvalues, ascending, and (m, 3) normals (the smallest's eigenvector) of the covariance of each of
-    ``at``'s ``k`` nearest :func:`~cosco.nearest._grid_build_fast` points (:func:`_k_nearest_into`)."""
+    ``at``'s ``k`` nearest :func:`~cosco.nearest._grid_build_fast` points (:func:`_k_nearest_into`), and (m,) the
+    point's :func:`chord_distance` to the second and third nearest."""
     m = at.shape[0]
     ev = np.empty((m, 3))
     normal = np.empty((m, 3))
+    chord = np.full(m, np.nan)
     best = np.empty(k)
     rows = np.empty(k, dtype=np.int64)
     a = np.empty((3, 3))
@@ -258,7 +309,24 @@ def _shapes_fast(at, k, grid_pts, starts, lo, shape, cell):
         ev[qi, 2] = a[i2, i2]
         for t in range(3):
             normal[qi, t] = v[t, i0]
-    return ev, normal
+        if k >= 3:
+            chord[qi] = _chord_one(at[qi], grid_pts[rows[1]], grid_pts[rows[2]])
+    return ev, normal, chord
+
+
+@kernel(helper=True)
+def _chord_one(q, a, b) -> float:
+    """:func:`chord_distance` of one point (the kernels' loop)."""
+    u0, u1, u2 = a[0] - q[0], a[1] - q[1], a[2] - q[2]
+    v0, v1, v2 = b[0] - q[0], b[1] - q[1], b[2] - q[2]
+    nu = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    nv = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    if not (nu > 0.0 and nv > 0.0) or not (u0 * v0 + u1 * v1 + u2 * v2 < CHORD_MAX_COS * nu * nv):
+        return np.nan
+    w0, w1, w2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    p0, p1, p2 = q[0] - a[0], q[1] - a[1], q[2] - a[2]
+    c0, c1, c2 = w1 * p2 - w2 * p1, w2 * p0 - w0 * p2, w0 * p1 - w1 * p0
+    return np.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
 
 
 @kernel(entry="nearest_other", example="_spacing_example", tolerance=1e-12)
@@ -318,9 +386,10 @@ def thickness_of(points: np.ndarray, share: float = 0.9) -> float:
     return float(np.quantile(np.abs(q @ normal), share))
 
 
-def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False) -> Surface:
+def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False, smooth: float | None = None) -> Surface:
     """The :class:`Surface` of one object's ``points`` ((n, 3) metres, n >= 3); ``lines``: the points lie along a
-    ground scanner's lines (the thickness measured too).
+    ground scanner's lines (the thickness measured too); ``smooth``: the scan's smooth surface's roughness
+    (:func:`scan_smoothness`), that the object's is told in units of.
 
     >>> rng = np.random.default_rng(0)
     >>> a = rng.uniform(0, 2 * np.pi, 3000)
@@ -333,11 +402,66 @@ def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False) -> Su
     sp = params.surface
     step = max(1, int(np.ceil(len(p) / sp.max_points)))
     at = p[::step]
-    ev, normal = neighbourhood_shapes(p, sp.k, at)
+    ev, normal, chord = neighbourhood_shapes(p, sp.k, at)
     total = np.maximum(ev.sum(axis=1), 1e-18)
     variation = ev[:, 0] / total
     linearity = (ev[:, 2] - ev[:, 1]) / np.maximum(ev[:, 2], 1e-18)
     horizontal = np.abs(normal[:, 2]) >= np.cos(np.radians(sp.horizontal_deg))
     return Surface(variation=round(float(np.median(variation)), 6), linearity=round(float(np.median(linearity)), 6),
                    horizontal=round(float(horizontal.mean()), 6), n=len(at),
-                   thickness=round(thickness_of(p), 6) if lines else None)
+                   thickness=round(thickness_of(p), 6) if lines else None,
+                   roughness=roughness_of(chord, sp.rough_min_points),
+                   smooth=None if smooth is None else round(float(smooth), 6))
+
+
+def roughness_of(chord: np.ndarray, min_points: int) -> float | None:
+    """The median of the measured ``chord`` distances (m, :func:`neighbourhood_shapes`), None with fewer than
+    ``min_points`` of them."""
+    c = np.asarray(chord, dtype=np.float64)
+    c = c[np.isfinite(c)]
+    return round(float(np.median(c)), 6) if len(c) >= max(min_points, 1) else None
+
+
+def scan_smoothness(ground: np.ndarray, params: CoscoParams = DEFAULT) -> float | None:
+    """The roughness (m, as :class:`Surface` measures it) of a scan's smooth surface: its ``ground`` points ((n, 3),
+    a road, a car park) in up to ``surface.smooth_windows`` squares of a grid ``surface.smooth_window`` m across, those
+    holding ground points drawn evenly through the array, each measured on all of its points (a scan line's
+    neighbours are the ground's own, at its density); the median of the squares' medians. None with too few measured
+    (a square of fewer than ``surface.rough_min_points`` chords counts for nothing). Three passes over the array
+    whatever its size (a city's cell holds millions of ground points).
+
+    >>> rng = np.random.default_rng(0)
+    >>> x = np.repeat(np.arange(0.0, 20.0, 0.5), 400)  # scan lines across a road, 5 cm apart along each
+    >>> road = np.c_[x, np.tile(np.arange(0.0, 20.0, 0.05), 40), rng.normal(0, 0.01, 16000)]
+    >>> 0.005 < scan_smoothness(road) < 0.02
+    True
+    """
+    g = np.asarray(ground, dtype=np.float64).reshape(-1, 3)
+    sp = params.surface
+    if len(g) < sp.rough_min_points:
+        return None
+    drawn = g[np.linspace(0, len(g) - 1, sp.smooth_windows).astype(np.int64)]
+    chosen = np.unique(np.floor(drawn[:, :2] / sp.smooth_window).astype(np.int64), axis=0)
+    # the columns first (one pass over x), then the squares among the few points in them
+    inside = np.flatnonzero(np.isin(np.floor(g[:, 0] / sp.smooth_window).astype(np.int64), chosen[:, 0]))
+    cells = np.floor(g[inside, :2] / sp.smooth_window).astype(np.int64)
+    lo = cells.min(axis=0)
+    span = int(cells[:, 1].max() - lo[1]) + 1
+    key = (cells[:, 0] - lo[0]) * span + (cells[:, 1] - lo[1])
+    wanted = np.unique((chosen[:, 0] - lo[0]) * span + (chosen[:, 1] - lo[1]))
+    keep = np.isin(key, wanted)
+    inside, key = inside[keep], key[keep]
+    order = np.argsort(key, kind="stable")
+    inside, key = inside[order], key[order]
+    starts = np.searchsorted(key, wanted)
+    ends = np.searchsorted(key, wanted, side="right")
+    found = []
+    for a, b in zip(starts, ends):
+        w = g[inside[a:b]]
+        if len(w) < max(sp.rough_min_points, 3):
+            continue
+        step = max(1, int(np.ceil(len(w) / sp.max_points)))
+        r = roughness_of(neighbourhood_shapes(w, sp.k, w[::step])[2], sp.rough_min_points)
+        if r is not None:
+            found.append(r)
+    return round(float(np.median(found)), 6) if found else None

@@ -406,8 +406,8 @@ def test_capped_section_distances_are_the_kd_trees(seed, monkeypatch):
 def test_neighbourhoods_are_the_kd_trees(seed):
     """Each point's nearest neighbours' shape (a car-like shell, a bush, a flat board, a string of points, a far
     cluster the rings must widen to reach, duplicates, fewer points than neighbours asked): the compiled grid's
-    eigenvalues are the KD-tree's and LAPACK's to 1e-12, its normals the same lines, and the surface summary the same
-    numbers where every neighbourhood has a normal."""
+    eigenvalues are the KD-tree's and LAPACK's to 1e-12, its normals the same lines, its chords the same distances,
+    and the surface summary the same numbers where every neighbourhood has a normal."""
     from cosco.params import DEFAULT
     from cosco.surface import _shapes_numpy, _signed, neighbourhood_shapes, surface_of
 
@@ -422,9 +422,12 @@ def test_neighbourhoods_are_the_kd_trees(seed):
     summaries = 0
     for pts, k in ((shell, 12), (bush, 12), (board, 12), (string, 12), (far, 12), (dup, 5), (dup[:4], 12)):
         kk = min(k, len(pts))
-        want_ev, want_n = _shapes_numpy(pts, pts, kk)
-        got_ev, got_n = neighbourhood_shapes(pts, k)
+        want_ev, want_n, want_chord = _shapes_numpy(pts, pts, kk)
+        got_ev, got_n, got_chord = neighbourhood_shapes(pts, k)
         assert np.allclose(got_ev, np.maximum(want_ev, 0.0), rtol=0, atol=1e-12)
+        if pts is not dup:  # (duplicates tie: either copy may be the second nearest)
+            assert np.array_equal(np.isnan(got_chord), np.isnan(want_chord))
+            assert np.allclose(got_chord, want_chord, rtol=0, atol=1e-12, equal_nan=True)
         # where the smallest eigenvalue stands apart, its eigenvector is one line both ways
         apart = (want_ev[:, 1] - want_ev[:, 0]) > 1e-6 * np.maximum(want_ev[:, 2], 1e-30)
         assert np.allclose(got_n[apart], _signed(want_n)[apart], rtol=0, atol=1e-8)
