@@ -34,6 +34,7 @@ class Detection:
     segmentation: Segmentation
     timing_s: dict = field(default_factory=dict)
     seen: dict = field(default_factory=dict)  # id of an object -> its SeenGrid or None (object_seen), built once
+    smooth: list = field(default_factory=list)  # the scan's smoothness once measured (scan_smooth), [value]
 
     @property
     def objects(self):
@@ -113,6 +114,17 @@ def objects_seen(det: Detection, objects, params: Settings = DEFAULT) -> list | 
     return None if det.scene.origins is None else [object_seen(det, o, params) for o in objects]
 
 
+def scan_smooth(det: Detection, params: Settings = DEFAULT) -> float | None:
+    """The roughness of the scan's ground (:func:`cosco.surface.scan_smoothness`, m), measured once a detection:
+    what an object's roughness is told against (a hedge's leaves stand out of their chords, a car's shell no more
+    than the road's scan lines)."""
+    if not det.smooth:
+        from cosco.surface import scan_smoothness
+
+        det.smooth.append(scan_smoothness(det.scene.points[det.is_ground], params))
+    return det.smooth[0]
+
+
 def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None, clouds=None) -> list:
     """COSCO shapes (symmetry, sections, size) of the detected target objects (or of ``objects``; ``clouds``: their
     points, :func:`object_points`, when the caller has them), each measured from the ground surface under it
@@ -120,8 +132,9 @@ def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None, 
     objects = det.objects if objects is None else objects
     clouds = [object_points(det, o) for o in objects] if clouds is None else clouds
     lines = det.scene.origins is not None  # a survey from the ground, its points along its profilers' lines
+    smooth = scan_smooth(det, params)
     shapes = [cosco.describe_object(c, params, ground_z=object_ground(det, o), seen=object_seen(det, o, params),
-                                    lines=lines) for o, c in zip(objects, clouds)]
+                                    lines=lines, smooth=smooth) for o, c in zip(objects, clouds)]
     classes = det.scene.classes  # None: a scan without classes (the parameter is read only when there are some)
     if classes is None or not params.open_world.scan_classes:
         return shapes

@@ -134,7 +134,9 @@ class OpenWorldParams:
     line; a ``curved`` kind's at least ``curved_min_variation`` unless ``flat_max_horizontal`` or more of it is
     horizontal: no upright board or wall, while a car seen from the air is mostly its flat roof; from the ground, where
     points lie along scan lines, its points more than ``board_max_thickness`` m from their best plane, and linearity
-    no test: :func:`~twinreg.recognition.kinds.fits_surface`). What fits no kind
+    no test; and a ``curved`` kind's roughness at most ``rigid_max_rough`` times its scan's ground's, where both are
+    measured: a hedge's leaves stand out of the chords between their neighbours, a car's points no more than the
+    road's: :func:`~twinreg.recognition.kinds.fits_surface`). What fits no kind
     is ``vegetation`` when porous (variation at least ``vegetation_variation`` measured on ``vegetation_min_points``
     points or more, at least ``vegetation_height`` m tall: a dozen points of a hydrant are as scattered as a
     bush's), ``structure`` when long and thin (at least ``structure_length`` m and ``structure_elongation`` times
@@ -153,7 +155,9 @@ class OpenWorldParams:
     lines across: :func:`~twinreg.recognition.kinds.unresolved`): the kind's references may be as wide or wider,
     and its level of symmetry is no evidence.
     Tuned on the tuning halves of bench/bench_open_kinds.py (KITTI and nuScenes left of the vehicle, DALES even ids),
-    ``resolve_spacings`` on bench/bench_street.py's van streets of seeds 1-2."""
+    ``resolve_spacings`` on bench/bench_street.py's van streets of seeds 1-2; ``rigid_max_rough`` on the KITTI
+    sweeps' tuning half (its cars 0.6-1.05 times their road, its bushes and walls 1.06-10) and the van's seeds 1-2
+    (a 44-point mailbox read rough: the test is a vehicle's only)."""
 
     size_margin: float = 0.1  # share beyond the kind's sizes
     plan_margin: float = 0.25  # m beyond its plan
@@ -163,6 +167,7 @@ class OpenWorldParams:
     min_width_share: float = 0.3  # of its narrowest width
     rigid_max_variation: float = 0.05  # surface variation
     rigid_max_linearity: float = 0.62  # neighbourhoods' linearity
+    rigid_max_rough: float = 2.5  # times the scan's ground's roughness
     linearity_min_points: int = 60  # points, for linearity
     porous: tuple = ("tree", "vegetation", "hedge", "bush")  # kinds
     curved: tuple = ("car", "van", "truck", "bus")  # kinds

@@ -30,7 +30,7 @@ from .cells import CellJob, CellObject, CellResult, SavedCell, process_cell
 CLASSES = {c.__name__: c for c in (CellResult, CellObject, ObjectShape, Symmetry, Frame, Sections, Size, Surface, Raster)}
 #: the largest cell file read back (bytes)
 MAX_BYTES = 4 * 1024 ** 3
-FORMAT = "twinreg-cell/3"  # 3: shapes carry their surface
+FORMAT = "twinreg-cell/4"  # 3: shapes carry their surface; 4: and its roughness
 #: what reading a damaged or foreign file can raise (each becomes a CellFileError)
 _UNREADABLE = (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, AttributeError,
                zipfile.BadZipFile)

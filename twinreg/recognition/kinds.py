@@ -304,7 +304,10 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     points). Points along a ground scanner's lines (a mobile survey's, :attr:`~cosco.surface.Surface.along_lines`)
     are strung along the scan's lines whatever the object, and their variation is the range noise's: a ``curved``
     kind's points then lie more than ``board_max_thickness`` m from their best plane (a car's side and roof seen
-    from the street, where a board or a wall is flat), and linearity is no test.
+    from the street, where a board or a wall is flat), and linearity is no test. Where the scan's smoothness is
+    known, a ``curved`` kind's shell is no rougher than ``rigid_max_rough`` times it
+    (:attr:`~cosco.surface.Surface.rough`; street furniture may be a row of pieces, or a lattice, whose edges make
+    its chords rough: a pair of nuScenes barriers reads 2.3 times its ground).
 
     >>> from cosco.surface import Surface
     >>> pole = Surface(0.02, 0.8, 0.05, 150)
@@ -314,12 +317,17 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     True
     >>> fits_surface(Surface(0.006, 0.7, 0.1, 900, thickness=0.03), "car")  # a board
     False
+    >>> fits_surface(Surface(0.03, 0.5, 0.3, 200, roughness=0.018, smooth=0.005), "car")  # a hedge at 25 m
+    False
     """
     k = params.open_world
     if surface is None or kind in k.porous:
         return True
     if surface.variation > k.rigid_max_variation:
         return False
+    rough = surface.rough
+    if kind in k.curved and rough is not None and rough > k.rigid_max_rough:
+        return False  # a vehicle's painted shell, no rougher than the road: a hedge's leaves are
     if surface.n < k.linearity_min_points:
         return True
     if surface.along_lines:  # from the ground: the neighbourhoods are the scan lines', the object's thickness tells
