@@ -161,10 +161,19 @@ def fast(fn: Callable):
     if not in_use():
         return None
     compiled = _STATE.setdefault("compiled", {})
+    name = f"{fn.__module__}.{fn.__name__}"
     if fn not in compiled:
-        if f"{fn.__module__}.{fn.__name__}" not in _KERNELS:
-            raise KeyError(f"{fn.__module__}.{fn.__name__} is not a registered kernel")
+        if name not in _KERNELS:
+            raise KeyError(f"{name} is not a registered kernel")
         compiled[fn] = _numba().njit(**OPTIONS)(fn)
+    if name in _STATE.get("later", ()) and name not in _STATE.setdefault("warmed", set()):
+        if _STATE.get("warming"):  # asked for by an entry being warmed: it loads under that warm's lock
+            _STATE["warmed"].add(name)
+        else:  # left for later by enable(): loaded now as enable would have (a cache it cannot read dropped)
+            warm(only=name)
+            compiled = _STATE.setdefault("compiled", {})  # (a dropped cache recompiles every kernel)
+            if fn not in compiled:
+                compiled[fn] = _numba().njit(**OPTIONS)(fn)
     return compiled[fn]
 
 
@@ -179,37 +188,42 @@ def reference_only():
         _STATE["reference_only"] = before
 
 
-def enable(*modules: str) -> float:
+def enable(*modules: str, later: tuple = ()) -> float:
     """Use the compiled kernels in this process, compiling them first (or loading them from the cache), those of
     ``modules`` (imported here) too; seconds taken. Call it in one process before starting workers (and give them
     ``TWINREG_JIT=1``), so that no two of them write one cache at once. A small run does not call it: importing
-    numba alone takes longer than its kernels save on a car park (docs/PERFORMANCE.md)."""
+    numba alone takes longer than its kernels save on a car park (docs/PERFORMANCE.md). ``later``: the names (or
+    their prefixes) of kernels the caller will not call from here on, not loaded now (a scene's ground and
+    components, found before): :func:`fast` loads one on its first call all the same."""
     import pkgutil
 
     here = sys.modules[__package__]
     for name in [m.name for m in pkgutil.walk_packages(here.__path__, f"{__package__}.")] + list(modules):
         importlib.import_module(name)
     _STATE["enabled"] = True
-    return warm()
+    return warm(later)
 
 
-def _warm_all() -> None:
-    """Every registered kernel not warmed yet in this process called through its entry on its example (once for
-    kernels that share an entry and an example: the one call runs them all)."""
+def _warm_all(later: tuple = (), only: str | None = None) -> None:
+    """Every registered kernel not warmed yet in this process (or the one named ``only``) called through its entry
+    on its example (once for kernels that share an entry and an example: the one call runs them all), but those
+    whose names start with one of ``later``: :func:`fast` warms such a kernel on its first call."""
     import numpy as np
 
     warmed = _STATE.setdefault("warmed", set())
-    called = set()  # (module, entry, example): kernels that share one warm each other (the ground's two blocks)
     for k in kernels():
+        if k.name in warmed or (only is not None and k.name != only):
+            continue
+        if only is None and later and k.name.startswith(tuple(later)):
+            _STATE.setdefault("later", set()).add(k.name)
+            continue
         key = (k.fn.__module__, k.entry, k.example)
-        if k.name not in warmed and key not in called:
-            entry, example = k.entry_and_example()
-            entry(*example(np.random.default_rng(0)))
-            called.add(key)
-        warmed.add(k.name)
+        warmed.update(j.name for j in kernels() if (j.fn.__module__, j.entry, j.example) == key)
+        entry, example = k.entry_and_example()
+        entry(*example(np.random.default_rng(0)))
 
 
-def warm() -> float:
+def warm(later: tuple = (), only: str | None = None) -> float:
     """Compile (or load from the cache) every registered kernel, when they are in use, by calling each one's entry
     on its example; seconds taken. A kernel already warmed in this process is not called again (a second
     :func:`enable` warms only the kernels of modules imported since). A cache file that cannot be read (a corrupt
@@ -217,9 +231,9 @@ def warm() -> float:
     compiled anew."""
     t = time.perf_counter()
     if in_use():
-        with _one_writer(trusted_cache_dir()):
+        with _one_writer(trusted_cache_dir()), _warming():
             try:
-                _warm_all()
+                _warm_all(later, only)
             except Exception as exc:  # noqa: BLE001 - numba raises what unpickling raised (UnpicklingError...)
                 from ._cache import clear
 
@@ -229,8 +243,18 @@ def warm() -> float:
                 clear(folder)
                 _STATE.pop("compiled", None)
                 _STATE.pop("warmed", None)
-                _warm_all()
+                _warm_all(later, only)
     return time.perf_counter() - t
+
+
+@contextlib.contextmanager
+def _warming():
+    """Marks this process as warming kernels (a kernel an entry asks for meanwhile loads under the same lock)."""
+    _STATE["warming"] = _STATE.get("warming", 0) + 1
+    try:
+        yield
+    finally:
+        _STATE["warming"] -= 1
 
 
 @contextlib.contextmanager

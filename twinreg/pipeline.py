@@ -156,7 +156,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
 
     def many(n_components: int) -> None:  # a street's clutter: the kernels pay from its joins on (cosco.kernels)
         if n_components >= params.jit_min_components:
-            timing["kernels"] = enable(*KERNEL_MODULES)
+            timing["kernels"] = enable(*KERNEL_MODULES, later=DETECTED)
 
     det = detect_file(scene_path, unit=unit, params=params, crs=georef.crs if given else None,
                       override_crs=given and georef.override, on_read=placed, trajectory=trajectory,
@@ -172,7 +172,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     if len(targets) >= params.jit_min_objects:  # the compiled kernels pay for numba's import (cosco.kernels)
         if prober:  # and the distances here pay for open3d's import (the fused shapes load it here anyway)
             prober.answer_here()
-        timing["kernels"] = timing.get("kernels", 0.0) + enable(*KERNEL_MODULES)
+        timing["kernels"] = timing.get("kernels", 0.0) + enable(*KERNEL_MODULES, later=DETECTED)
     say(progress, f"sections of {len(targets)} objects")
     t = time.perf_counter()
     shapes, clouds, levels = described(det, params, split=True)
@@ -205,6 +205,10 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
 #: 5.56 -> 4.55 CPU-s); above it on a thread, as a city does: the child copies the pages of every record it reads
 #: (about 35 kB an object, docs/PERFORMANCE.md, "The survey's resume under 4 GiB")
 RECORDS_FORK_MAX_OBJECTS = 5000
+#: kernels a scene no longer calls once its ground and components are found, where it enables its kernels (in the
+#: segmentation's joins, or after the detection), and a city's tile reader (box_rows): not loaded then (about
+#: 0.1 s of a sweep's 0.6 here); ``cosco.kernels.fast`` loads one on its first call if a path still asks for it
+DETECTED = ("cosco.ground.", "cosco.segment.components.", "cosco.arrays._box_rows_fast")
 
 #: how long the scan's files (the classified COPC, the observation record) may take in their forked child, beyond
 #: HELPER_TIMEOUT_S, before this process writes them itself (s a point; about 1 us a point is usual)

@@ -83,3 +83,31 @@ def test_the_kernels_switched_on_between_the_components_and_their_passes(monkeyp
     assert [o.indices.tolist() for o in switched.objects] == [o.indices.tolist() for o in reference.objects]
     assert np.allclose([(o.length, o.width, o.height) for o in switched.objects],
                        [(o.length, o.width, o.height) for o in reference.objects], rtol=0, atol=1e-9)
+
+
+def test_kernels_left_for_later_load_on_their_first_call(monkeypatch):
+    """``enable(later=...)`` (a scene past its ground and components, twinreg.pipeline.DETECTED) loads no such
+    kernel; a later call of one loads it then, as ``enable`` would have, and its answers are the references'."""
+    from cosco import kernels
+    from twinreg import KERNEL_MODULES
+    from twinreg.pipeline import DETECTED
+
+    monkeypatch.setattr(kernels, "_STATE", {})
+    monkeypatch.delenv("TWINREG_JIT", raising=False)
+    monkeypatch.delenv("TWINREG_NO_NUMBA", raising=False)
+    kernels.enable(*KERNEL_MODULES, later=DETECTED)
+    if not kernels.in_use():
+        pytest.skip("numba is not installed")
+    names = [k.name for k in kernels.kernels()]
+    assert all(any(n.startswith(p) for n in names) for p in DETECTED), DETECTED  # every prefix names a kernel
+    later = {n for n in names if n.startswith(DETECTED)}
+    assert later and later == kernels._STATE["later"] and not later & kernels._STATE["warmed"]
+    assert set(names) - later <= kernels._STATE["warmed"]
+    pts = _scene()
+    kept = pts[~far_outliers(pts)]
+    compiled = remove_ground(kept)
+    used = {"cosco.ground.blocks._block_counts_fast", "cosco.ground.window._cell_lowest_fast"}
+    assert used <= kernels._STATE["warmed"]
+    with kernels.reference_only():
+        reference = remove_ground(kept)
+    assert np.array_equal(compiled[0], reference[0]) and np.array_equal(compiled[1], reference[1])
