@@ -75,12 +75,11 @@ def test_real_sweeps_claim_a_car_only_where_there_is_one(city_catalogue, tmp_pat
 def test_real_cars_are_as_smooth_as_the_road_and_bushes_are_not(city_catalogue):
     """The roughness a car must not exceed (cosco/surface.py, ``open_world.rigid_max_rough``), on the shared KITTI
     sweeps (000000-000002, 000008): every labelled vehicle the camera sees with 100 points or more reads no rougher
-    than 2 times its scan's road, and the objects the twin calls vegetation (by their porous neighbourhoods) mostly
+    than 2 times its scan's road, and the porous objects (vegetation by their neighbourhoods' variation) mostly
     read rougher than the limit: a hedge of a car's size is not a car for its size."""
     from twinreg.catalogue.repository import Catalogue
     from twinreg.detect import describe_detected, detect_points, object_points
     from twinreg.io.points import read_points
-    from twinreg.recognition.kinds import background_kind
     from twinreg.settings import DEFAULT
     from twinreg.stages import with_targets
 
@@ -96,7 +95,7 @@ def test_real_cars_are_as_smooth_as_the_road_and_bushes_are_not(city_catalogue):
                 continue
             if any(b["inside"](c[None])[0] for b in vehicles):
                 cars.append(shape.surface.rough)
-            elif background_kind(shape.size.as_array(), shape.surface, params) == "vegetation":
+            elif shape.surface.variation >= params.open_world.vegetation_variation:  # porous: foliage
                 bushes.append(shape.surface.rough)
     assert len(cars) >= 3 and max(cars) <= 2.0 < DEFAULT.open_world.rigid_max_rough, cars
     assert len(bushes) >= 5 and np.median(bushes) > DEFAULT.open_world.rigid_max_rough, bushes
