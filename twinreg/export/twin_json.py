@@ -155,6 +155,7 @@ def object_record(p, georef) -> dict:
            "measured_size": shape.size.as_dict(),
            "symmetry": {"found": bool(shape.symmetry.found), "pcr": round(float(shape.symmetry.pcr), 4),
                         "level": p.level},
+           **_surface_record(shape.surface),
            "cluster": int(p.label), "kind": kind, "kind_confidence": kind_confidence, "type": int(p.type),
            "match": match, "candidates": list(p.candidates),
            "shape": {"source": p.shape_source, "type": int(p.type), "members": int(p.members)}
@@ -168,6 +169,17 @@ def object_record(p, georef) -> dict:
         if res.rejected:
             doc["rejected_model"] = res.rejected
     return doc
+
+
+def _surface_record(surface) -> dict:
+    """``{"surface": ...}``, the object's roughness where it was measured (cosco/surface.py: the median distance of
+    its points from their neighbours' chords, m), its scan's ground's, and the one in units of the other (a
+    vehicle is no rougher than ``open_world.rigid_max_rough`` of them); ``{}`` where it was not (too few points)."""
+    if surface is None or getattr(surface, "roughness", None) is None:
+        return {}
+    rough = surface.rough
+    return {"surface": {"roughness_m": surface.roughness, "ground_roughness_m": surface.smooth,
+                        "rough": None if rough is None else round(float(rough), 3)}}
 
 
 def kind_of(p) -> tuple[str, float | None]:
