@@ -194,9 +194,11 @@ def score_sweep(objs: list[dict], boxes: list[dict], points: np.ndarray, vehicle
         if o["kind"] == "car":
             t.c["tp" if is_vehicle else "fp"] += 1
             if not is_vehicle:
+                rough = (o.get("surface") or {}).get("rough")
                 t.false_cars.append(f"{where} at ({xyz[0]:.1f}, {xyz[1]:.1f}) "
                                     f"{o['size']['length']:.1f} x {o['size']['width']:.1f} x "
-                                    f"{o['size']['height']:.1f} m, {o['n_points']} pts, {o['kind_confidence']:.2f}")
+                                    f"{o['size']['height']:.1f} m, {o['n_points']} pts, {o['kind_confidence']:.2f}, "
+                                    f"rough {'-' if rough is None else f'{rough:.2f}'}")
         named = o["kind"] not in ("unknown", "vegetation", "structure")
         truth = next((kind_of_cls[b["cls"]] for b in hits if b["cls"] in kind_of_cls), None)
         if named and (o["kind"] in kind_of_cls.values() or truth is not None):
