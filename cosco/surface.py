@@ -424,44 +424,57 @@ def roughness_of(chord: np.ndarray, min_points: int) -> float | None:
 
 def scan_smoothness(ground: np.ndarray, params: CoscoParams = DEFAULT) -> float | None:
     """The roughness (m, as :class:`Surface` measures it) of a scan's smooth surface: its ``ground`` points ((n, 3),
-    a road, a car park) in up to ``surface.smooth_windows`` squares of a grid ``surface.smooth_window`` m across, those
-    holding ground points drawn evenly through the array, each measured on all of its points (a scan line's
-    neighbours are the ground's own, at its density); the median of the squares' medians. None with too few measured
-    (a square of fewer than ``surface.rough_min_points`` chords counts for nothing). Three passes over the array
-    whatever its size (a city's cell holds millions of ground points).
+    a road, a car park) in up to ``surface.smooth_windows`` squares ``surface.smooth_window`` m across, each measured
+    on all of its points (a scan line's neighbours are the ground's own, at its density); the median of the squares'
+    medians. None with too few measured (a square of fewer than ``surface.rough_min_points`` chords counts for
+    nothing). The squares are drawn by their points: a grid's cells are taken in turn along the grid, and one is
+    drawn every ``1 / smooth_windows`` of the points (where the scan is dense, as a scan line's neighbours are). The
+    answer depends on the points, not on their order in the array (a tile read as LAZ or as COPC), and a few passes
+    over the array whatever its size (a city's cell holds millions of ground points; a grid of more than 2^20 cells
+    is drawn on coarser cells, each measured at its fullest square).
 
     >>> rng = np.random.default_rng(0)
     >>> x = np.repeat(np.arange(0.0, 20.0, 0.5), 400)  # scan lines across a road, 5 cm apart along each
     >>> road = np.c_[x, np.tile(np.arange(0.0, 20.0, 0.05), 40), rng.normal(0, 0.01, 16000)]
     >>> 0.005 < scan_smoothness(road) < 0.02
     True
+    >>> scan_smoothness(road) == scan_smoothness(road[rng.permutation(len(road))])
+    True
     """
     g = np.asarray(ground, dtype=np.float64).reshape(-1, 3)
     sp = params.surface
     if len(g) < sp.rough_min_points:
         return None
-    drawn = g[np.linspace(0, len(g) - 1, sp.smooth_windows).astype(np.int64)]
-    chosen = np.unique(np.floor(drawn[:, :2] / sp.smooth_window).astype(np.int64), axis=0)
-    # the columns first (one pass over x), then the squares among the few points in them
-    inside = np.flatnonzero(np.isin(np.floor(g[:, 0] / sp.smooth_window).astype(np.int64), chosen[:, 0]))
-    cells = np.floor(g[inside, :2] / sp.smooth_window).astype(np.int64)
-    lo = cells.min(axis=0)
-    span = int(cells[:, 1].max() - lo[1]) + 1
-    key = (cells[:, 0] - lo[0]) * span + (cells[:, 1] - lo[1])
-    wanted = np.unique((chosen[:, 0] - lo[0]) * span + (chosen[:, 1] - lo[1]))
-    keep = np.isin(key, wanted)
-    inside, key = inside[keep], key[keep]
-    order = np.argsort(key, kind="stable")
-    inside, key = inside[order], key[order]
-    starts = np.searchsorted(key, wanted)
-    ends = np.searchsorted(key, wanted, side="right")
+    w = float(sp.smooth_window)
+    lo = g[:, :2].min(axis=0)
+    cells = np.floor((g[:, :2].max(axis=0) - lo) / w).astype(np.int64) + 1
+    f = 1  # window squares to a counting cell's side
+    while int(-(-cells[0] // f)) * int(-(-cells[1] // f)) > 1 << 20:
+        f *= 2
+    cx = np.floor((g[:, 0] - lo[0]) / (w * f)).astype(np.int64)
+    cy = np.floor((g[:, 1] - lo[1]) / (w * f)).astype(np.int64)
+    ny = int(cy.max()) + 1
+    key = cx * ny + cy
+    counts = np.bincount(key)
+    occupied = np.flatnonzero(counts)
+    cum = np.cumsum(counts[occupied])
+    k = sp.smooth_windows
+    picks = np.unique(occupied[np.searchsorted(cum, (np.arange(k) + 0.5) / k * cum[-1], side="right")])
+    inside = np.flatnonzero(np.isin(key, picks))
+    inside = inside[np.argsort(key[inside], kind="stable")]
+    bounds = np.searchsorted(key[inside], np.r_[picks, picks[-1] + 1])
     found = []
-    for a, b in zip(starts, ends):
-        w = g[inside[a:b]]
-        if len(w) < max(sp.rough_min_points, 3):
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        win = g[inside[a:b]]
+        if f > 1:  # the counting cell's fullest window square
+            sub = (np.floor((win[:, 0] - lo[0]) / w).astype(np.int64) % f) * f \
+                + np.floor((win[:, 1] - lo[1]) / w).astype(np.int64) % f
+            win = win[sub == int(np.argmax(np.bincount(sub)))]
+        if len(win) < max(sp.rough_min_points, 3):
             continue
-        step = max(1, int(np.ceil(len(w) / sp.max_points)))
-        r = roughness_of(neighbourhood_shapes(w, sp.k, w[::step])[2], sp.rough_min_points)
+        win = win[np.lexsort((win[:, 2], win[:, 1], win[:, 0]))]  # its points in one order, whatever the array's
+        step = max(1, int(np.ceil(len(win) / sp.max_points)))
+        r = roughness_of(neighbourhood_shapes(win, sp.k, win[::step])[2], sp.rough_min_points)
         if r is not None:
             found.append(r)
     return round(float(np.median(found)), 6) if found else None

@@ -156,7 +156,7 @@ class OpenWorldParams:
     and its level of symmetry is no evidence.
     Tuned on the tuning halves of bench/bench_open_kinds.py (KITTI and nuScenes left of the vehicle, DALES even ids),
     ``resolve_spacings`` on bench/bench_street.py's van streets of seeds 1-2; ``rigid_max_rough`` on the KITTI
-    sweeps' tuning half (its cars 0.58-1.01 times their road, its bushes and walls 1.08-10.5) and the van's seeds
+    sweeps' tuning half (its cars 0.56-0.98 times their road, its bushes and walls 1.06-10.4) and the van's seeds
     1-2 (a 44-point mailbox read rough: the test is a vehicle's only)."""
 
     size_margin: float = 0.1  # share beyond the kind's sizes
