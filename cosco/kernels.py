@@ -160,20 +160,17 @@ def fast(fn: Callable):
     chooses between a kernel and its reference."""
     if not in_use():
         return None
-    compiled = _STATE.setdefault("compiled", {})
     name = f"{fn.__module__}.{fn.__name__}"
-    if fn not in compiled:
-        if name not in _KERNELS:
-            raise KeyError(f"{name} is not a registered kernel")
-        compiled[fn] = _numba().njit(**OPTIONS)(fn)
+    if name not in _KERNELS:
+        raise KeyError(f"{name} is not a registered kernel")
     if name in _STATE.get("later", ()) and name not in _STATE.setdefault("warmed", set()):
         if _STATE.get("warming"):  # asked for by an entry being warmed: it loads under that warm's lock
             _STATE["warmed"].add(name)
         else:  # left for later by enable(): loaded now as enable would have (a cache it cannot read dropped)
             warm(only=name)
-            compiled = _STATE.setdefault("compiled", {})  # (a dropped cache recompiles every kernel)
-            if fn not in compiled:
-                compiled[fn] = _numba().njit(**OPTIONS)(fn)
+    compiled = _STATE.setdefault("compiled", {})  # (after a warm: a dropped cache empties it)
+    if fn not in compiled:
+        compiled[fn] = _numba().njit(**OPTIONS)(fn)
     return compiled[fn]
 
 

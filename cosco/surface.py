@@ -104,8 +104,7 @@ def neighbourhood_shapes(points: np.ndarray, k: int, at: np.ndarray | None = Non
 def _shapes_numpy(p: np.ndarray, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The reference of :func:`_shapes_fast`: a KD-tree's ``k`` nearest, LAPACK's eigenvalues and vectors, and
     :func:`chord_distance` to the second and third nearest (the first is the point itself)."""
-    from scipy.spatial import \
-        cKDTree  # deferred: the catalogue's listing imports the shapes, not scipy
+    from scipy.spatial import cKDTree  # deferred: the catalogue's listing imports the shapes, not scipy
 
     _, idx = cKDTree(p).query(q, k)
     idx = idx.reshape(len(q), k)

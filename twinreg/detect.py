@@ -171,6 +171,8 @@ def described(det: Detection, params: Settings = DEFAULT, split: bool = False) -
     split = split and len(objects) >= 2 and sum(cost) >= SPLIT_MIN_WORK and not os.environ.get("TWINREG_NO_HELPER")
     theirs = apart(cost) if split else []
     mine = sorted(set(range(len(objects))) - set(theirs))
+    if theirs:
+        scan_smooth(det, params)  # measured here once, before the child is forked with the detection
     job = Forked(_described_some, det, params, clouds, theirs) if theirs else None
     shapes, levels = [None] * len(objects), [None] * len(objects)
     for part in [_described_some(det, params, clouds, mine)] + (
