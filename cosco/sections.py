@@ -238,7 +238,7 @@ def measure_size(points: np.ndarray, frame: Frame, symmetric: bool, params: Cosc
 
 def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | None = None,
                     front_hint: float | None = None, seen=None, lines: bool = False,
-                    smooth: float | None = None) -> ObjectShape:
+                    smooth: float | None = None, side: bool = False) -> ObjectShape:
     """Symmetry, frame, sections, size and footprint centre of one object's points.
 
     points : (n, 3) float, metres (at least 10 distinct points, not all on a line: see
@@ -248,6 +248,7 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     points' frame; None: everywhere, as from the air), for the symmetry's mirror images. lines : the points lie along
     a ground scanner's lines (a mobile survey's: :func:`~cosco.surface.surface_of`). smooth : the scan's smooth
     surface's roughness (m, :func:`~cosco.surface.scan_smoothness`; None: not known), the object's told against it.
+    side : the scan was made from the ground (a sweep, a mobile survey), each object seen from one side.
 
     >>> rng = np.random.default_rng(1)
     >>> box = rng.uniform([-2.2, -0.9, 0], [2.2, 0.9, 1.5], (3000, 3)) + [100.0, 50.0, 3.0]
@@ -267,4 +268,4 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
         v_centre = (lo + hi) / 2
     centre = frame.to_scene(np.array([[0.0, v_centre, size.height / 2]]))[0]
     return ObjectShape(n_points=len(pts), symmetry=sym, frame=frame, sections=sections, size=size, centroid=centre,
-                       surface=surface_of(pts, params, lines, smooth))
+                       surface=surface_of(pts, params, lines, smooth, side))

@@ -53,7 +53,8 @@ class Surface:
     """One object's surface at the scale of its point spacing (see the module's text): the median ``variation``
     (0-1/3) and ``linearity`` (0-1) of its points' neighbourhoods and the share of its points on a ``horizontal``
     surface (0-1); ``n`` the points they were measured on; ``thickness`` (m) the 90th percentile of the points'
-    distances from their best-fitting plane, for points along a ground scanner's lines (else None)."""
+    distances from their best-fitting plane, for points along a ground scanner's lines (else None); ``side``: the
+    scan was made from the ground, where a sparse object's few points lie on the one face it turns to the scanner."""
 
     variation: float
     linearity: float
@@ -62,6 +63,7 @@ class Surface:
     thickness: float | None = None
     roughness: float | None = None  # m, the points' median distance from their neighbours' chords (None: too few)
     smooth: float | None = None  # m, the scan's smooth surface's (its ground's) roughness, None: not known
+    side: bool = False  # seen from the ground (a sweep, a mobile survey): from one side, not from above
 
     @property
     def rough(self) -> float | None:
@@ -385,10 +387,12 @@ def thickness_of(points: np.ndarray, share: float = 0.9) -> float:
     return float(np.quantile(np.abs(q @ normal), share))
 
 
-def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False, smooth: float | None = None) -> Surface:
+def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False, smooth: float | None = None,
+               side: bool = False) -> Surface:
     """The :class:`Surface` of one object's ``points`` ((n, 3) metres, n >= 3); ``lines``: the points lie along a
     ground scanner's lines (the thickness measured too); ``smooth``: the scan's smooth surface's roughness
-    (:func:`scan_smoothness`), that the object's is told in units of.
+    (:func:`scan_smoothness`), that the object's is told in units of; ``side``: the scan was made from the ground
+    (:attr:`Surface.side`).
 
     >>> rng = np.random.default_rng(0)
     >>> a = rng.uniform(0, 2 * np.pi, 3000)
@@ -410,7 +414,7 @@ def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False, smoot
                    horizontal=round(float(horizontal.mean()), 6), n=len(at),
                    thickness=round(thickness_of(p), 6) if lines else None,
                    roughness=roughness_of(chord, sp.rough_min_points),
-                   smooth=None if smooth is None else round(float(smooth), 6))
+                   smooth=None if smooth is None else round(float(smooth), 6), side=bool(lines or side))
 
 
 def roughness_of(chord: np.ndarray, min_points: int) -> float | None:

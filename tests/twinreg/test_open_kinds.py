@@ -62,7 +62,7 @@ def test_real_sweeps_claim_a_car_only_where_there_is_one(city_catalogue, tmp_pat
             if ok and o["kind"] == "car" and not any(b["inside"](c[None])[0] for b in vehicles):
                 false += 1
             rough = o.get("surface", {}).get("rough")  # twin.json says how rough each object read
-            assert o["kind"] != "car" or rough is None or rough <= 2.5, o
+            assert o["kind"] != "car" or (rough is not None and rough <= 2.5), o  # a car shows its smooth shell
         pts = np.fromfile(scan, dtype="<f4").reshape(-1, 4)[:, :3].astype(np.float64)
         for b in vehicles:
             if b["type"] != "Car" or not _in_view(frame, b["centre"][None])[0] or b["inside"](pts).sum() < 100:
@@ -390,3 +390,30 @@ def test_a_tiled_run_reads_the_classes_as_a_scene_does(parametric_catalogue, tmp
         assert kind(docs[name], 8.2, 5.9) == kind(docs["scene"], 8.2, 5.9) == "structure", name
         assert kind(docs[name], 20.2, 8.9) == kind(docs["scene"], 20.2, 8.9) != "structure", name
     assert kind(docs["off"], 8.2, 5.9) != "structure"
+
+
+def test_a_vehicle_name_needs_its_surface_shown():
+    """In a scan made from the ground whose ground tells how smooth its surfaces are, a vehicle is named only when
+    its own points show a shell as smooth (``open_world.rough_required``): a dozen points of a car's size (a bush at
+    25 m) earn no name by size, though a decided model may still confirm the kind (``fitted``); from the air (a
+    few dozen points of a roof measure its plan) or without the ground (``classify``'s one file) the size decides
+    as before, and a user may turn the rule off."""
+    from dataclasses import replace
+
+    from cosco.surface import Surface
+    from twinreg.recognition.kinds import References, recognise_kind
+    from twinreg.settings import DEFAULT
+
+    refs = References(np.arange(3), ["a", "b", "c"], np.array(["car", "car", "hydrant"], dtype=object),
+                      np.array([[4.5, 1.8, 1.5], [4.2, 1.7, 1.4], [0.3, 0.3, 0.8]]),
+                      np.array(["mirror", "mirror", "rotational"], dtype=object))
+    size = [4.3, 1.75, 1.45]
+    sparse = Surface(0.02, 0.4, 0.3, 14, smooth=0.004, side=True)  # 14 points from the ground: too few chords
+    shown = Surface(0.02, 0.4, 0.3, 400, roughness=0.005, smooth=0.004, side=True)
+    got = recognise_kind(size, "mirror", refs, surface=sparse)
+    assert got.kind != "car" and got.fitted == "car", got
+    assert recognise_kind(size, "mirror", refs, surface=shown).kind == "car"
+    assert recognise_kind(size, "mirror", refs, surface=replace(sparse, smooth=None)).kind == "car"
+    assert recognise_kind(size, "mirror", refs, surface=replace(sparse, side=False)).kind == "car"  # from the air
+    off = replace(DEFAULT, open_world=replace(DEFAULT.open_world, rough_required=False))
+    assert recognise_kind(size, "mirror", refs, off, surface=sparse).kind == "car"

@@ -38,6 +38,8 @@ class PointSet:
     crs_info : the projected CRS of the coordinates (``--crs``, else the LAS/LAZ header's), or None. n_dropped :
     non-finite points removed. survey_date : the LAS/LAZ header's creation date (ISO ``YYYY-MM-DD``), or None.
     origins : (n, 3) each point's scanner position (same frame as ``points``), from a mobile survey's trajectory.
+    sweep : a vehicle-mounted sweep in its sensor's frame (a KITTI .bin, a nuScenes .pcd.bin): seen from the ground,
+    each object from one side, not from the air.
     """
 
     path: Path
@@ -54,6 +56,7 @@ class PointSet:
     survey_date_warning: str | None = None
     classes: np.ndarray | None = None  # (n,) uint8 ASPRS classes, when the file has any beyond 0 and 1
     origins: np.ndarray | None = None  # (n, 3) each point's scanner position (a mobile survey's trajectory), or None
+    sweep: bool = False  # a vehicle-mounted sweep in its sensor's frame (KITTI .bin, nuScenes .pcd.bin)
 
     def without(self, drop: np.ndarray) -> "PointSet":
         """The same scene without the points of the (n,) mask ``drop`` (counted as outliers)."""
@@ -465,7 +468,7 @@ def read_points(path, unit: str = "auto", crs: str | None = None, override_crs: 
     offset[2] = 0.0
     return PointSet(path=path, points=pts, offset=offset, unit=unit, crs_info=info, n_dropped=dropped, scale=scale,
                     z_scale=z_scale, survey_date=date[0], survey_date_source=date[1], survey_date_warning=date[2],
-                    classes=classes, origins=origins)
+                    classes=classes, origins=origins, sweep=suffix == ".bin")
 
 
 def _origins(path: Path, trajectory, gps, info) -> np.ndarray:

@@ -307,7 +307,10 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     from the street, where a board or a wall is flat), and linearity is no test. Where the scan's smoothness is
     known, a ``curved`` kind's shell is no rougher than ``rigid_max_rough`` times it
     (:attr:`~cosco.surface.Surface.rough`; street furniture may be a row of pieces, or a lattice, whose edges make
-    its chords rough: a pair of nuScenes barriers reads 2.3 times its ground).
+    its chords rough: a pair of nuScenes barriers reads 2.3 times its ground), and, from the ground
+    (:attr:`~cosco.surface.Surface.side`), shown: an object too sparse for ``surface.rough_min_points`` chords is no
+    vehicle by its size (``rough_required``; 12-31 points of bushes and a fence top read as cars on KITTI sweeps,
+    where from the air 30-60 points of a car's roof measure its plan).
 
     >>> from cosco.surface import Surface
     >>> pole = Surface(0.02, 0.8, 0.05, 150)
@@ -319,6 +322,9 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     False
     >>> fits_surface(Surface(0.03, 0.5, 0.3, 200, roughness=0.018, smooth=0.005), "car")  # a hedge at 25 m
     False
+    >>> sparse = Surface(0.03, 0.5, 0.3, 14, smooth=0.005, side=True)  # 14 points from the ground: too few chords
+    >>> fits_surface(sparse, "car"), fits_surface(replace(sparse, side=False), "car")  # from the air: its plan
+    (False, True)
     """
     k = params.open_world
     if surface is None or kind in k.porous:
@@ -328,6 +334,9 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     rough = surface.rough
     if kind in k.curved and rough is not None and rough > k.rigid_max_rough:
         return False  # a vehicle's painted shell, no rougher than the road: a hedge's leaves are
+    if (kind in k.curved and k.rough_required and surface.side and surface.smooth is not None
+            and surface.roughness is None):
+        return False  # from the ground, too few chords to show that shell: a dozen points of a bush are a car's size
     if surface.n < k.linearity_min_points:
         return True
     if surface.along_lines:  # from the ground: the neighbourhoods are the scan lines', the object's thickness tells
