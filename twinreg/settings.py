@@ -128,18 +128,19 @@ class OpenWorldParams:
     ``plan_margin`` m and its longer side at least ``min_plan_share`` of theirs and its narrower at least
     ``min_width_share`` of their narrowest (a side unseen makes a plan smaller, never larger, but a board or a wall
     seen edge-on is no barrier), its height within theirs widened by ``height_share`` (below) and ``height_margin``
-    m; and, unless the kind is ``porous``, its surface a shell (variation at most ``rigid_max_variation``, linearity
-    at most ``rigid_max_linearity`` when measured on ``linearity_min_points`` points or more, unless the kind is
-    thin: its references ``thin_ratio`` times taller than their plan is wide, a pole's points are strung along its
-    line; a ``curved`` kind's at least ``curved_min_variation`` unless ``flat_max_horizontal`` or more of it is
-    horizontal: no upright board or wall, while a car seen from the air is mostly its flat roof; from the ground, where
-    points lie along scan lines, its points more than ``board_max_thickness`` m from their best plane, and linearity
-    no test; and a ``curved`` kind's roughness at most ``rigid_max_rough`` times its scan's ground's, where both are
-    measured: a hedge's leaves stand out of the chords between their neighbours, a car's points no more than the
-    road's; and, when ``rough_required``, in a scan made from the ground (a sweep, a mobile survey) where the
-    ground's roughness is measured but too few of the object's chords are to measure its own, no ``curved`` kind by
-    size alone (a dozen points of a bush are a car's size; a decided model may still confirm the kind; from the air
-    a few dozen points of a roof measure its plan): :func:`~twinreg.recognition.kinds.fits_surface`). What fits no kind
+    m; and, unless the kind is ``porous``, its surface a shell (variation at most ``rigid_max_variation``, or, along a
+    van's lines, roughness at most ``rigid_max_rough`` times its ground's: a hydrant's small curved body; linearity at
+    most ``rigid_max_linearity`` when measured on ``linearity_min_points`` points or more, unless the kind is thin: its
+    references ``thin_ratio`` times taller than their plan is wide, a pole's points are strung along its line; a
+    ``curved`` kind's at least ``curved_min_variation`` unless ``flat_max_horizontal`` or more of it is horizontal: no
+    upright board or wall, while a car seen from the air is mostly its flat roof; from the ground, where points lie
+    along scan lines, its points more than ``board_max_thickness`` m from their best plane, and linearity no test; and a
+    ``curved`` kind's roughness at most ``rigid_max_rough`` times its scan's ground's, where both are measured: a
+    hedge's leaves stand out of the chords between their neighbours, a car's points no more than the road's; and, when
+    ``rough_required``, in a scan made from the ground (a sweep, a mobile survey) where the ground's roughness is
+    measured but too few of the object's chords are to measure its own, no ``curved`` kind by size alone (a dozen points
+    of a bush are a car's size; a decided model may still confirm the kind; from the air a few dozen points of a roof
+    measure its plan): :func:`~twinreg.recognition.kinds.fits_surface`). What fits no kind
     is ``vegetation`` when porous (variation at least ``vegetation_variation`` measured on ``vegetation_min_points``
     points or more, at least ``vegetation_height`` m tall: a dozen points of a hydrant are as scattered as a
     bush's), ``structure`` when long and thin (at least ``structure_length`` m and ``structure_elongation`` times

@@ -302,7 +302,9 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     the kind is ``thin``, a pole, strung along lines) unless the kind is porous, and not flat when the kind is
     ``curved`` (vehicles); True when not measured (the line and flatness tests need ``linearity_min_points``
     points). Points along a ground scanner's lines (a mobile survey's, :attr:`~cosco.surface.Surface.along_lines`)
-    are strung along the scan's lines whatever the object, and their variation is the range noise's: a ``curved``
+    are strung along the scan's lines whatever the object, and their variation is the range noise's and, on a small
+    curved body (a hydrant 0.3 m across), its curvature's across neighbourhoods that span it: there a shell no
+    rougher than ``rigid_max_rough`` times the scan's ground is no porous object whatever its variation. A ``curved``
     kind's points then lie more than ``board_max_thickness`` m from their best plane (a car's side and roof seen
     from the street, where a board or a wall is flat), and linearity is no test. Where the scan's smoothness is
     known, a ``curved`` kind's shell is no rougher than ``rigid_max_rough`` times it
@@ -322,6 +324,9 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     False
     >>> fits_surface(Surface(0.03, 0.5, 0.3, 200, roughness=0.018, smooth=0.005), "car")  # a hedge at 25 m
     False
+    >>> hydrant = Surface(0.0507, 0.43, 0.0, 132, thickness=0.11, roughness=0.006, smooth=0.0045, side=True)
+    >>> fits_surface(hydrant, "hydrant"), fits_surface(replace(hydrant, roughness=0.02), "hydrant")  # from a van
+    (True, False)
     >>> sparse = Surface(0.03, 0.5, 0.3, 14, smooth=0.005, side=True)  # 14 points from the ground: too few chords
     >>> fits_surface(sparse, "car"), fits_surface(replace(sparse, side=False), "car")  # from the air: its plan
     (False, True)
@@ -329,9 +334,10 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     k = params.open_world
     if surface is None or kind in k.porous:
         return True
-    if surface.variation > k.rigid_max_variation:
-        return False
     rough = surface.rough
+    if surface.variation > k.rigid_max_variation and not (
+            surface.along_lines and rough is not None and rough <= k.rigid_max_rough):
+        return False  # porous; from a van's lines, a small curved body's neighbourhoods span it, its chords tell
     if kind in k.curved and rough is not None and rough > k.rigid_max_rough:
         return False  # a vehicle's painted shell, no rougher than the road: a hedge's leaves are
     if (kind in k.curved and k.rough_required and surface.side and surface.smooth is not None
