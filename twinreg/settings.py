@@ -136,11 +136,12 @@ class OpenWorldParams:
     upright board or wall, while a car seen from the air is mostly its flat roof; from the ground, where points lie
     along scan lines, its points more than ``board_max_thickness`` m from their best plane, and linearity no test; and a
     ``curved`` kind's roughness at most ``rigid_max_rough`` times its scan's ground's, where both are measured: a
-    hedge's leaves stand out of the chords between their neighbours, a car's points no more than the road's; and, when
-    ``rough_required``, in a scan made from the ground (a sweep, a mobile survey) where the ground's roughness is
-    measured but too few of the object's chords are to measure its own, no ``curved`` kind by size alone (a dozen points
-    of a bush are a car's size; a decided model may still confirm the kind; from the air a few dozen points of a roof
-    measure its plan): :func:`~twinreg.recognition.kinds.fits_surface`). What fits no kind
+    hedge's leaves stand out of the chords between their neighbours, a car's points no more than the road's:
+    :func:`~twinreg.recognition.kinds.fits_surface`). When ``rough_required``, in a scan made from the ground (a
+    sweep, a mobile survey) where the ground's roughness is measured but too few of the object's chords are to
+    measure its own, no kind of ``rough_kinds`` (every kind not porous when empty) is named by its size alone (a
+    dozen points of a bush are a car's size; a decided model may still confirm the kind; from the air a few dozen
+    points of a roof measure its plan: :func:`~twinreg.recognition.kinds.unshown`). What fits no kind
     is ``vegetation`` when porous (variation at least ``vegetation_variation`` measured on ``vegetation_min_points``
     points or more, at least ``vegetation_height`` m tall: a dozen points of a hydrant are as scattered as a
     bush's), ``structure`` when long and thin (at least ``structure_length`` m and ``structure_elongation`` times
@@ -172,7 +173,8 @@ class OpenWorldParams:
     rigid_max_variation: float = 0.05  # surface variation
     rigid_max_linearity: float = 0.62  # neighbourhoods' linearity
     rigid_max_rough: float = 2.5  # times the scan's ground's roughness
-    rough_required: bool = True  # from the ground, a vehicle shows its roughness where its scan's is known
+    rough_required: bool = True  # from the ground, a kind shows its roughness where its scan's is known
+    rough_kinds: tuple = ("car", "van", "truck", "bus")  # the kinds it applies to; empty: every kind not porous
     linearity_min_points: int = 60  # points, for linearity
     porous: tuple = ("tree", "vegetation", "hedge", "bush")  # kinds
     curved: tuple = ("car", "van", "truck", "bus")  # kinds

@@ -397,7 +397,7 @@ def test_a_vehicle_name_needs_its_surface_shown():
     its own points show a shell as smooth (``open_world.rough_required``): a dozen points of a car's size (a bush at
     25 m) earn no name by size, though a decided model may still confirm the kind (``fitted``); from the air (a
     few dozen points of a roof measure its plan) or without the ground (``classify``'s one file) the size decides
-    as before, and a user may turn the rule off."""
+    as before, and a user may turn the rule off or ask it of every kind."""
     from dataclasses import replace
 
     from cosco.surface import Surface
@@ -417,3 +417,9 @@ def test_a_vehicle_name_needs_its_surface_shown():
     assert recognise_kind(size, "mirror", refs, surface=replace(sparse, side=False)).kind == "car"  # from the air
     off = replace(DEFAULT, open_world=replace(DEFAULT.open_world, rough_required=False))
     assert recognise_kind(size, "mirror", refs, off, surface=sparse).kind == "car"
+    # street furniture keeps its name by size unless every kind is asked for (open_world.rough_kinds empty)
+    hydrant = [0.32, 0.3, 0.82]
+    assert recognise_kind(hydrant, "rotational", refs, surface=sparse).kind == "hydrant"
+    every = replace(DEFAULT, open_world=replace(DEFAULT.open_world, rough_kinds=()))
+    got = recognise_kind(hydrant, "rotational", refs, every, surface=sparse)
+    assert got.kind != "hydrant" and got.fitted == "hydrant", got

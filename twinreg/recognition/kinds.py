@@ -309,10 +309,8 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     from the street, where a board or a wall is flat), and linearity is no test. Where the scan's smoothness is
     known, a ``curved`` kind's shell is no rougher than ``rigid_max_rough`` times it
     (:attr:`~cosco.surface.Surface.rough`; street furniture may be a row of pieces, or a lattice, whose edges make
-    its chords rough: a pair of nuScenes barriers reads 2.3 times its ground), and, from the ground
-    (:attr:`~cosco.surface.Surface.side`), shown: an object too sparse for ``surface.rough_min_points`` chords is no
-    vehicle by its size (``rough_required``; 12-31 points of bushes and a fence top read as cars on KITTI sweeps,
-    where from the air 30-60 points of a car's roof measure its plan).
+    its chords rough: a pair of nuScenes barriers reads 2.3 times its ground). An object too sparse for a roughness
+    from the ground is named by no size alone (:func:`unshown`), but may still fit a kind a model confirms.
 
     >>> from cosco.surface import Surface
     >>> pole = Surface(0.02, 0.8, 0.05, 150)
@@ -327,9 +325,6 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
     >>> hydrant = Surface(0.0507, 0.43, 0.0, 132, thickness=0.11, roughness=0.006, smooth=0.0045, side=True)
     >>> fits_surface(hydrant, "hydrant"), fits_surface(replace(hydrant, roughness=0.02), "hydrant")  # from a van
     (True, False)
-    >>> sparse = Surface(0.03, 0.5, 0.3, 14, smooth=0.005, side=True)  # 14 points from the ground: too few chords
-    >>> fits_surface(sparse, "car"), fits_surface(replace(sparse, side=False), "car")  # from the air: its plan
-    (False, True)
     """
     k = params.open_world
     if surface is None or kind in k.porous:
@@ -340,9 +335,6 @@ def fits_surface(surface, kind: str, params: Settings = DEFAULT, thin: bool = Fa
         return False  # porous; from a van's lines, a small curved body's neighbourhoods span it, its chords tell
     if kind in k.curved and rough is not None and rough > k.rigid_max_rough:
         return False  # a vehicle's painted shell, no rougher than the road: a hedge's leaves are
-    if (kind in k.curved and k.rough_required and surface.side and surface.smooth is not None
-            and surface.roughness is None):
-        return False  # from the ground, too few chords to show that shell: a dozen points of a bush are a car's size
     if surface.n < k.linearity_min_points:
         return True
     if surface.along_lines:  # from the ground: the neighbourhoods are the scan lines', the object's thickness tells
@@ -493,7 +485,8 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
         # the kind voted for is of scanned exemplars it does not fit: the next kind voted for that it fits, if any
         other = next((k for k in list(votes)[1:] if fits(k)), None) if kind in refs.scanned else None
         got = _named(other, d, rivals, votes, near, refs, params) if other is not None else None
-        if got is not None and got.confidence >= params.kinds.min_kind_confidence:
+        if (got is not None and got.confidence >= params.kinds.min_kind_confidence
+                and not unshown(surface, other, params)):
             return got
         # a sparse object's surface is its whole shape, not its skin: a model of the kind may still decide it
         sized = fits_kind(size, float(by_surface[refs.kinds == kind].min()), kind, refs, params, loose)
@@ -501,9 +494,29 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
         return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near,
                           fitted=kind if sparse else None)
     got = _named(kind, d, rivals, votes, near, refs, params)
-    if got.confidence < params.kinds.min_kind_confidence:  # a name is a claim: too near another kind to make
+    if got.confidence < params.kinds.min_kind_confidence or unshown(surface, kind, params):
+        # a name is a claim: too near another kind to make, or a size that no surface of its own bears out
         return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, got.margin, kind)
     return got
+
+
+def unshown(surface, kind: str, params: Settings = DEFAULT) -> bool:
+    """Whether an object seen from the ground (a sweep, a mobile survey: :attr:`~cosco.surface.Surface.side`) whose
+    scan's ground has a roughness is too sparse to have one of its own (fewer than ``surface.rough_min_points``
+    chords: some 12-40 points), so that its size alone would name ``kind`` (one of ``open_world.rough_kinds``):
+    from the ground a sparse object shows one face, and a dozen points of a bush measure a car's height and
+    breadth. A model decided for it may still confirm the kind (:func:`confirmed_by_model`); from the air a few
+    dozen points of a roof measure its plan (``open_world.rough_required`` turns the rule off).
+
+    >>> from cosco.surface import Surface
+    >>> sparse = Surface(0.03, 0.5, 0.3, 14, smooth=0.005, side=True)
+    >>> unshown(sparse, "car"), unshown(replace(sparse, side=False), "car"), unshown(sparse, "tree")
+    (True, False, False)
+    """
+    k = params.open_world
+    return bool(k.rough_required and surface is not None and surface.side and surface.smooth is not None
+                and surface.roughness is None and kind not in k.porous
+                and (not k.rough_kinds or kind in k.rough_kinds))
 
 
 def _named(kind: str, d: np.ndarray, rivals: list, votes: dict, near: tuple, refs: References,
