@@ -248,7 +248,7 @@ def describe_object(points, params: CoscoParams = DEFAULT, ground_z: float | Non
     points' frame; None: everywhere, as from the air), for the symmetry's mirror images. lines : the points lie along
     a ground scanner's lines (a mobile survey's: :func:`~cosco.surface.surface_of`). smooth : the scan's smooth
     surface's roughness (m, :func:`~cosco.surface.scan_smoothness`; None: not known), the object's told against it.
-    side : the scan was made from the ground (a sweep, a mobile survey), each object seen from one side.
+    side : the scan was made from the ground (a sweep; ``lines`` implies it), each object seen from one side.
 
     >>> rng = np.random.default_rng(1)
     >>> box = rng.uniform([-2.2, -0.9, 0], [2.2, 0.9, 1.5], (3000, 3)) + [100.0, 50.0, 3.0]

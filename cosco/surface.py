@@ -392,7 +392,7 @@ def surface_of(points, params: CoscoParams = DEFAULT, lines: bool = False, smoot
     """The :class:`Surface` of one object's ``points`` ((n, 3) metres, n >= 3); ``lines``: the points lie along a
     ground scanner's lines (the thickness measured too); ``smooth``: the scan's smooth surface's roughness
     (:func:`scan_smoothness`), that the object's is told in units of; ``side``: the scan was made from the ground
-    (:attr:`Surface.side`).
+    (:attr:`Surface.side`; ``lines`` implies it).
 
     >>> rng = np.random.default_rng(0)
     >>> a = rng.uniform(0, 2 * np.pi, 3000)

@@ -133,9 +133,8 @@ def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None, 
     clouds = [object_points(det, o) for o in objects] if clouds is None else clouds
     lines = det.scene.origins is not None  # a survey from the ground, its points along its profilers' lines
     smooth = scan_smooth(det, params)
-    side = lines or det.scene.sweep  # seen from the ground: each object from one side
     shapes = [cosco.describe_object(c, params, ground_z=object_ground(det, o), seen=object_seen(det, o, params),
-                                    lines=lines, smooth=smooth, side=side) for o, c in zip(objects, clouds)]
+                                    lines=lines, smooth=smooth, side=det.scene.sweep) for o, c in zip(objects, clouds)]
     classes = det.scene.classes  # None: a scan without classes (the parameter is read only when there are some)
     if classes is None or not params.open_world.scan_classes:
         return shapes
