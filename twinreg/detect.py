@@ -70,7 +70,8 @@ def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, ke
     t1 = time.perf_counter()
     say(progress, "ground")
     if len(local):
-        seg = segment_objects(local, hag, params, is_ground=is_ground, on_components=on_components)
+        seg = segment_objects(local, hag, params, is_ground=is_ground, on_components=on_components,
+                              from_ground=scene.sweep or scene.origins is not None)
     else:  # a tile's margin held points, the part searched for objects none
         seg = Segmentation(np.zeros(0, dtype=np.int64), [], 0, 0)
     t2 = time.perf_counter()

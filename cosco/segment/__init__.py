@@ -30,13 +30,14 @@ from .components import (
     lowest_runs,
     voxel_components,
 )
-from .street import join_stacked, reach_link, reach_up, standing_overhangs, with_overhangs
+from .street import join_stacked, off_walls, reach_link, reach_up, standing_overhangs, with_overhangs
 
 __all__ = ["DetectedObject", "Segmentation", "far_outliers", "lowest_runs", "n_cells", "point_spacing",
            "segment_objects", "voxel_components"]
 
 
-def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, on_components=None) -> Segmentation:
+def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, on_components=None,
+                    from_ground: bool = False) -> Segmentation:
     """Objects of a scene from its points and their heights above ground, pass by pass: the candidates (off the
     ground, under the ceiling, the lowest run of each column), the cores' patches and components with the low
     points joined, the cars' passes (:mod:`.cars`), a street's (:mod:`.street`, ``segment.targets="all"``), then the
@@ -44,8 +45,9 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, 
 
     points : (n, 3) float, metres. hag : (n,) height above ground (m). is_ground : (n,) bool, or None to use
     ``hag < params.ground.tol``. on_components : called with the number of components once they are known, before
-    the passes that join and cut them (a caller may then choose how the rest runs), or None. Objects are ordered by
-    x then y of their centre.
+    the passes that join and cut them (a caller may then choose how the rest runs), or None. ``from_ground``: the scan
+    was made from the ground (a vehicle's sweep, a van's survey), where a wall is seen standing: a street's walls give
+    back what only hangs on them (:func:`.street.off_walls`). Objects are ordered by x then y of their centre.
     """
     pts = as_points(points)
     hag = np.asarray(hag, dtype=np.float64)
@@ -71,6 +73,8 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, 
     if street:  # the overhangs taken back, a street object's stacked pieces joined
         n_kept = len(cand)
         cand, comp = with_overhangs(pts, hag, cand, comp, over, params, voxel, origin)
+        if from_ground:
+            comp = off_walls(pts[cand], hag[cand], comp, params, voxel)
         comp = join_stacked(pts[cand], hag[cand], comp, params, voxel)
         keep = np.r_[np.ones(n_kept, dtype=bool), standing_overhangs(pts[cand], hag[cand], comp, n_kept, params)]
         cand, comp = cand[keep], comp[keep]

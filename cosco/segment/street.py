@@ -133,6 +133,96 @@ def _touching(p: np.ndarray, labels, members: dict, these: np.ndarray, link: flo
     return out
 
 
+def _car_boxes(lo: np.ndarray, hi: np.ndarray, top: np.ndarray, params: CoscoParams) -> np.ndarray:
+    """(n,) bool: which plan boxes (lo, hi) with a ``top`` (m above ground) are as large as a car (a parked car under
+    a crown keeps off it)."""
+    side = hi - lo
+    return np.array([car_sized(float(a.max()), float(a.min()), float(t), params) for a, t in zip(side, top)],
+                    dtype=bool).reshape(-1)
+
+
+def off_walls(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, voxel: float) -> np.ndarray:
+    """A building's wall gives back what only leans on it: a tree whose crown touches the facade behind the pavement
+    joined the wall's component, trunk and all, and the tree was lost. In a component larger than a street object
+    (its plan box over ``segment.object_max_extent`` across), the points of the plan columns (``segment.column`` m)
+    that never come down to ``segment.max_base`` over the ground hang (a wall stands in every column it fills; a
+    component that mostly hangs is a building seen from the air, its roof over walls it hides, and is left whole);
+    without them, what stood apart from the wall (a trunk, a post) is a piece of its own. Each hanging piece (patches
+    of ``voxel``) no larger than a street object goes to a street object standing under it: on the ground, neither
+    car-sized (:func:`.components.car_sized`, its plan box's sides and its top: a crown over a parked car stays off
+    it) nor larger than a street object, its plan box overlapping the piece's widened by a link
+    (``segment.object_link`` or three patches), its top within a link of the piece's lowest point; the one reaching
+    highest. A standing piece that takes a hanging one leaves the wall with it; a
+    hanging piece with no such support stays the wall's (a balcony, an eave, the upper wall that parked cars hid from
+    a van), and so does every other standing piece.
+
+    >>> from cosco.params import DEFAULT
+    >>> wall = np.array([[8.5, y, z] for y in np.arange(0, 20, 0.1) for z in np.arange(0.1, 3.0, 0.2)])
+    >>> trunk = np.array([[5.0, 5.0, z] for z in np.arange(0.1, 2.6, 0.1)])
+    >>> crown = np.array([[x, y, z] for x in np.arange(4.0, 8.45, 0.15) for y in np.arange(4.0, 6.0, 0.15)
+    ...                   for z in (2.6, 2.8)])
+    >>> pts = np.vstack([wall, trunk, crown])
+    >>> out = off_walls(pts, pts[:, 2], np.zeros(len(pts), dtype=np.int64), DEFAULT, 0.15)
+    >>> tree = out[len(wall):]
+    >>> bool((tree == tree[0]).all()), bool((out[:len(wall)] == 0).all()), bool(tree[0] != 0)
+    (True, True, True)
+    """
+    labels, _, members = _members(comp)
+    if len(labels) == 0:
+        return comp
+    link = max(params.segment.object_link, 3 * voxel)
+    reach = params.segment.object_max_extent
+    lo, hi, base, top, _ = _boxes(p, hag, labels, members, params)
+    large = np.hypot(*(hi - lo).T) > reach
+    if not large.any():
+        return comp
+    outside = np.flatnonzero(~large & ~_car_boxes(lo, hi, top, params) & (base <= params.segment.max_base))
+    out = comp.copy()
+    nxt = int(comp.max()) + 1
+    for j in np.flatnonzero(large):
+        rows = members[labels[j]]
+        _, cols = np.unique(cell_keys(np.floor(p[rows, :2] / params.segment.column).astype(np.int64)),
+                            return_inverse=True)
+        cols = cols.reshape(-1)
+        lowest = np.full(int(cols.max()) + 1, np.inf)
+        np.minimum.at(lowest, cols, hag[rows])
+        hangs = lowest[cols] > params.segment.max_base
+        if not hangs.any() or 2 * hangs.sum() > len(rows):  # a wall stands: a roof seen from the air hangs
+            continue
+        hanging, standing = rows[hangs], rows[~hangs]
+        pieces = [idx for idx in (hanging[r] for r in _members(voxel_components(p[hanging], voxel)[0])[2].values())
+                  if np.hypot(*np.ptp(p[idx, :2], axis=0)) <= reach]
+        if not pieces:
+            continue
+        # the standing pieces without the hanging points, as supports beside the components outside
+        sp = voxel_components(p[standing], voxel)[0]
+        s_labels, _, s_members = _members(sp)
+        s_lo, s_hi, s_base, s_top, _ = _boxes(p[standing], hag[standing], s_labels, s_members, params)
+        inside = np.flatnonzero((np.hypot(*(s_hi - s_lo).T) <= reach) & ~_car_boxes(s_lo, s_hi, s_top, params)
+                                & (s_base <= params.segment.max_base))
+        sup_lo = np.r_[lo[outside], s_lo[inside]].reshape(-1, 2)
+        sup_hi = np.r_[hi[outside], s_hi[inside]].reshape(-1, 2)
+        sup_top = np.r_[top[outside], s_top[inside]]
+        taken: dict = {}  # standing piece -> its new label
+        for idx in pieces:
+            plo, phi = p[idx, :2].min(0), p[idx, :2].max(0)
+            near = np.flatnonzero(~((sup_lo > phi + link).any(1) | (sup_hi < plo - link).any(1))
+                                  & (sup_top >= hag[idx].min() - link))
+            if len(near) == 0:
+                continue
+            best = int(near[np.argmax(sup_top[near])])
+            if best < len(outside):
+                out[idx] = labels[outside[best]]
+                continue
+            piece = int(s_labels[inside[best - len(outside)]])
+            if piece not in taken:
+                taken[piece] = nxt
+                out[standing[s_members[piece]]] = nxt
+                nxt += 1
+            out[idx] = taken[piece]
+    return out
+
+
 def join_stacked(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, voxel: float) -> np.ndarray:
     """Pieces of one street object that a sparse scan left apart, joined: components stacked one over the other in
     plan (their footprint boxes, widened by half a patch, overlap) with at most a link (``segment.object_link`` m, or
