@@ -125,7 +125,10 @@ def kitti_frames(more: Path | None) -> list[tuple[Path, str, str]]:
     """(root, frame, point folder) of the shared KITTI frames and of ``more``: a KITTI training folder of other
     frames, e.g. 000003-000005 as OpenPCDet's small sample holds them (github.com/open-mmlab/OpenPCDet, commit
     0b243c8c41909cf70af66f6a906427918610bd56, ``data/kitti/training/{velodyne,label_2,calib}/00000[3-5].*``;
-    ``git show <commit>:<path> > DIR/...``). Frames already shared are not scored twice."""
+    ``git show <commit>:<path> > DIR/...``), and 000134 as PointPillars' demo holds it (github.com/zhulf0804/PointPillars,
+    commit 620e6b0d07e4cb37b7b0114f26b934e8be92a0ba, ``pointpillars/dataset/demo_data/val/000134.{bin,txt}`` into
+    ``velodyne/`` and ``calib/``, ``000134_gt.txt`` as ``label_2/000134.txt``: the camera's view only, KITTI's
+    labels). Frames already shared are not scored twice."""
     out = [(KITTI, f, folder) for f, folder in FRAMES.items()]
     if more is not None:
         out += [(more, p.stem, "velodyne") for p in sorted((more / "velodyne").glob("*.bin"))

@@ -141,13 +141,33 @@ def _car_boxes(lo: np.ndarray, hi: np.ndarray, top: np.ndarray, params: CoscoPar
                     dtype=bool).reshape(-1)
 
 
+def _slabs(xy: np.ndarray, labels, members: dict, link: float) -> np.ndarray:
+    """(len(labels),) bool: which pieces are a wall's in plan: longer than a link and thinner than a quarter of one
+    across their main axis (a facade's stretch that the hanging points had joined to the rest), no trunk or post.
+
+    >>> xy = np.r_[np.c_[np.linspace(0, 5, 50), np.zeros(50)], np.c_[np.cos(np.arange(40)), np.sin(np.arange(40))] * 0.2]
+    >>> _slabs(xy, np.array([0, 1]), {0: np.arange(50), 1: np.arange(50, 90)}, 0.6).tolist()
+    [True, False]
+    """
+    out = np.zeros(len(labels), dtype=bool)
+    for k, lab in enumerate(labels):
+        q = xy[members[lab]]
+        if len(q) < 3:
+            continue
+        ev = np.linalg.eigvalsh(np.cov((q - q.mean(0)).T))
+        # a uniform spread of length L has a variance of L^2 / 12
+        out[k] = np.sqrt(12 * max(ev[1], 0.0)) > link and np.sqrt(12 * max(ev[0], 0.0)) < link / 4
+    return out
+
+
 def off_walls(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoParams, voxel: float) -> np.ndarray:
     """A building's wall gives back what only leans on it: a tree whose crown touches the facade behind the pavement
     joined the wall's component, trunk and all, and the tree was lost. In a component larger than a street object
     (its plan box over ``segment.object_max_extent`` across), the points of the plan columns (``segment.column`` m)
     that never come down to ``segment.max_base`` over the ground hang (a wall stands in every column it fills; a
     component that mostly hangs is a building seen from the air, its roof over walls it hides, and is left whole);
-    without them, what stood apart from the wall (a trunk, a post) is a piece of its own. Each hanging piece (patches
+    without them, what stood apart from the wall (a trunk, a post) is a piece of its own, and a stretch of the wall
+    itself (longer than a link and thinner than a quarter of one: :func:`_slabs`) supports nothing. Each hanging piece (patches
     of ``voxel``) no larger than a street object goes to a street object standing under it: on the ground, neither
     car-sized (:func:`.components.car_sized`, its plan box's sides and its top: a crown over a parked car stays off
     it) nor larger than a street object, its plan box overlapping the piece's widened by a link
@@ -199,7 +219,8 @@ def off_walls(p: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: CoscoPar
         s_labels, _, s_members = _members(sp)
         s_lo, s_hi, s_base, s_top, _ = _boxes(p[standing], hag[standing], s_labels, s_members, params)
         inside = np.flatnonzero((np.hypot(*(s_hi - s_lo).T) <= reach) & ~_car_boxes(s_lo, s_hi, s_top, params)
-                                & (s_base <= params.segment.max_base))
+                                & (s_base <= params.segment.max_base)
+                                & ~_slabs(p[standing, :2], s_labels, s_members, link))
         sup_lo = np.r_[lo[outside], s_lo[inside]].reshape(-1, 2)
         sup_hi = np.r_[hi[outside], s_hi[inside]].reshape(-1, 2)
         sup_top = np.r_[top[outside], s_top[inside]]
