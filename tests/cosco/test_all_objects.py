@@ -117,22 +117,27 @@ def test_pieces_of_one_object_joined_and_neighbours_kept_apart():
     assert len(every["pole"]) == 1 and every["pole"][0].height > 8.0
 
 
-def _tree_at_a_facade(seed=0):
+def _crown_at_a_facade(rng, crown_z: float, trunk_top: float) -> dict:
     """A street's pavement seen from a van: a facade 6 m tall and 30 m long along y (its face at x = 8.5), a tree
-    beside it, its trunk at x = 6, its crown 2.6 m round at 5.5 m touching the facade above the ceiling only."""
-    rng = np.random.default_rng(seed)
+    beside it, its trunk at x = 6 up to ``trunk_top``, its crown 2.6 m round at ``crown_z`` cut by the facade."""
     u = rng.normal(size=(9000, 3))
-    crown = u / np.linalg.norm(u, axis=1, keepdims=True) * 2.6 * rng.uniform(0.7, 1.0, (9000, 1)) + [6.0, 15.0, 5.5]
+    crown = u / np.linalg.norm(u, axis=1, keepdims=True) * 2.6 * rng.uniform(0.7, 1.0, (9000, 1)) + [6.0, 15.0, crown_z]
     crown[:, 0] = np.minimum(crown[:, 0], 8.45)
-    parts = {
-        "ground": _ground(rng, 40000),
-        "facade": np.c_[rng.normal(8.5, 0.01, 30000), rng.uniform(0, 30, 30000), rng.uniform(0.05, 6.0, 30000)],
-        "tree": np.vstack([np.c_[rng.normal(6.0, 0.12, 800), rng.normal(15.0, 0.12, 800), rng.uniform(0.05, 3.0, 800)],
-                           crown]),
-    }
+    trunk = np.c_[rng.normal(6.0, 0.12, 800), rng.normal(15.0, 0.12, 800), rng.uniform(0.05, trunk_top, 800)]
+    return {"ground": _ground(rng, 40000),
+            "facade": np.c_[rng.normal(8.5, 0.01, 30000), rng.uniform(0, 30, 30000), rng.uniform(0.05, 6.0, 30000)],
+            "tree": np.vstack([trunk, crown])}
+
+
+def _labelled(parts: dict):
     labels = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts.values())])
     pts = np.vstack(list(parts.values()))
     return pts, pts[:, 2].copy(), labels, list(parts)
+
+
+def _tree_at_a_facade(seed=0):
+    """The crown at 5.5 m, touching the facade above the ceiling only."""
+    return _labelled(_crown_at_a_facade(np.random.default_rng(seed), 5.5, 3.0))
 
 
 def test_a_tree_whose_crown_touches_the_facade_is_an_object(monkeypatch):
@@ -153,24 +158,13 @@ def test_a_tree_whose_crown_touches_the_facade_is_an_object(monkeypatch):
 
 
 def _low_crown_at_a_facade(seed=0):
-    """As :func:`_tree_at_a_facade`, but the crown (2.6 m round at 4 m) reaches down to 1.7 m and touches the facade
-    under the ceiling; a balcony hangs from the facade at 3 m, 1.2 m deep, and a car parks under the crown's far
-    side."""
+    """The crown at 4.3 m reaching down to 1.7 m, touching the facade under the ceiling; a balcony hangs from the
+    facade at 3 m, 1.2 m deep, and a car parks under the crown's far side."""
     rng = np.random.default_rng(seed)
-    u = rng.normal(size=(9000, 3))
-    crown = u / np.linalg.norm(u, axis=1, keepdims=True) * 2.6 * rng.uniform(0.7, 1.0, (9000, 1)) + [6.0, 15.0, 4.3]
-    crown[:, 0] = np.minimum(crown[:, 0], 8.45)
-    parts = {
-        "ground": _ground(rng, 40000),
-        "facade": np.c_[rng.normal(8.5, 0.01, 30000), rng.uniform(0, 30, 30000), rng.uniform(0.05, 6.0, 30000)],
-        "balcony": _box(rng, [7.3, 24.0, 3.0], [8.45, 27.0, 3.3], 1500),
-        "tree": np.vstack([np.c_[rng.normal(6.0, 0.12, 800), rng.normal(15.0, 0.12, 800), rng.uniform(0.05, 1.8, 800)],
-                           crown]),
-        "car": _box(rng, [2.0, 12.0, 0.2], [3.8, 16.5, 1.5], 4000),
-    }
-    labels = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts.values())])
-    pts = np.vstack(list(parts.values()))
-    return pts, pts[:, 2].copy(), labels, list(parts)
+    parts = _crown_at_a_facade(rng, 4.3, 1.8)
+    parts["balcony"] = _box(rng, [7.3, 24.0, 3.0], [8.45, 27.0, 3.3], 1500)
+    parts["car"] = _box(rng, [2.0, 12.0, 0.2], [3.8, 16.5, 1.5], 4000)
+    return _labelled(parts)
 
 
 def test_a_crown_touching_the_facade_under_the_ceiling_leaves_the_wall():
