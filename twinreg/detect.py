@@ -71,7 +71,7 @@ def detect_points(scene: PointSet, params: Settings = DEFAULT, progress=None, ke
     say(progress, "ground")
     if len(local):
         seg = segment_objects(local, hag, params, is_ground=is_ground, on_components=on_components,
-                              from_ground=scene.sweep or scene.origins is not None)
+                              from_ground=scene.from_ground)
     else:  # a tile's margin held points, the part searched for objects none
         seg = Segmentation(np.zeros(0, dtype=np.int64), [], 0, 0)
     t2 = time.perf_counter()
@@ -135,7 +135,8 @@ def describe_detected(det: Detection, params: Settings = DEFAULT, objects=None, 
     lines = det.scene.origins is not None  # a survey from the ground, its points along its profilers' lines
     smooth = scan_smooth(det, params)
     shapes = [cosco.describe_object(c, params, ground_z=object_ground(det, o), seen=object_seen(det, o, params),
-                                    lines=lines, smooth=smooth, side=det.scene.sweep) for o, c in zip(objects, clouds)]
+                                    lines=lines, smooth=smooth, side=det.scene.from_ground)
+              for o, c in zip(objects, clouds)]
     classes = det.scene.classes  # None: a scan without classes (the parameter is read only when there are some)
     if classes is None or not params.open_world.scan_classes:
         return shapes

@@ -68,6 +68,12 @@ class PointSet:
                        origins=None if self.origins is None else self.origins[keep])
 
     @property
+    def from_ground(self) -> bool:
+        """Whether the scan was made from the ground (a vehicle's sweep, or a survey with its scanners' positions):
+        each object seen from one side, a wall seen standing."""
+        return self.sweep or self.origins is not None
+
+    @property
     def crs(self) -> str | None:
         return self.crs_info.crs if self.crs_info is not None else None
 
