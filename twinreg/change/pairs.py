@@ -22,8 +22,9 @@ from .footprints import overlap, turn
 class Pairs:
     """k pairs (i in the earlier epoch, j in the later) with their footprint ``iou``, ``displacement`` (m, xy,
     after the alignment), ``turn`` (rad), ``section_m`` (COSCO dissimilarity, NaN where not needed), ``size_z``
-    (the largest size difference in units of :func:`size_sigma`) and ``p_same`` (0-1, how likely the same
-    vehicle)."""
+    (the largest size difference in units of :func:`size_sigma`), ``p_same`` (0-1, how likely the same
+    vehicle) and ``reboxed`` (m): how far apart the two boxes' centres may lie without the object moving, because
+    a box whose heading is no measurement was fit along another axis (:func:`reboxed`)."""
 
     i: np.ndarray
     j: np.ndarray
@@ -33,6 +34,7 @@ class Pairs:
     section_m: np.ndarray
     size_z: np.ndarray
     p_same: np.ndarray
+    reboxed: np.ndarray
 
 
 def size_sigma(a: Epoch, b: Epoch) -> np.ndarray:
@@ -101,6 +103,28 @@ def _no_axis(e: Epoch, idx: np.ndarray, params: Settings) -> np.ndarray:
     return plain & _squat(e, idx, params.change.heading_min_elongation)
 
 
+def reboxed(a: Epoch, b: Epoch, i: np.ndarray, j: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """(k,) how far (m) the centres of the measured boxes of pairs ``i``, ``j`` may lie apart for the boxes' axes
+    alone, where ``free`` says a heading is no measurement of an irregular object (:func:`_no_axis`: no mirror
+    plane, a squat footprint): a box is the extent of the points along its axis, and fit along an axis turned by an
+    angle its centre moves by up to its half diagonal times that angle's sine (an irregular crown's extreme twigs
+    change with the axis). Not for a sparse car: a centrally symmetric object's box keeps its centre on any axis.
+    Boxes are alike every quarter turn; 0 where the heading is a measurement.
+
+    >>> import numpy as np
+    >>> from types import SimpleNamespace as N
+    >>> e = lambda h: N(heading=np.array([h]), measured=np.array([[8.0, 6.0, 6.0]]))
+    >>> reboxed(e(0.0), e(0.1), np.array([0]), np.array([0]), np.array([True])).round(3)
+    array([0.499])
+    >>> bool(reboxed(e(0.0), e(np.pi / 2), np.array([0]), np.array([0]), np.array([True]))[0] < 1e-9)
+    True
+    """
+    if not len(i):
+        return np.zeros(0)
+    half = 0.5 * np.maximum(np.hypot(*a.measured[i, :2].T), np.hypot(*b.measured[j, :2].T))
+    return np.where(free, half * np.sin(turn(a.heading[i], b.heading[j], np.pi / 2)), 0.0)
+
+
 def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAULT,
                  pieces: tuple = (None, None)) -> Pairs:
     """Pair the objects of ``a`` (earlier) and ``b`` (later, offset by ``shift`` (3,) from ``a``). ``pieces``:
@@ -108,7 +132,7 @@ def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAU
     empty = np.zeros(0)
     if not len(a) or not len(b):
         e = np.zeros(0, np.int64)
-        return Pairs(e, e, empty, empty, empty, empty, empty, empty)
+        return Pairs(e, e, empty, empty, empty, empty, empty, empty, empty)
     reach = (a.size[:, :2].max() + b.size[:, :2].max()) / 2 * 1.2
     tree = cKDTree(b.centre[:, :2] - shift[:2])
     near = tree.query_ball_point(a.centre[:, :2], reach)
@@ -149,7 +173,9 @@ def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAU
     t = np.where(~both & ((a.n_points[i] < few) | (b.n_points[j] < few)), 0.0, t)
     # an object with no model and no mirror plane found has the axis of its box, which a squat footprint does not
     # fix: its heading is no measurement either
-    t = np.where(_no_axis(a, i, params) | _no_axis(b, j, params), 0.0, t)
+    no_axis = _no_axis(a, i, params) | _no_axis(b, j, params)
+    t = np.where(no_axis, 0.0, t)
+    moved_box = reboxed(a, b, i, j, no_axis)
     order = np.lexsort((-iou, -np.round(p_same, 2)))
     used_a, used_b, chosen = set(), set(), []
     for k in order:
@@ -158,4 +184,4 @@ def pair_objects(a: Epoch, b: Epoch, shift: np.ndarray, params: Settings = DEFAU
             used_b.add(int(j[k]))
             chosen.append(k)
     c = np.asarray(chosen, dtype=np.int64)
-    return Pairs(i[c], j[c], iou[c], disp[c], t[c], section_m[c], size_z[c], p_same[c])
+    return Pairs(i[c], j[c], iou[c], disp[c], t[c], section_m[c], size_z[c], p_same[c], moved_box[c])

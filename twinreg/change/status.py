@@ -1,7 +1,8 @@
 """The status of every object between two consecutive epochs, with a confidence and a short reason:
 
 - a pair of the same vehicle (:mod:`.pairs`) is ``same`` when its displacement and turn (after the alignment) are
-  within what the two scans' noise and spacing allow, else ``moved``;
+  within what the two scans' noise and spacing allow (and, for a box whose heading is no measurement, what fitting
+  it along another axis moves its centre: :func:`.pairs.reboxed`), else ``moved``;
 - a pair of different vehicles is ``replaced``, unless either object borders a gap in either survey's returns
   (then ``unobserved``: a cut-off object's size says nothing);
 - an earlier object without a pair is ``left`` where the later survey saw the ground over its footprint, and
@@ -135,10 +136,13 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs, params: Se
     for n, (i, j) in enumerate(zip(pairs.i, pairs.j)):
         p, d, t = float(pairs.p_same[n]), float(pairs.displacement[n]), float(pairs.turn[n])
         t_tol = float(turns[n])
+        # a box whose heading is no measurement has its centre only as well as its axis: a tree's box fit 4
+        # degrees apart in two surveys moves 25 cm with the tree in place (van seed 10)
+        d_allow = d_tol + float(pairs.reboxed[n])
         rec = {"from": k, "to": k + 1, "before": _object(a, i), "after": _object(b, j), "displacement_m": round(d, 3),
                "turn_rad": round(t, 4), "same_vehicle": round(p, 3), "section_m": _maybe(pairs.section_m[n]),
                "overlap": round(float(pairs.iou[n]), 3)}
-        margin = max(d / d_tol, t / t_tol)
+        margin = max(d / d_allow, t / t_tol)
         # one model placed front to back in one survey (a van whose ends look alike to a sparse scan): the same
         # footprint turned by half a circle is the same vehicle, with less confidence
         flipped = abs(np.pi - t) < t_tol and pairs.iou[n] > FLIP_OVERLAP and d < 2 * d_tol + 0.2
@@ -147,8 +151,11 @@ def classify(a: Epoch, b: Epoch, k: int, al: Alignment, pairs: Pairs, params: Se
         if p >= 0.5 or flipped and p >= 0.3:
             status = "same" if margin <= 1.0 else "moved"
             conf = p * float(_logistic(6.0 * abs(1.0 - margin)))
-            reason = (f"the same {_noun(a, i)} {'within' if status == 'same' else 'beyond'} {d_tol * 100:.0f} cm "
+            reason = (f"the same {_noun(a, i)} {'within' if status == 'same' else 'beyond'} {d_allow * 100:.0f} cm "
                       f"and {np.degrees(t_tol):.1f} degrees ({d * 100:.0f} cm, {np.degrees(t):.1f} degrees)")
+            if pairs.reboxed[n] > 0.005:
+                reason += (f"; {pairs.reboxed[n] * 100:.0f} cm of that for a box fit along another axis (its heading "
+                           "is no measurement)")
             if flipped:
                 reason += "; its front and back were not told apart in one survey"
         elif whole[n] < WHOLE:

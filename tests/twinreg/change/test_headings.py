@@ -19,9 +19,9 @@ LON = np.array([[u, 1.0] for u in np.linspace(-0.4, 0.4, 9)])
 TRA = np.array([[v, 1.0] for v in np.linspace(-0.3, 0.3, 7)])
 
 
-def _epoch(heading, size, model=None, level="mirror", n_points=2000, measured=None) -> Epoch:
+def _epoch(heading, size, model=None, level="mirror", n_points=2000, measured=None, at=(0.0, 0.0)) -> Epoch:
     size = np.array([size], dtype=np.float64)
-    return Epoch(Path("."), None, None, ["obj1"], np.array([[0.0, 0.0, 0.5]]), np.array([heading]), size,
+    return Epoch(Path("."), None, None, ["obj1"], np.array([[*at, 0.5]]), np.array([heading]), size,
                  np.array([measured], dtype=np.float64) if measured is not None else size.copy(), [model],
                  np.array([1.0 if model else np.nan]), np.array([n_points]), np.zeros((1, 2)), 0.01, 0.02,
                  Record([], [Sections(LON, TRA, 0.1)]), kinds=["unknown"], levels=[level])
@@ -79,3 +79,28 @@ def test_a_placed_model_s_size_runs_along_its_heading():
     for heading in (0.0, 6.283, 3.1416, None):
         car = SimpleNamespace(length=4.6, width=1.8, height=1.5, frame_heading=heading)
         assert placed_size(car) == {"length": 4.6, "width": 1.8, "height": 1.5}
+
+
+def _status(a: Epoch, b: Epoch) -> dict:
+    from twinreg.change.align import Alignment
+    from twinreg.change.status import classify
+
+    return classify(a, b, 0, Alignment(np.zeros(3), None, 0, 0), pair_objects(a, b, np.zeros(3)))[0]
+
+
+def test_a_tree_s_box_fit_along_another_axis_is_no_move():
+    """Van seed 10's oak, in place, as its two twins state it: a crown with no mirror plane, its 8.4 x 6.6 m
+    box fit 3.8 degrees apart in the two surveys, centres 25 cm apart: the same tree (it was called moved at 0.98).
+    The same boxes 60 cm apart, or the same axes 25 cm apart, moved; so is an elongated box (its axis a measurement)
+    25 cm apart however its heading turned."""
+    tree_a = _epoch(1.7617, [8.444, 6.625, 6.147], level="none", n_points=24459)
+    tree_b = _epoch(1.6952, [8.352, 6.549, 6.155], level="none", n_points=24475, at=(-0.203, 0.139))
+    same = _status(tree_a, tree_b)
+    assert same["status"] == "same" and "another axis" in same["reason"], same
+    far = _epoch(1.6952, [8.352, 6.549, 6.155], level="none", n_points=24475, at=(-0.5, 0.35))
+    assert _status(tree_a, far)["status"] == "moved"
+    one_axis = _epoch(1.7617, [8.352, 6.549, 6.155], level="none", n_points=24475, at=(-0.203, 0.139))
+    assert _status(tree_a, one_axis)["status"] == "moved"
+    car_a = _epoch(1.7617, [4.5, 1.8, 1.5], level="none")
+    car_b = _epoch(1.7137, [4.5, 1.8, 1.5], level="none", at=(-0.203, 0.139))
+    assert _status(car_a, car_b)["status"] == "moved"
