@@ -101,8 +101,7 @@ def distance_field(points2d: np.ndarray, cell: float, pad: float, cap: float | N
 
 
 def _field_example(rng) -> tuple:
-    """A section's fine contour, with a duplicate and a point on the grid's first node (the registry's example for
-    :func:`distance_field`)."""
+    """A section's fine contour with a duplicate point (the registry's example for :func:`distance_field`)."""
     u = rng.uniform(-2.2, 2.2, 150)
     pts = np.column_stack([u, 1.2 - 0.25 * (u / 2.2) ** 2 + rng.normal(0, 0.01, 150)])
     return np.r_[pts, pts[:1]], 0.02, 0.9, 0.1

@@ -126,6 +126,34 @@ def test_mirror_distances_agree_with_the_kd_tree(seed):
         assert np.array_equal(got_i, want_i)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_capped_distance_fields_agree_with_the_exact_transform(seed):
+    """A capped field compiled: the exact transform's distances within the cap's margin, to the bit, whatever the
+    points (one, a few on a line, a dense contour, duplicates), the cell and the cap; beyond it both paths hold the
+    same value, over the cap, so that every capped look-up is the full field's."""
+    from cosco.dissimilarity import distance_field
+
+    rng = np.random.default_rng(seed)
+    n = [1, 3, 40, 400, 2, 900][seed]
+    pts = rng.uniform(-2, 2, (n, 2)) * [1.0, 0.3]
+    if seed == 1:
+        pts[:, 1] = 0.5  # on a line
+    pts = np.r_[pts, pts[: n // 3]]  # duplicates
+    cell, cap = [(0.02, 0.1), (0.01, 0.05), (0.02, 0.1), (0.03, 0.2), (0.02, 0.1), (0.02, 0.07)][seed]
+    got = distance_field(pts, cell, 0.9, cap)
+    with kernels.reference_only():
+        want = distance_field(pts, cell, 0.9, cap)
+    assert np.array_equal(got.values, want.values) and got.start == want.start
+    assert np.array_equal(got.origin, want.origin) and got.values.dtype == np.float32
+    full = distance_field(pts, cell, 0.9)  # uncapped: the exact transform on the whole grid
+    i, j = np.meshgrid(np.arange(got.values.shape[0]), np.arange(got.values.shape[1]), indexing="ij")
+    exact = full.values[i + got.start[0], j + got.start[1]]
+    assert np.array_equal(np.minimum(got.values, np.float32(cap)), np.minimum(exact, np.float32(cap)))
+    margin = int(np.ceil(cap / cell)) + 1
+    near = exact <= np.float32(margin * cell)
+    assert np.array_equal(got.values[near], exact[near]) and (got.values[~near] > cap).all()
+
+
 def test_a_huge_plan_keeps_the_kd_tree():
     """An object whose plan grid would hold too many columns gets no index (the caller's KD-tree answers)."""
     pts = np.array([[0.0, 0.0, 0.0], [5000.0, 5000.0, 0.0]])
