@@ -27,6 +27,7 @@ import contextlib
 import importlib
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +37,8 @@ from typing import Callable
 OPTIONS = {"cache": True, "nogil": True, "fastmath": False, "error_model": "numpy"}
 
 _STATE: dict = {}
+#: per thread: whether this thread is the one :func:`preload` started (the kernels are in use there alone)
+_LOCAL = threading.local()
 
 
 @dataclass(frozen=True)
@@ -122,7 +125,7 @@ def in_use() -> bool:
     numba is missing or when ``TWINREG_NO_NUMBA`` says yes (``TWINREG_NO_NUMBA=0`` does not)."""
     if _STATE.get("reference_only") or flag("TWINREG_NO_NUMBA"):
         return False
-    if not (_STATE.get("enabled") or flag("TWINREG_JIT")):
+    if not (_STATE.get("enabled") or getattr(_LOCAL, "preloading", False) or flag("TWINREG_JIT")):
         return False
     return _numba() is not None
 
@@ -192,13 +195,54 @@ def enable(*modules: str, later: tuple = ()) -> float:
     numba alone takes longer than its kernels save on a car park (docs/PERFORMANCE.md). ``later``: the names (or
     their prefixes) of kernels the caller will not call from here on, not loaded now (a scene's ground and
     components, found before): :func:`fast` loads one on its first call all the same."""
+    _import_kernels(modules)
+    waited = settle()  # a preload's thread done (what it loaded is not loaded again)
+    _STATE["enabled"] = True
+    return waited + warm(later)
+
+
+def _import_kernels(modules) -> None:
     import pkgutil
 
     here = sys.modules[__package__]
     for name in [m.name for m in pkgutil.walk_packages(here.__path__, f"{__package__}.")] + list(modules):
         importlib.import_module(name)
-    _STATE["enabled"] = True
-    return warm(later)
+
+
+def preload(*modules: str, later: tuple = ()) -> bool:
+    """Start loading the kernels :func:`enable` would load, on a thread of its own, while this one goes on with the
+    references: a sweep reads its points and finds its ground (numpy's work, much of it without the GIL) while numba
+    loads. Only that thread uses them; :func:`enable` waits for it, then uses them everywhere, from the same point
+    of the run as without a preload (the same answers). Call :func:`settle` before forking where :func:`enable` may
+    not be called. Whether a thread was started (not where numba is off or missing, or already enabled)."""
+    if "preload" in _STATE or _STATE.get("enabled") or _STATE.get("reference_only") or flag("TWINREG_NO_NUMBA"):
+        return False
+    _import_kernels(modules)  # here: the thread imports only numba
+
+    def load() -> None:
+        _LOCAL.preloading = True
+        try:
+            warm(later)
+        except BaseException as exc:  # noqa: BLE001 - enable() warms again in its own thread and says why
+            _STATE["preload_error"] = f"{type(exc).__name__}: {exc}"
+        finally:
+            _LOCAL.preloading = False
+
+    thread = threading.Thread(target=load, name="twinreg-kernels", daemon=True)
+    _STATE["preload"] = thread
+    thread.start()
+    return True
+
+
+def settle() -> float:
+    """Wait for a :func:`preload`'s thread, if one runs (before a fork: a child must not inherit numba's locks
+    held by a thread it does not have); seconds waited."""
+    thread = _STATE.pop("preload", None)
+    if thread is None:
+        return 0.0
+    t = time.perf_counter()
+    thread.join()
+    return time.perf_counter() - t
 
 
 def _warm_all(later: tuple = (), only: str | None = None) -> None:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cosco.arrays import point_spacing
-from cosco.kernels import enable
+from cosco.kernels import enable, preload, settle
 
 from . import KERNEL_MODULES
 from .catalogue.repository import Catalogue
@@ -153,6 +153,10 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
     def placed(scene):  # a scan that the CRS puts elsewhere on Earth is refused before its detection
         located["georef"] = locate(scene_georef(georef, scene), scene.points.min(0), scene.points.max(0),
                                    str(scene_path))
+        if scene.from_ground and len(scene.points) >= params.jit_preload_points:
+            # a street seen from the ground: clutter of a thousand components, whose joins enable the kernels
+            # (many, below); numba loads on a thread meanwhile, the detection goes on with the references
+            preload(*KERNEL_MODULES, later=DETECTED)
 
     def many(n_components: int) -> None:  # a street's clutter: the kernels pay from its joins on (cosco.kernels)
         if n_components >= params.jit_min_components:
@@ -162,6 +166,7 @@ def _build(scene_path, catalogue, georef, out, unit, params, progress, painter, 
                       override_crs=given and georef.override, on_read=placed, trajectory=trajectory,
                       on_components=many)
     georef = located["georef"]
+    settle()  # a preload done before the forks to come, whether or not the kernels are enabled
     timing.update(det.timing_s)
     timing["objects"] -= timing.get("kernels", 0.0)  # loaded during the detection: counted once, as the kernels
     targets = det.objects

@@ -237,7 +237,10 @@ class Settings(CoscoParams):
     ``jit_min_objects``, the scene size from which the compiled kernels pay for numba's import and loading (a city:
     always; 50: a 99-object street sweep gains 1.3-1.7 s for 0.6-0.7 s of loading, a 12-car park would lose), or
     already once the detection counts ``jit_min_components`` components (a street sweep's clutter: 1,000-2,100
-    in KITTI's and nuScenes' sweeps, 28 in a car park of 12 cars), so that its joins and cuts run compiled too."""
+    in KITTI's and nuScenes' sweeps, 28 in a car park of 12 cars), so that its joins and cuts run compiled too; a
+    scan from the ground of ``jit_preload_points`` points or more (KITTI's and nuScenes' whole sweeps: 35k-124k,
+    their camera crops 17-19k) starts loading them on a thread as soon as it is read (:func:`cosco.kernels.preload`),
+    to be enabled at the same point of the run."""
 
     matching: MatchingParams = MatchingParams()
     kinds: KindParams = KindParams()
@@ -247,6 +250,7 @@ class Settings(CoscoParams):
     min_confidence: float = 0.3
     jit_min_objects: int = 50
     jit_min_components: int = 500
+    jit_preload_points: int = 30_000
 
     def with_(self, **changes):
         """A copy with some values changed (:func:`cosco.params.with_groups`).

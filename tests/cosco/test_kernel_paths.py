@@ -111,3 +111,41 @@ def test_kernels_left_for_later_load_on_their_first_call(monkeypatch):
     with kernels.reference_only():
         reference = remove_ground(kept)
     assert np.array_equal(compiled[0], reference[0]) and np.array_equal(compiled[1], reference[1])
+
+
+def test_a_preload_loads_on_its_thread_and_enable_takes_them_from_there(monkeypatch):
+    """``preload`` (build-twin on a sweep, as soon as it is read) loads the kernels on a thread while this one goes
+    on with the references; ``enable`` at the components waits for it and warms nothing twice, and the objects are
+    the references'."""
+    from cosco import kernels
+    from twinreg import KERNEL_MODULES
+    from twinreg.pipeline import DETECTED
+
+    monkeypatch.setattr(kernels, "_STATE", {})
+    monkeypatch.delenv("TWINREG_JIT", raising=False)
+    monkeypatch.delenv("TWINREG_NO_NUMBA", raising=False)
+    if kernels._numba() is None:
+        pytest.skip("numba is not installed")
+    pts = _scene()
+    kept = pts[~far_outliers(pts)]
+    is_ground, hag, _ = remove_ground(kept)
+    params = DEFAULT.with_(segment={"targets": "all"})
+    reference = segment_objects(kept, hag, params, is_ground=is_ground)
+    assert kernels.preload(*KERNEL_MODULES, later=DETECTED)
+    assert not kernels.preload(*KERNEL_MODULES, later=DETECTED)  # one thread
+    assert not kernels.in_use()  # this thread keeps the references until enable
+    seen = []
+
+    def switch(n: int) -> None:
+        seen.append(kernels.in_use())
+        kernels.enable(*KERNEL_MODULES, later=DETECTED)
+
+    switched = segment_objects(kept, hag, params, is_ground=is_ground, on_components=switch)
+    assert seen == [False] and kernels.in_use() and "preload" not in kernels._STATE
+    assert "preload_error" not in kernels._STATE
+    names = {k.name for k in kernels.kernels()}
+    later = {n for n in names if n.startswith(DETECTED)}
+    assert names - later <= kernels._STATE["warmed"]
+    assert [o.indices.tolist() for o in switched.objects] == [o.indices.tolist() for o in reference.objects]
+    assert not kernels.preload(*KERNEL_MODULES)  # enabled: nothing to start
+    assert kernels.settle() == 0.0
