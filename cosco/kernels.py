@@ -13,7 +13,8 @@ Compiled code is cached (``cache=True``) in the user's cache folder (``$XDG_CACH
 other user can write to it (:mod:`cosco._cache`: a cache file is a pickle, and loading it runs code); otherwise in a
 private temporary folder. :func:`enable` compiles them all once (a fresh install's first run, a few seconds; then a
 read of the cache, about half a second, numba's import): the city engine calls it before its Dask workers start, so
-that no two workers write one cache at once, and a scene's run when it holds many objects. Importing this module
+that no two workers write one cache at once, and a scene's run when it holds many objects; a sweep's run starts that
+loading on a thread as soon as its points are read (:func:`preload`), and :func:`enable` then waits for it. Importing this module
 imports neither numba nor any kernel: a command that does not enable them starts as fast and gives the same
 answers, from the references.
 
