@@ -14,9 +14,9 @@ other user can write to it (:mod:`cosco._cache`: a cache file is a pickle, and l
 private temporary folder. :func:`enable` compiles them all once (a fresh install's first run, a few seconds; then a
 read of the cache, about half a second, numba's import): the city engine calls it before its Dask workers start, so
 that no two workers write one cache at once, and a scene's run when it holds many objects; a sweep's run starts that
-loading on a thread as soon as its points are read (:func:`preload`), and :func:`enable` then waits for it. Importing this module
-imports neither numba nor any kernel: a command that does not enable them starts as fast and gives the same
-answers, from the references.
+loading on a thread as soon as its points are read (:func:`preload`), and :func:`enable` then waits for it.
+Importing this module imports neither numba nor any kernel: a command that does not enable them starts as fast and
+gives the same answers, from the references.
 
     >>> cache_dir().parts[-2:]
     ('twinreg', 'numba')
@@ -224,7 +224,7 @@ def preload(*modules: str, later: tuple = ()) -> bool:
         _LOCAL.preloading = True
         try:
             warm(later)
-        except BaseException as exc:  # noqa: BLE001 - enable() warms again in its own thread and says why
+        except BaseException as exc:  # noqa: BLE001 - enable() then warms what is missing in its own thread
             _STATE["preload_error"] = f"{type(exc).__name__}: {exc}"
         finally:
             _LOCAL.preloading = False
