@@ -169,10 +169,16 @@ class SectionPair:
             d, _ = self.trees[key].query(pts, distance_upper_bound=cap)
         else:
             if key not in self._bounded:
-                fine = self.trees[key].data
-                self._bounded[key] = BoundedTree(np.c_[fine, np.zeros(len(fine))])
-            d, _ = self._bounded[key].query(np.c_[pts, np.zeros(len(pts))], distance_upper_bound=cap)
+                self._bounded[key] = BoundedTree(_flat(self.trees[key].data))
+            d, _ = self._bounded[key].query(_flat(pts), distance_upper_bound=cap)
         return np.minimum(d, cap)
+
+
+def _flat(xy: np.ndarray) -> np.ndarray:
+    """(n, 3) the (n, 2) points ``xy`` at z = 0."""
+    out = np.zeros((len(xy), 3))
+    out[:, :2] = xy
+    return out
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,10 @@ from .kernels import fast, kernel
 
 #: an index whose grid would hold more voxels than this is not built: the KD-tree answers
 MAX_CELLS = 4_000_000
+#: a bounded tree's voxels hold about this many of its points where any (:meth:`GridIndex.finer`)
+POINTS_PER_CELL = 3.0
+#: its voxels are at most this many times finer than its bound
+FINEST = 4
 
 
 @kernel(entry="bounded_nearest", example="_example", tolerance=1e-12)
@@ -134,41 +138,119 @@ def _share_near_fast(points, grid_pts, starts, lo, shape, cell, bound):
 
 @kernel(entry="bounded_nearest", example="_example", tolerance=1e-12)
 def _nearest_within_fast(points, grid_pts, order, starts, lo, shape, cell, bound):
-    """(n,) distances and rows (into the points :func:`_grid_build_fast` indexed) of each point's nearest indexed point
-    nearer than ``bound`` (<= ``cell``): inf and the point count where none is (a KD-tree's bounded query)."""
+    """(n,) distances and rows (into the points :func:`_grid_build_fast` indexed on voxels of ``cell`` m) of each
+    point's nearest indexed point nearer than ``bound``: inf and the point count where none is (a KD-tree's bounded
+    query): on a grid as fine as the bound, from the 27 voxels around the point's own; on a finer one, by
+    :func:`ring_nearest`."""
     n = points.shape[0]
     m = grid_pts.shape[0]
     dist = np.empty(n)
     rows = np.empty(n, dtype=np.int64)
-    b2 = bound * bound
+    if cell >= bound:  # the 27 voxels around each point's own hold all its neighbours
+        b2 = bound * bound
+        for p in range(n):
+            _nearest_into(dist, rows, p, points[p, 0], points[p, 1], points[p, 2], grid_pts, order, starts, lo, shape,
+                          cell, b2, m)
+        return dist, rows
     for p in range(n):
-        x, y, z = points[p, 0], points[p, 1], points[p, 2]
-        _nearest_into(dist, rows, p, x, y, z, grid_pts, order, starts, lo, shape, cell, b2, m)
+        best, arg = ring_nearest(grid_pts, starts, lo, shape, cell, bound, points[p, 0], points[p, 1], points[p, 2])
+        if arg >= 0:
+            dist[p] = np.sqrt(best)
+            rows[p] = order[arg]
+        else:
+            dist[p] = np.inf
+            rows[p] = m
     return dist, rows
 
 
-class GridIndex:
-    """The grid of :func:`_grid_build_fast` over (m, 3) ``targets`` with voxels of ``bound`` m: :meth:`of` gives None
-    where the kernels are not in use, there are no targets, the bound is not positive or the grid would hold more
-    than ``max_cells`` voxels (the caller's KD-tree answers then)."""
+@kernel(helper=True)
+def ring_nearest(grid_pts, starts, lo, shape, cell, bound, x, y, z):
+    """(squared distance, sorted row) of the nearest :func:`_grid_build_fast` point (voxels of ``cell`` m) of (x, y,
+    z) nearer than ``bound``; (inf, -1) where none is. The voxels around the point's own are searched ring by ring
+    (a ring: those ``r`` voxels away along some axis) until the nearest found lies nearer than anything beyond the
+    rings searched, or those lie beyond ``bound`` (``ceil(bound / cell)`` rings at most): a grid finer than the
+    bound asks fewer points."""
+    ci = np.int64(np.floor((x - lo[0]) / cell))
+    cj = np.int64(np.floor((y - lo[1]) / cell))
+    ck = np.int64(np.floor((z - lo[2]) / cell))
+    best = np.inf
+    arg = -1
+    for r in range(np.int64(np.ceil(bound / cell)) + 1):
+        for i in range(max(ci - r, 0), min(ci + r + 1, shape[0])):
+            side = i == ci - r or i == ci + r
+            for j in range(max(cj - r, 0), min(cj + r + 1, shape[1])):
+                row = (i * shape[1] + j) * shape[2]
+                whole = side or j == cj - r or j == cj + r  # the ring's whole column along z, else its two ends
+                for end in range(1 if whole or r == 0 else 2):
+                    if whole:
+                        k0, k1 = max(ck - r, 0), min(ck + r + 1, shape[2])
+                    else:
+                        k0 = ck - r if end == 0 else ck + r
+                        k1 = k0 + 1
+                        if k0 < 0 or k0 >= shape[2]:
+                            continue
+                    if k0 >= k1:
+                        continue
+                    for q in range(starts[row + k0], starts[row + k1]):
+                        dx = grid_pts[q, 0] - x
+                        dy = grid_pts[q, 1] - y
+                        dz = grid_pts[q, 2] - z
+                        dd = dx * dx + dy * dy + dz * dz
+                        if dd < best:
+                            best = dd
+                            arg = q
+        # every point not yet asked lies outside the block of rings 0..r: at least this far
+        gap = min(x - (lo[0] + (ci - r) * cell), lo[0] + (ci + r + 1) * cell - x,
+                  y - (lo[1] + (cj - r) * cell), lo[1] + (cj + r + 1) * cell - y,
+                  z - (lo[2] + (ck - r) * cell), lo[2] + (ck + r + 1) * cell - z)
+        if gap >= bound or (gap > 0.0 and best <= gap * gap):
+            break
+    if best < bound * bound:
+        return best, arg
+    return np.inf, -1
 
-    def __init__(self, targets: np.ndarray, bound: float):
+
+class GridIndex:
+    """The grid of :func:`_grid_build_fast` over (m, 3) ``targets`` with voxels of ``cell`` m (default: the bound)
+    for neighbours up to ``bound`` m: :meth:`of` gives None where the kernels are not in use, there are no targets,
+    the bound is not positive or the grid would hold more than ``max_cells`` voxels (the caller's KD-tree answers
+    then)."""
+
+    def __init__(self, targets: np.ndarray, bound: float, cell: float | None = None):
         self.targets, self.bound = targets, float(bound)
-        self.grid, self.order, self.starts, self.lo, self.shape = fast(_grid_build_fast)(targets, self.bound)
+        self.cell = self.bound if cell is None else float(cell)
+        self.grid, self.order, self.starts, self.lo, self.shape = fast(_grid_build_fast)(targets, self.cell)
 
     @classmethod
-    def of(cls, targets: np.ndarray, bound: float, max_cells: int = MAX_CELLS):
+    def of(cls, targets: np.ndarray, bound: float, max_cells: int = MAX_CELLS, cell: float | None = None):
         if fast(_grid_build_fast) is None:
             return None
         tgt = np.ascontiguousarray(targets, dtype=np.float64)
-        if len(tgt) == 0 or not bound > 0 or float(np.prod(np.ptp(tgt, axis=0) / bound + 1)) > max_cells:
+        cell = bound if cell is None else cell
+        if len(tgt) == 0 or not bound > 0 or not cell > 0 or _cells(tgt, cell) > max_cells:
             return None
-        return cls(tgt, bound)
+        return cls(tgt, bound, cell)
+
+    def finer(self, max_cells: int = MAX_CELLS) -> "GridIndex":
+        """This index, or one of the same targets on voxels of a whole fraction of its bound (at most
+        :data:`FINEST`) that hold about :data:`POINTS_PER_CELL` targets each where any does (a surface's count
+        falls with the square of the voxel), for :func:`_nearest_within_fast`'s ring search: a dense model's
+        samples against a wide bound are asked a few voxels rather than all those of 27 wide ones."""
+        occupied = max(int(np.count_nonzero(np.diff(self.starts))), 1)
+        split = int(np.clip(np.rint(np.sqrt(len(self.targets) / occupied / POINTS_PER_CELL)), 1, FINEST))
+        if split == 1 or self.cell != self.bound or _cells(self.targets, self.bound / split) > max_cells:
+            return self
+        return GridIndex(self.targets, self.bound, self.bound / split)
 
     def check(self, bound: float) -> float:
         if bound > self.bound:
             raise ValueError(f"an index of {self.bound} m asked for neighbours up to {bound} m")
         return float(bound)
+
+
+def _cells(targets: np.ndarray, cell: float) -> float:
+    """How many voxels of ``cell`` m a grid over (m, 3) ``targets`` holds."""
+    return float(np.prod(np.ptp(targets, axis=0) / cell + 1))
 
 
 class MirrorIndex:
@@ -238,18 +320,29 @@ class BoundedTree:
             self._tree = cKDTree(self.data)
         return self._tree
 
-    def query(self, points, k: int = 1, distance_upper_bound: float = np.inf):
-        bound = float(distance_upper_bound)
-        if fast(_nearest_within_fast) is None or k != 1 or not np.isfinite(bound) or not bound > 0:
-            return self.tree.query(points, k=k, distance_upper_bound=distance_upper_bound)
+    def index(self, bound: float, compiled: bool | None = None) -> "GridIndex | None":
+        """The compiled grid that answers queries bounded at ``bound`` (built for the first bound asked, finer than
+        it where the points are dense: :meth:`GridIndex.finer`), None where the KD-tree answers (``compiled``:
+        whether the kernels are in use, when the caller knows)."""
+        bound = float(bound)
+        if compiled is None:
+            compiled = fast(_nearest_within_fast) is not None
+        if not compiled or not np.isfinite(bound) or not bound > 0:
+            return None
         if self._bound is None:
             self._bound = bound
             self._index = GridIndex.of(self.data, bound, self.max_cells)
-        if self._index is None or bound > self._bound:
+            if self._index is not None:
+                self._index = self._index.finer(self.max_cells)
+        return self._index if bound <= self._bound else None
+
+    def query(self, points, k: int = 1, distance_upper_bound: float = np.inf):
+        within = fast(_nearest_within_fast)
+        g = self.index(distance_upper_bound, within is not None) if k == 1 else None
+        if g is None:
             return self.tree.query(points, k=k, distance_upper_bound=distance_upper_bound)
-        g = self._index
-        return fast(_nearest_within_fast)(np.ascontiguousarray(points, dtype=np.float64), g.grid, g.order, g.starts,
-                                          g.lo, g.shape, g.bound, bound)
+        return within(np.ascontiguousarray(points, dtype=np.float64), g.grid, g.order, g.starts, g.lo, g.shape, g.cell,
+                      float(distance_upper_bound))
 
 
 def mirror_nearest_numpy(tree, points, phi, rho, bound) -> tuple[np.ndarray, np.ndarray]:
