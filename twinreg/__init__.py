@@ -19,7 +19,7 @@ _API = {
 #: twinreg's modules that hold compiled kernels (:mod:`cosco.kernels` imports cosco's own): imported and warmed
 #: by ``kernels.enable(*KERNEL_MODULES)`` (tests/cosco/test_kernels.py checks that none is missing)
 KERNEL_MODULES = ("twinreg.export.cityjson", "twinreg.export.scan_tiles", "twinreg.export.tiles3d",
-                  "twinreg.shapes.fuse")
+                  "twinreg.matching.refine", "twinreg.shapes.fuse")
 
 __all__ = sorted(_API) + ["__version__"]
 

@@ -482,3 +482,48 @@ def test_plane_searches_are_the_references(dales):
             want = detect_symmetry(pts, DEFAULT)
         assert got.found == want.found and abs(got.pcr - want.pcr) < 1e-9, f.name
         assert abs(got.phi - want.phi) < 1e-9 and abs(got.rho - want.rho) < 1e-9, f.name
+
+
+def _shell(rng, n: int) -> np.ndarray:
+    """A car-sized closed shell's surface samples, denser than a 0.3 m grid's voxels need (a model's samples)."""
+    u = rng.uniform(0.0, 2 * np.pi, n)
+    z = rng.uniform(0.0, 1.4, n)
+    return np.c_[2.2 * np.cos(u) * (1 - 0.2 * z / 1.4), 0.9 * np.sin(u), z]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_dense_bounded_tree_answers_on_finer_voxels_as_the_kd_tree(seed):
+    """A model's samples against the refinement's 0.3 m reach: the grid is finer than the bound (the ring search),
+    and its answers are the KD-tree's, for points on, near and far from the samples and outside the grid."""
+    rng = np.random.default_rng(seed)
+    pts = _shell(rng, 7000)
+    query = np.r_[pts[::9] + rng.normal(0, 0.05, (778, 3)), rng.uniform([-4, -3, -1], [4, 3, 3], (400, 3))]
+    bounded, tree = BoundedTree(pts), cKDTree(pts)
+    for bound in (0.3, 0.12, 0.3 * (1 - 1e-12)):
+        got_d, got_i = bounded.query(query, k=1, distance_upper_bound=bound)
+        want_d, want_i = tree.query(query, k=1, distance_upper_bound=bound)
+        assert np.array_equal(np.isfinite(got_d), np.isfinite(want_d)) and np.array_equal(got_i, want_i)
+        assert np.allclose(got_d[np.isfinite(got_d)], want_d[np.isfinite(want_d)], rtol=0, atol=1e-12)
+    assert bounded.index(0.3).cell < 0.3 / 2 and 0 < np.isfinite(want_d).sum() < len(query)
+
+
+@pytest.mark.parametrize("case", ["turned", "refused", "ground"])
+def test_the_compiled_refinement_is_the_numpy_loops(case, compiled):
+    """A placed model's pose refined (twinreg.matching.refine) on a model's samples: a small turn and shift undone, a
+    turn beyond the bounds refused, a model stood on the object's ground: the compiled loop's correction is the
+    numpy loop's."""
+    from cosco.frames import yaw_pose
+    from twinreg.matching.refine import _refine_fast, refine
+
+    rng = np.random.default_rng(5)
+    model = _shell(rng, 6000)
+    turn, shift, ground, reach = {"turned": (0.03, [0.06, -0.04, 0.02], None, 0.3),
+                                  "refused": (0.5, [0.0, 0.0, 0.0], None, 2.0),
+                                  "ground": (0.01, [0.02, -0.02, 0.08], 0.08, 0.3)}[case]
+    pts = model[::7] @ yaw_pose(turn)[:3, :3].T + shift + rng.normal(0, 0.01, (858, 3))
+    with kernels.reference_only():
+        want = refine(pts, BoundedTree(model), reach, ground=ground)
+    got = refine(pts, BoundedTree(model), reach, ground=ground)
+    assert _refine_fast in compiled["compiled"]
+    assert np.allclose(got, want, rtol=0, atol=1e-9)
+    assert np.allclose(want, np.eye(4)) == (case == "refused")

@@ -7,6 +7,7 @@ import numpy as np
 
 import cosco
 from cosco.footprint import hull_rows
+from cosco.nearest import BoundedTree
 
 from ..catalogue.repository import Catalogue, ModelGeometry
 from ..settings import DEFAULT, Settings
@@ -51,11 +52,11 @@ class ModelCache:
         return self._index
 
     def tree(self, model_id: int):
-        """A cKDTree of the model's sampled points (model frame), for pose refinement."""
+        """The model's sampled points (model frame) as a :class:`cosco.nearest.BoundedTree`, for pose refinement:
+        its bounded nearest look-ups compiled where the kernels are in use, a cKDTree's otherwise (the same
+        answers)."""
         if model_id not in self._trees:
-            from scipy.spatial import cKDTree
-
-            self._trees[model_id] = cKDTree(self.geometry(model_id).points)
+            self._trees[model_id] = BoundedTree(self.geometry(model_id).points)
         return self._trees[model_id]
 
     def top(self, model_id: int) -> np.ndarray:

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from cosco.frames import yaw_pose
+from cosco.kernels import fast, kernel
+from cosco.nearest import BoundedTree, ring_nearest
 
 from ..settings import DEFAULT, Settings
 
@@ -38,7 +40,7 @@ def yaw_fit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
 def refine(points_in_model: np.ndarray, model_tree, reach: float, iterations: int = 6,
            params: Settings = DEFAULT, ground: float | None = None) -> np.ndarray:
     """(4, 4) correction ``c`` in the model's frame: ``c`` applied to the object's points (already in the model's
-    frame) brings them onto the model's sampled points (``model_tree``, a cKDTree). Pairs farther than ``reach``
+    frame) brings them onto the model's sampled points (``model_tree``: a cKDTree, or a :class:`cosco.nearest.BoundedTree`). Pairs farther than ``reach``
     (m) are left out. The identity when the fit does not converge within the bounds
     (``params.matching.refine_max_turn``, ``params.matching.refine_max_shift``).
 
@@ -47,6 +49,13 @@ def refine(points_in_model: np.ndarray, model_tree, reach: float, iterations: in
     one side (a jersey barrier's one sloped face from a van) lets a model slide down its slope and towards the
     scanner and still fit; the ground under it, measured around it, holds the height."""
     q = np.asarray(points_in_model, dtype=np.float64)
+    m = params.matching
+    compiled = fast(_refine_fast)
+    index = model_tree.index(reach, True) if compiled is not None and isinstance(model_tree, BoundedTree) else None
+    if index is not None:  # the same loop compiled, on the tree's grid
+        return compiled(np.ascontiguousarray(q), index.grid, index.starts, index.lo, index.shape, index.cell,
+                        float(reach), int(iterations), ground is not None, 0.0 if ground is None else float(ground),
+                        float(m.refine_max_turn), float(m.refine_max_shift))
     total = np.eye(4)
     if ground is not None:
         total[2, 3] = -float(ground)
@@ -64,6 +73,76 @@ def refine(points_in_model: np.ndarray, model_tree, reach: float, iterations: in
         if np.abs(step[:3, 3]).max() < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-4:
             break
     turn = abs(np.arctan2(total[1, 0], total[0, 0]))
-    if turn > params.matching.refine_max_turn or np.linalg.norm(total[:3, 3]) > params.matching.refine_max_shift:
+    if turn > m.refine_max_turn or np.linalg.norm(total[:3, 3]) > m.refine_max_shift:
+        return np.eye(4)
+    return total
+
+
+def _refine_example(rng) -> tuple:
+    """A car-like shell's samples and a noisy sample of them turned and moved a little (the registry's example for
+    :func:`refine`)."""
+    u = rng.uniform(0.0, 2 * np.pi, 3000)
+    model = np.c_[2.2 * np.cos(u), 0.9 * np.sin(u), rng.uniform(0.0, 1.4, 3000)]
+    pts = model[::6] + rng.normal(0.0, 0.02, (500, 3))
+    pts = pts @ yaw_pose(0.03)[:3, :3].T + [0.06, -0.04, 0.02]
+    return pts, BoundedTree(model), 0.3
+
+
+@kernel(entry="refine", example="_refine_example", tolerance=1e-9)
+def _refine_fast(q, grid_pts, starts, lo, shape, cell, reach, iterations, has_ground, ground, max_turn, max_shift):
+    """:func:`refine` compiled: the same trimmed ICP about the vertical, each point's pair the nearest of the
+    model's samples within ``reach`` on their :func:`cosco.nearest.ring_nearest` grid."""
+    n = q.shape[0]
+    pts = q.copy()
+    total = np.eye(4)
+    if has_ground:
+        total[2, 3] = -ground
+        for p in range(n):
+            pts[p, 2] -= ground
+    src = np.empty((n, 3))
+    dst = np.empty((n, 3))
+    for _ in range(iterations):
+        k = 0
+        for p in range(n):
+            best, arg = ring_nearest(grid_pts, starts, lo, shape, cell, reach, pts[p, 0], pts[p, 1], pts[p, 2])
+            if arg >= 0:
+                for a in range(3):
+                    src[k, a] = pts[p, a]
+                    dst[k, a] = grid_pts[arg, a]
+                k += 1
+        if k < 10:
+            break
+        ms = np.zeros(3)
+        md = np.zeros(3)
+        for p in range(k):
+            for a in range(3):
+                ms[a] += src[p, a]
+                md[a] += dst[p, a]
+        ms /= k
+        md /= k
+        num = 0.0
+        den = 0.0
+        for p in range(k):
+            sx, sy = src[p, 0] - ms[0], src[p, 1] - ms[1]
+            dx, dy = dst[p, 0] - md[0], dst[p, 1] - md[1]
+            num += sx * dy - sy * dx
+            den += sx * dx + sy * dy
+        theta = np.arctan2(num, den)
+        c, s = np.cos(theta), np.sin(theta)
+        step = np.eye(4)
+        step[0, 0], step[0, 1], step[1, 0], step[1, 1] = c, -s, s, c
+        step[0, 3] = md[0] - (c * ms[0] - s * ms[1])
+        step[1, 3] = md[1] - (s * ms[0] + c * ms[1])
+        step[2, 3] = 0.0 if has_ground else md[2] - ms[2]
+        for p in range(n):
+            x, y = pts[p, 0], pts[p, 1]
+            pts[p, 0] = c * x - s * y + step[0, 3]
+            pts[p, 1] = s * x + c * y + step[1, 3]
+            pts[p, 2] += step[2, 3]
+        total = step @ total
+        if max(abs(step[0, 3]), abs(step[1, 3]), abs(step[2, 3])) < 1e-3 and abs(theta) < 1e-4:
+            break
+    turn = abs(np.arctan2(total[1, 0], total[0, 0]))
+    if turn > max_turn or np.sqrt(total[0, 3] ** 2 + total[1, 3] ** 2 + total[2, 3] ** 2) > max_shift:
         return np.eye(4)
     return total
