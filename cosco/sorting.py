@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kernels import fast, kernel
+
 
 def _bits(n: int) -> int:
     return max(int(n).bit_length(), 1)
@@ -69,7 +71,12 @@ def group_medians(keys, values, resolution: float = 1e-6) -> tuple[np.ndarray, n
     lo = float(values.min())
     span = int(np.ceil((float(values.max()) - lo) / resolution)) + 1
     vb = _bits(span)
-    if int(keys.min()) >= 0 and _bits(int(keys.max())) + vb <= 63:
+    top = int(keys.max())
+    packs = int(keys.min()) >= 0 and _bits(top) + vb <= 63
+    compiled = fast(_group_medians_fast)
+    if packs and compiled is not None and top < 4 * len(keys) + (1 << 20):  # keys a counting sort can hold
+        return compiled(keys, values, lo, float(resolution), top + 1)
+    if packs:
         q = values - lo
         q /= resolution
         packed = keys << vb
@@ -84,3 +91,41 @@ def group_medians(keys, values, resolution: float = 1e-6) -> tuple[np.ndarray, n
     starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
     ends = np.r_[starts[1:], len(k)]
     return k[starts], 0.5 * (v[(starts + ends - 1) // 2] + v[(starts + ends) // 2])
+
+
+@kernel(entry="group_medians", example="_medians_example")
+def _group_medians_fast(keys, values, lo, resolution, n_keys):
+    """:func:`group_medians`' packed sort compiled: the values quantised as it does, the keys counted into their
+    groups (``n_keys`` > every key), each group's two middle values found by sorting the group alone."""
+    n = keys.shape[0]
+    counts = np.zeros(n_keys + 1, dtype=np.int64)
+    for p in range(n):
+        counts[keys[p] + 1] += 1
+    distinct = 0
+    for k in range(n_keys):
+        if counts[k + 1] > 0:
+            distinct += 1
+        counts[k + 1] += counts[k]
+    fill = counts[:-1].copy()
+    q = np.empty(n, dtype=np.int64)
+    for p in range(n):
+        q[fill[keys[p]]] = np.int64(np.rint((values[p] - lo) / resolution))
+        fill[keys[p]] += 1
+    out_keys = np.empty(distinct, dtype=np.int64)
+    out = np.empty(distinct)
+    g = 0
+    for k in range(n_keys):
+        a, b = counts[k], counts[k + 1]
+        if b > a:
+            group = np.sort(q[a:b])
+            m = b - a
+            out_keys[g] = k
+            out[g] = 0.5 * ((group[(m - 1) // 2] * resolution + lo) + (group[m // 2] * resolution + lo))
+            g += 1
+    return out_keys, out
+
+
+def _medians_example(rng) -> tuple:
+    """Cells' heights, some cells empty, one of a single point (the registry's example for :func:`group_medians`)."""
+    keys = rng.integers(0, 400, 5000) * 3
+    return np.r_[keys, 1201], np.r_[rng.normal(1.5, 0.3, 5000), 9.0]

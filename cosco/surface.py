@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arrays import column_max, column_min
 from .kernels import fast, kernel
 from .nearest import _grid_build_fast
 from .params import DEFAULT, CoscoParams
@@ -449,8 +450,8 @@ def scan_smoothness(ground: np.ndarray, params: CoscoParams = DEFAULT) -> float 
     if len(g) < sp.rough_min_points:
         return None
     w = float(sp.smooth_window)
-    lo = g[:, :2].min(axis=0)
-    cells = np.floor((g[:, :2].max(axis=0) - lo) / w).astype(np.int64) + 1
+    lo = column_min(g[:, :2])
+    cells = np.floor((column_max(g[:, :2]) - lo) / w).astype(np.int64) + 1
     f = 1  # window squares to a counting cell's side
     while int(-(-cells[0] // f)) * int(-(-cells[1] // f)) > 1 << 20:
         f *= 2
