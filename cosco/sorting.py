@@ -58,7 +58,8 @@ def group_by_key(keys) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def group_medians(keys, values, resolution: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
     """The distinct non-negative integer ``keys`` (sorted) and the median of ``values`` (float) in each group: the
     mean of the two middle values for an even count. Values are sorted as integers of ``resolution`` (their medians
-    are exact to half of it); a range too wide for that falls back to a two-key sort.
+    are exact to half of it); a range too wide for that falls back to a two-key sort. Where the kernels are in use
+    and the keys are few enough to count, :func:`_group_medians_fast` gives the same medians.
 
     >>> k, m = group_medians(np.array([5, 2, 5, 5, 2]), np.array([1.0, 4.0, 3.0, 2.0, 6.0]))
     >>> k.tolist(), np.round(m, 6).tolist()

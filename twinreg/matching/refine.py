@@ -40,8 +40,9 @@ def yaw_fit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
 def refine(points_in_model: np.ndarray, model_tree, reach: float, iterations: int = 6,
            params: Settings = DEFAULT, ground: float | None = None) -> np.ndarray:
     """(4, 4) correction ``c`` in the model's frame: ``c`` applied to the object's points (already in the model's
-    frame) brings them onto the model's sampled points (``model_tree``: a cKDTree, or a :class:`cosco.nearest.BoundedTree`). Pairs farther than ``reach``
-    (m) are left out. The identity when the fit does not converge within the bounds
+    frame) brings them onto the model's sampled points (``model_tree``: a cKDTree, or a
+    :class:`cosco.nearest.BoundedTree`, whose grid the compiled loop :func:`_refine_fast` asks where the kernels are in
+    use). Pairs farther than ``reach`` (m) are left out. The identity when the fit does not converge within the bounds
     (``params.matching.refine_max_turn``, ``params.matching.refine_max_shift``).
 
     ``ground``: the object's ground level in the model's frame (m), to stand the model on: the points are first
@@ -104,7 +105,7 @@ def _refine_fast(q, grid_pts, starts, lo, shape, cell, reach, iterations, has_gr
     for _ in range(iterations):
         k = 0
         for p in range(n):
-            best, arg = ring_nearest(grid_pts, starts, lo, shape, cell, reach, pts[p, 0], pts[p, 1], pts[p, 2])
+            _, arg = ring_nearest(grid_pts, starts, lo, shape, cell, reach, pts[p, 0], pts[p, 1], pts[p, 2])
             if arg >= 0:
                 for a in range(3):
                     src[k, a] = pts[p, a]
