@@ -123,12 +123,37 @@ def trusted_cache_dir() -> Path:
 def in_use() -> bool:
     """Whether the compiled kernels answer in this process: after :func:`enable`, or when ``TWINREG_JIT`` says yes
     (a parent that enabled them sets it for the workers it starts); never inside :func:`reference_only`, where
-    numba is missing or when ``TWINREG_NO_NUMBA`` says yes (``TWINREG_NO_NUMBA=0`` does not)."""
-    if _STATE.get("reference_only") or flag("TWINREG_NO_NUMBA"):
+    numba is missing or when ``TWINREG_NO_NUMBA`` says yes (``TWINREG_NO_NUMBA=0`` does not). Asked before every
+    kernel call (a city asks it millions of times): the two variables are read as :func:`_said` reads them."""
+    if _STATE.get("reference_only") or _said("TWINREG_NO_NUMBA"):
         return False
-    if not (_STATE.get("enabled") or getattr(_LOCAL, "preloading", False) or flag("TWINREG_JIT")):
+    if not (_STATE.get("enabled") or getattr(_LOCAL, "preloading", False) or _said("TWINREG_JIT")):
         return False
     return _numba() is not None
+
+
+#: per variable: its key in the environment's own store; per raw value: what :func:`flag` makes of it
+_ENV_KEYS: dict = {}
+_SAYS: dict = {}
+
+
+def _said(name: str) -> bool:
+    """:func:`flag` read from the environment's store (``os.environ._data``, which ``os.environ`` itself keeps up to
+    date) without the mapping's encoding of the name and decoding of the value at each call; ``flag`` itself where
+    there is no such store."""
+    data = getattr(os.environ, "_data", None)
+    if not isinstance(data, dict):
+        return flag(name)
+    key = _ENV_KEYS.get(name)
+    if key is None:
+        key = _ENV_KEYS[name] = os.environ.encodekey(name)
+    raw = data.get(key)
+    if raw is None:
+        return False
+    says = _SAYS.get(raw)
+    if says is None:
+        says = _SAYS[raw] = os.environ.decodevalue(raw).strip().lower() not in ("", "0", "false", "no", "off")
+    return says
 
 
 def _numba():
@@ -164,6 +189,9 @@ def fast(fn: Callable):
     chooses between a kernel and its reference."""
     if not in_use():
         return None
+    got = _STATE.get("compiled", {}).get(fn)
+    if got is not None:  # loaded before (a warm that drops a cache empties the table)
+        return got
     name = f"{fn.__module__}.{fn.__name__}"
     if name not in _KERNELS:
         raise KeyError(f"{name} is not a registered kernel")

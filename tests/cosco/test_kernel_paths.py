@@ -149,3 +149,22 @@ def test_a_preload_loads_on_its_thread_and_enable_takes_them_from_there(monkeypa
     assert [o.indices.tolist() for o in switched.objects] == [o.indices.tolist() for o in reference.objects]
     assert not kernels.preload(*KERNEL_MODULES)  # enabled: nothing to start
     assert kernels.settle() == 0.0
+
+
+@pytest.mark.parametrize("value", [None, "", "0", "1", " Yes ", "off", "FALSE", "no", "2"])
+def test_the_switches_are_read_as_flag_reads_them_and_followed_at_once(value, monkeypatch):
+    """``in_use`` reads TWINREG_NO_NUMBA and TWINREG_JIT from the environment's own store (cosco.kernels._said, at
+    every kernel call): what it makes of each value is :func:`cosco.kernels.flag`'s, and a change of the variable
+    counts from the next call."""
+    from cosco import kernels
+
+    for name in ("TWINREG_JIT", "TWINREG_NO_NUMBA"):
+        if value is None:
+            monkeypatch.delenv(name, raising=False)
+        else:
+            monkeypatch.setenv(name, value)
+        assert kernels._said(name) == kernels.flag(name)
+        monkeypatch.setenv(name, "1")
+        assert kernels._said(name)
+        monkeypatch.delenv(name)
+        assert not kernels._said(name)
