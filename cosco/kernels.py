@@ -98,7 +98,12 @@ def flag(name: str) -> bool:
     >>> os.environ["TWINREG_X"] = "0"; flag("TWINREG_X"), flag("TWINREG_Y")
     (False, False)
     """
-    return os.environ.get(name, "").strip().lower() not in ("", "0", "false", "no", "off")
+    return _yes(os.environ.get(name, ""))
+
+
+def _yes(text: str) -> bool:
+    """Whether a switch's value says yes: set, and not ``0``, ``false``, ``no``, ``off`` or empty."""
+    return text.strip().lower() not in ("", "0", "false", "no", "off")
 
 
 def cache_dir() -> Path:
@@ -152,7 +157,7 @@ def _said(name: str) -> bool:
         return False
     says = _SAYS.get(raw)
     if says is None:
-        says = _SAYS[raw] = os.environ.decodevalue(raw).strip().lower() not in ("", "0", "false", "no", "off")
+        says = _SAYS[raw] = _yes(os.environ.decodevalue(raw))
     return says
 
 
