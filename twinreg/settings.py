@@ -50,7 +50,8 @@ class MatchingParams:
     A type's work done once (issue 51): a cluster's leader is decided in full; where its model also scored lowest,
     its members (``type_reuse``) are decided among its contenders alone (its model and
     the models, and its other end, that came within ``refine_sigma`` noise units of it), registered, refined and
-    scored on their points, without screening. A
+    scored on their points, without screening (where the leader was explained cleanly, each refined pose on at
+    most ``type_judged_points`` of them, none among those its refinement fitted; 0: every judged point). A
     member that keeps the leader's model, scoring no more than ``type_slack`` noise units behind its leader and
     explaining it as a copy of its design as closely as its leader (its fit factor times its design factor within
     ``type_fit_slack`` of the leader's: no worse than a clean leader's, neither worse nor better than a loose
@@ -92,6 +93,7 @@ class MatchingParams:
     type_reuse: bool = True  # members decided among their leader's contenders first
     type_slack: float = 2.0  # noise units a member may score behind its leader
     type_fit_slack: float = 0.1  # fit and design factor a member may lose against its leader
+    type_judged_points: int = 500  # points a member's refined poses are scored on (0: all of accept_max_points)
 
 
 @dataclass(frozen=True)

@@ -417,8 +417,11 @@ class _Matcher:
         try:
             noise = ev.noise_of(i)
             shape = self.shapes[i]
+            # a clean leader's members are judged on fewer points; a loose leader sits on the design test's ramp,
+            # where a member's copy factor must be measured as closely as its leader's was
             scorer = _Scorer(shape, self.cache, ev.clouds[i], noise, self.spacings[i], self.params,
-                             ev.seen[i] if ev.seen is not None else None)
+                             ev.seen[i] if ev.seen is not None else None,
+                             judged=p.type_judged_points if rec["copy"] >= 1.0 else 0)
             found_e = [scorer.placed_refined(c.reg, c.model_id) for c in regs]
             if rec["ends"] <= p.refine_sigma:  # the winner end for end: its leader's other end came as close
                 turned = scorer.placed_refined(_turned(regs[0].reg), mid)
@@ -517,8 +520,10 @@ class _Scorer:
     judged (the same sample whether the cloud is all of the object's points, a scene, or already its sample, a city
     cell) and their KD-tree, the object's measured size, the scan's noise and spacing."""
 
-    def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: Settings, seen=None):
+    def __init__(self, shape, cache: ModelCache, cloud, noise, spacing, params: Settings, seen=None,
+                 judged: int = 0):
         self.shape, self.cache, self.noise, self.spacing, self.params = shape, cache, noise, spacing, params
+        self.judged = judged  # >0: refined poses scored on that many points apart from the refinement's
         self.seen = seen  # where the object's scanners could see (the cloud's frame), None: everywhere
         self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.matching.accept_max_points)
         # the evidence's bounded look-ups compiled where numba is in use (cosco.kernels), else the KD-tree's
@@ -583,9 +588,32 @@ class _Scorer:
         if surface is not None and surface.along_lines and sink + c[2, 3] > sink_limit:
             c = refine(q, self.cache.tree(mid), self.params.matching.refine_reach, params=self.params,
                        ground=sink)
-        e = self.scored(reg, mid, m @ np.linalg.inv(c), in_model @ c[:3, :3].T + c[:3, 3])
+        judged = held_out(in_model, self.params.matching.refine_max_points, self.judged)
+        e = self.scored(reg, mid, m @ np.linalg.inv(c), judged @ c[:3, :3].T + c[:3, 3])
         e.extra["refined"] = True
         return e
+
+
+def held_out(points: np.ndarray, refined: int, judged: int) -> np.ndarray:
+    """The points a refined pose is scored on: all ``points`` where ``judged`` is 0 or the refinement used every
+    one of them (no more than ``refined``), else at most ``judged`` of those the refinement did not use
+    (:func:`~twinreg.matching.acceptance.sample_cloud`'s stride: a pose is not judged on the points it was fitted
+    to), at a regular stride: of an object's ``matching.accept_max_points`` at most, at least a third.
+
+    >>> p = np.arange(1500.0)[:, None] * np.ones(3)
+    >>> q = held_out(p, 500, 500)
+    >>> len(q), bool(np.isin(q[:, 0], sample_cloud(p, 500)[:, 0]).any())
+    (500, False)
+    >>> len(held_out(p, 500, 0)), len(held_out(p[:400], 500, 500)), len(held_out(p[:900], 500, 500))
+    (1500, 400, 450)
+    """
+    n = len(points)
+    if judged <= 0 or n <= refined:
+        return points
+    keep = np.ones(n, dtype=bool)
+    keep[::int(np.ceil(n / refined))] = False
+    rest = np.flatnonzero(keep)
+    return points[rest[::int(np.ceil(len(rest) / judged))]]
 
 
 def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Settings, seen=None, obj_pair=None):

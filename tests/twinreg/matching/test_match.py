@@ -128,14 +128,79 @@ def test_a_types_members_are_decided_among_their_leaders_contenders_and_one_that
         assert b.match.runner_up is None or b.match.runner_up["name"] != b.match.name
 
 
+def test_a_types_members_are_judged_on_points_their_refinement_did_not_use(parametric_catalogue, monkeypatch):
+    """Issue 51: a member decided as its type scores each refined pose on at most ``matching.type_judged_points`` of
+    its points, none of them one its refinement fitted (a leader, decided in full, on all of its judged points);
+    the models are those of judging every point (``type_judged_points`` 0), the confidences within 0.02."""
+    import twinreg.matching.match as match_module
+    from twinreg.matching import match_objects
+    from twinreg.matching.match import Evidence
+
+    names = ["demo_sedan"] * 4
+    shapes, clouds, noise = _row_of_cars(parametric_catalogue, names, turn=lambda x: 0.3 + x / 30, seed=5)
+    assert min(len(c) for c in clouds) > 1000  # enough points for the judged ones to be fewer
+    labels = np.zeros(len(shapes), dtype=int)
+    judged, held, original, original_held = [], [], match_module.evidence, match_module.held_out
+
+    def counted(model_id, rmse, distances, *args, **kwargs):
+        judged.append(len(distances))
+        return original(model_id, rmse, distances, *args, **kwargs)
+
+    def recorded(points, refined, cap):
+        out = original_held(points, refined, cap)
+        held.append((len(points), len(out), cap))
+        return out
+
+    monkeypatch.setattr(match_module, "evidence", counted)
+    monkeypatch.setattr(match_module, "held_out", recorded)
+    every, _ = match_objects(shapes, parametric_catalogue, labels=labels, evidence=Evidence(clouds, noise),
+                             params=DEFAULT.with_(matching={"type_judged_points": 0}))
+    n_every, judged[:], held[:] = list(judged), [], []
+    typed, stats = match_objects(shapes, parametric_catalogue, labels=labels, evidence=Evidence(clouds, noise))
+    assert stats.n_type_decided == 3 and [r.match.decided_by for r in typed] == ["object", "type", "type", "type"]
+    cap = DEFAULT.matching.type_judged_points
+    members = [(n, k) for n, k, c in held if c > 0]  # the members' refined poses; the leader's judged in full
+    assert len(members) >= 3 and all(k <= cap and k < n for n, k in members)
+    assert all(n == k for n, k, c in held if c == 0) and any(c == 0 for _, _, c in held)
+    assert sum(judged) < sum(n_every) - 3 * 400
+    assert [r.match.name for r in typed] == [r.match.name for r in every] == names
+    for a, b in zip(every, typed):
+        assert np.allclose(a.match.transform, b.match.transform, atol=1e-9)  # the same refined pose
+        assert abs(a.match.confidence - b.match.confidence) <= 0.02
+
+
+def test_held_out_points_are_not_the_refinements():
+    """The points a member is judged on lie apart from the refinement's sample, whatever the object's size."""
+    from twinreg.matching.acceptance import sample_cloud
+    from twinreg.matching.match import held_out
+
+    for n in (501, 700, 999, 1000, 1001, 1499, 1500, 2400):
+        p = np.arange(float(n))[:, None] * np.ones(3)
+        q = held_out(p, 500, 500)
+        assert min(n // 3, 400) <= len(q) <= 500  # a third of an object's 1,500 judged points at least
+        assert not np.isin(q[:, 0], sample_cloud(p, 500)[:, 0]).any()
+        assert len(np.unique(q[:, 0])) == len(q)
+
+
 def test_a_type_of_an_uncatalogued_design_is_decided_as_loosely_as_its_leader(parametric_catalogue,
-                                                                              parametric_objs, tmp_path):
+                                                                              parametric_objs, tmp_path,
+                                                                              monkeypatch):
     """Issue 51: copies of a design the catalogue lacks are explained only loosely by its nearest model (a design
     factor under 1); their type's members are decided among the leader's contenders, each with its own confidence,
-    and get the models and confidences of deciding each in full, with fewer registrations."""
+    judged on every point (their copy factor on the design test's ramp), and get the models and confidences of
+    deciding each in full, with fewer registrations."""
+    import twinreg.matching.match as match_module
     from twinreg.catalogue.repository import Catalogue
     from twinreg.matching import match_objects
     from twinreg.matching.match import Evidence
+
+    caps, original_held = [], match_module.held_out
+
+    def recorded(points, refined, cap):
+        caps.append(cap)
+        return original_held(points, refined, cap)
+
+    monkeypatch.setattr(match_module, "held_out", recorded)
 
     names = ["demo_sedan"] * 4
     shapes, clouds, noise = _row_of_cars(parametric_catalogue, names, turn=lambda x: 0.3 + x / 40, seed=7)
@@ -151,6 +216,7 @@ def test_a_type_of_an_uncatalogued_design_is_decided_as_loosely_as_its_leader(pa
     assert leader is not None and leader["copy"] < 1.0  # the nearest model explains the leader only loosely
     assert [r.match.name for r in typed] == [r.match.name for r in full]
     assert "type" in [r.match.decided_by for r in typed[1:]] and stats.n_trials < full_stats.n_trials
+    assert caps and set(caps) == {0}  # every member judged on every point
     for a, b in zip(full, typed):
         assert abs(a.match.confidence - b.match.confidence) <= 0.02
         assert a.match.confidence < 0.9  # none claimed as the design
