@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import Row, machine  # noqa: E402
+from common import Row, machine, tree_memory  # noqa: E402
 
 #: streets every 36 m; points per km2 and cars per km2 of that city at --density 150 (measured on 0.56 km2)
 STREETS = 36.0
@@ -33,27 +33,40 @@ CARS_PER_KM2 = 7_500
 
 
 def run_tree(cmd: list[str]) -> tuple[float, int, str]:
-    """Wall time (s), peak summed RSS (bytes) of the process and all its descendants, and stdout."""
+    """Wall time (s), peak summed RSS (bytes) of the process and all its descendants (every 0.1 s), and stdout; the
+    peak summed PSS (once a second: what the tree really holds, a page its forked children share with it counted
+    once) is kept in :data:`PSS_PEAK`."""
     import psutil
 
     t = time.perf_counter()
     sink = tempfile.TemporaryFile(mode="w+")  # a pipe would fill up and stall the command
     p = subprocess.Popen(cmd, stdout=sink, stderr=subprocess.DEVNULL, text=True)
     proc = psutil.Process(p.pid)
-    peak = 0
+    peak, pss_peak, last = 0, 0, -1.0
     while p.poll() is None:
         try:
-            rss = proc.memory_info().rss + sum(c.memory_info().rss for c in proc.children(recursive=True))
+            tree = [proc, *proc.children(recursive=True)]
+            if time.perf_counter() - last >= 1.0:
+                last = time.perf_counter()
+                rss, pss, _ = tree_memory(tree)
+                pss_peak = max(pss_peak, pss)
+            else:
+                rss = sum(c.memory_info().rss for c in tree)
             peak = max(peak, rss)
         except psutil.Error:
             pass
         time.sleep(0.1)
     secs = time.perf_counter() - t
+    PSS_PEAK[0] = pss_peak
     sink.seek(0)
     out = sink.read()
     if p.returncode:
         raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode})")
     return secs, peak, out
+
+
+#: the last :func:`run_tree`'s peak summed PSS (bytes)
+PSS_PEAK = [0]
 
 
 def catalogue16(folder: Path):

@@ -2,8 +2,10 @@
 tree with a 2.2 m crown, a 6 m lamp post, a 2 m kiosk) scanned at 150 pts/m2 and copied G x G times, each copy
 turned by a multiple of 90 degrees and stepped 1.5-2 cm in height from its neighbours, in LAZ tiles of 7 x 7 copies
 (EPSG:2157 in their headers); then build-twin on the tiles, timed from outside with the whole process tree's peak
-memory, and the twin checked against the truth (every car found once, its model) and, with ``--against``, against
-another run's twin.json (model, pose within 1 cm, confidence within 0.01).
+memory (``peak_gib``: its resident sets summed, a page shared with a forked child counted in each;
+``peak_pss_gib``: its proportional sets summed, each page once), and the twin checked against the truth (every car
+found once, its model) and, with ``--against``, against another run's twin.json (model, pose within 1 cm,
+confidence within 0.01).
 
     python bench/bench_copied_city.py make DIR [--copies 28]         # 28: 784 copies, about 100M points, 16 tiles
     python bench/bench_copied_city.py run DIR OUT [--against OTHER/twin.json] [--tiles N]
@@ -147,7 +149,7 @@ def main() -> None:
     if args.cmd == "make":
         print(json.dumps(make(args.folder, args.copies, args.seed), indent=1))
         return
-    from bench_city import build
+    from bench_city import PSS_PEAK, build
 
     tiles = sorted(str(p) for p in (args.folder / "tiles").glob("*.laz"))
     if args.tiles:
@@ -156,6 +158,7 @@ def main() -> None:
     secs, peak, doc = build(args.folder / "cat16", tiles, args.out)
     twin = json.loads((args.out / "twin.json").read_text())
     res = {"tiles": len(tiles), "wall_s": round(secs, 1), "peak_gib": round(peak / 2**30, 2),
+           "peak_pss_gib": round(PSS_PEAK[0] / 2**30, 2),
            "timing_s": {k: round(v, 1) for k, v in twin.get("timing_s", {}).items() if isinstance(v, (int, float))},
            **score(twin, json.loads((args.folder / "truth.json").read_text()), tiles if args.tiles else None)}
     if args.against:

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import machine  # noqa: E402
+from common import machine, tree_memory  # noqa: E402
 
 #: LAS header: x, y, z offsets (3 doubles) at byte 131 + 24; max x, min x, max y, min y, max z, min z right after
 _OFFSETS_AT = 155
@@ -73,24 +73,6 @@ def _cells_done(out: Path) -> int:
     return len(list((out / ".cells").glob("*.npz"))) if (out / ".cells").is_dir() else 0
 
 
-def _tree_memory(tree: list) -> tuple[int, int, int]:
-    """(summed RSS, summed PSS, the first process's RSS) bytes of a process tree. The RSS sum counts a page
-    shared by a forked child and its parent (or by the workers' common libraries) once a process; the PSS sum
-    counts it once, split between its sharers: the tree's actual use."""
-    import psutil
-
-    rss = pss = first = 0
-    for k, c in enumerate(tree):
-        try:
-            m = c.memory_full_info()
-        except psutil.Error:
-            continue
-        rss += m.rss
-        pss += getattr(m, "pss", m.rss)
-        first = m.rss if k == 0 else first
-    return rss, pss, first
-
-
 def run_killed(cmd: list[str], out: Path, kill_after: int | None, tag: str = "run") -> tuple[float, int, str, bool]:
     """Run ``cmd``; with ``kill_after``, kill its whole process tree once that many cells are stored. Returns
     (wall s, peak summed RSS bytes, stdout, whether it was killed); the peak summed PSS and the memory over time
@@ -107,7 +89,7 @@ def run_killed(cmd: list[str], out: Path, kill_after: int | None, tag: str = "ru
     while p.poll() is None:
         try:
             tree = [proc] + proc.children(recursive=True)
-            rss, pss, main_rss = _tree_memory(tree)
+            rss, pss, main_rss = tree_memory(tree)
             peak, pss_peak = max(peak, rss), max(pss_peak, pss)
             rows.append((round(time.perf_counter() - t, 1), len(tree), rss, pss, main_rss, _last_line(log)))
         except psutil.Error:
