@@ -611,7 +611,7 @@ def held_out(points: np.ndarray, refined: int, judged: int) -> np.ndarray:
     if judged <= 0 or n <= refined:
         return points
     keep = np.ones(n, dtype=bool)
-    keep[::int(np.ceil(n / refined))] = False
+    keep[sample_cloud(np.arange(n), refined)] = False  # the refinement's rows, as it samples them
     rest = np.flatnonzero(keep)
     return points[rest[::int(np.ceil(len(rest) / judged))]]
 
