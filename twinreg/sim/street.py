@@ -58,7 +58,8 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
     """The placed meshes of :func:`street` (scene frame), each one's label (the item's index; -1 the ground, -2 a
     kerb, -3 a facade), the items, and the street's length (m, along +Y). With ``buildings``, the street as a van
     drives it: a road 7 m wide (``wider``: that many metres more, the far side moved away), a second kerb and
-    pavement across it, and facades 6 m tall behind both pavements."""
+    pavement across it, and facades 6 m tall behind both pavements (stepping back behind a street tree whose crown
+    would reach them: :func:`_facade`)."""
     rng = np.random.default_rng(seed)
     meshes, labels, items = [], [], []
 
@@ -97,14 +98,51 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
         meshes.append((box.vertices, box.faces))
         labels.append(-2)
     if buildings:  # facades behind both pavements, following the ground's slope along the street
+        placed = [v for v, lab in zip(meshes, labels) if lab >= 0]
         for x in (8.6, -8.0 - wider):
-            wall = trimesh.creation.box([0.3, top + 2.0, 6.0])
-            wall.apply_translation([x, (top - 2.0) / 2, float(ground_height(x, (top - 2.0) / 2)) + 3.0 - 0.3])
-            meshes.append((wall.vertices, wall.faces))
-            labels.append(-3)
+            for box in _facade(x, top, [v for v, _ in placed] if x > 0 else []):
+                meshes.append((box.vertices, box.faces))
+                labels.append(-3)
     meshes.append(_ground_mesh(-9.0 - wider if buildings else -4.0, 12.0, -3.0, top))
     labels.append(-1)
     return meshes, labels, items, top
+
+
+#: how far (m) a facade stays from any placed model's plan: a tree's crown does not pass through a wall
+FACADE_CLEARANCE = 1.5
+
+
+def _facade(x: float, top: float, placed: list) -> list:
+    """The boxes of a facade 0.3 m thick centred on ``x`` along the street (y from -2 to ``top``), 6 m tall on the
+    ground's slope; where one of the ``placed`` models' vertices (scene frame) reach within
+    :data:`FACADE_CLEARANCE` of its face, the facade steps back behind them (a recess, its two side walls
+    included), as a building stands back behind a street tree."""
+    import trimesh
+
+    def box(x0, x1, y0, y1):
+        b = trimesh.creation.box([x1 - x0, y1 - y0, 6.0])
+        b.apply_translation([(x0 + x1) / 2, (y0 + y1) / 2, float(ground_height((x0 + x1) / 2, (y0 + y1) / 2)) + 2.7])
+        return b
+
+    face = x - 0.15
+    recesses = []
+    for v in placed:
+        v = np.asarray(v)
+        if v[:, 0].max() > face - FACADE_CLEARANCE:
+            recesses.append((float(v[:, 1].min()) - FACADE_CLEARANCE, float(v[:, 1].max()) + FACADE_CLEARANCE,
+                             float(v[:, 0].max()) + FACADE_CLEARANCE))
+    out, y = [], -2.0
+    for y0, y1, back in sorted(recesses):
+        y0, y1 = max(y0, y), min(y1, top)
+        if y1 <= y0:
+            continue
+        if y0 > y:
+            out.append(box(face, face + 0.3, y, y0))
+        out += [box(back, back + 0.3, y0, y1), box(face, back + 0.3, y0 - 0.3, y0), box(face, back + 0.3, y1, y1 + 0.3)]
+        y = y1 + 0.3
+    if y < top:
+        out.append(box(face, face + 0.3, y, top))
+    return out
 
 
 def mobile_street(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, speed: float = 8.0,
