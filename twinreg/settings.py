@@ -57,6 +57,14 @@ class MatchingParams:
     ``type_fit_slack`` of the leader's: no worse than a clean leader's, neither worse nor better than a loose
     one's, an uncatalogued design's nearest), keeps it with a margin at most the leader's to the models beyond its
     contenders less what it lost, and its own confidence; any other member is decided in full, as a leader is.
+
+    A model without symmetry (issue 50: a tree, whose sections give no axis and whose quarter turns miss its
+    heading) is also placed at any heading (refine.py :func:`~twinreg.matching.refine.free_pose`): every
+    ``free_step`` rad and at the object's centre and ``free_offset`` m around it (a crown seen from one side lies
+    off its trunk), each start fitted on a model thinned to ``free_voxel`` m; the ``free_keep`` best refined on
+    the full model. That placement replaces the sections' where it scores lower. It is searched only where the
+    model's height lies within ``free_height_tol`` m of the object's (a street's real trees, of every height, met the
+    oak as their nearest model and cost 0.1 s each).
     """
 
     size_tol: float = 0.20  # m, the window's floor
@@ -94,6 +102,11 @@ class MatchingParams:
     type_slack: float = 2.0  # noise units a member may score behind its leader
     type_fit_slack: float = 0.1  # fit and design factor a member may lose against its leader
     type_judged_points: int = 500  # points a member's refined poses are scored on (0: all of accept_max_points)
+    free_step: float = math.radians(15.0)  # rad between the headings a model without symmetry is tried at
+    free_offset: float = 1.0  # m, its starts around the object's centre
+    free_keep: int = 6  # coarse starts refined in full
+    free_voxel: float = 0.15  # m, the coarse model's voxel
+    free_height_tol: float = 0.5  # m, model and object heights apart at most, for a search at any heading
 
 
 @dataclass(frozen=True)

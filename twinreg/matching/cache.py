@@ -36,6 +36,7 @@ class ModelCache:
         self._surfaces: dict[int, object] = {}
         self._tops: dict[int, np.ndarray] = {}
         self._trees: dict[int, object] = {}
+        self._coarse: dict[int, object] = {}
         self._outlines: dict[int, np.ndarray] = {}
         self._index = None
 
@@ -58,6 +59,22 @@ class ModelCache:
         if model_id not in self._trees:
             self._trees[model_id] = BoundedTree(self.geometry(model_id).points)
         return self._trees[model_id]
+
+    def asymmetric(self, model_id: int) -> bool:
+        """Whether add-model found no symmetry in the model (a tree): its sections give no axis, so it is also
+        placed at any heading (:func:`twinreg.matching.refine.free_pose`). Older rows that never said: False."""
+        return self._rows[model_id].sym_found is False
+
+    def coarse_tree(self, model_id: int):
+        """The model's sampled points thinned to one per ``matching.free_voxel`` m voxel (the first of each, in
+        their order), as a :class:`cosco.nearest.BoundedTree`: the coarse starts of
+        :func:`~twinreg.matching.refine.free_pose`."""
+        if model_id not in self._coarse:
+            p = self.geometry(model_id).points
+            keys = np.floor(p / self.params.matching.free_voxel).astype(np.int64)
+            _, first = np.unique(keys, axis=0, return_index=True)
+            self._coarse[model_id] = BoundedTree(p[np.sort(first)])
+        return self._coarse[model_id]
 
     def top(self, model_id: int) -> np.ndarray:
         """The model's top surface (:func:`twinreg.matching.decision.top_surface` of its sampled points), model

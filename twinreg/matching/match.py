@@ -32,13 +32,14 @@ import cosco
 from cosco.arrays import point_spacing
 from cosco.frames import yaw_pose
 from cosco.nearest import BoundedTree
+from cosco.sections import measure_size
 
 from ..catalogue.repository import Catalogue
 from ..settings import DEFAULT, Settings
 from .acceptance import sample_cloud
 from .cache import ModelCache
 from .decision import confidence_of, copy_factors, decide, evidence
-from .refine import refine
+from .refine import free_pose, refine
 
 
 class Candidate(NamedTuple):
@@ -478,6 +479,8 @@ def _type_decision(result: ObjectMatch, decision, noise, spacing: float, cache: 
     (noise units); ``runner_up``: the first of those beyond, by id and name (None: none)."""
     if decision is None or decision.best is None or result.match is None or result.match.outside_tolerance:
         return None
+    if decision.best.extra.get("free"):  # placed at any heading: its members' sections cannot follow it
+        return None
     best = decision.best
     if decision.scored[0] is not best:
         return None
@@ -525,25 +528,47 @@ class _Scorer:
         self.shape, self.cache, self.noise, self.spacing, self.params = shape, cache, noise, spacing, params
         self.judged = judged  # >0: refined poses scored on that many points apart from the refinement's
         self.seen = seen  # where the object's scanners could see (the cloud's frame), None: everywhere
+        self.cloud = cloud
         self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.matching.accept_max_points)
         # the evidence's bounded look-ups compiled where numba is in use (cosco.kernels), else the KD-tree's
         self.tree = BoundedTree(self.sample)
         self.measured = shape.size.as_array()
 
-    def scored(self, reg, mid, m, points_in_model):
-        """The evidence of model ``mid`` placed by ``m`` (4, 4), the object's points in its frame."""
+    def scored(self, reg, mid, m, points_in_model, size=None, tree=None):
+        """The evidence of model ``mid`` placed by ``m`` (4, 4), the object's points in its frame (``size``: the
+        model's L, W, H along the object's frame, None: its stored ones, turned a quarter where it lies so)."""
         cache = self.cache
         top = cache.top(mid) @ m[:3, :3].T + m[:3, 3]
         row = cache.row(mid)
-        size = np.array([row.length, row.width, row.height])
-        if quarter_turned(m, self.shape.frame.heading, cache.frame(mid).heading):
-            size = size[[1, 0, 2]]  # its length across the object's (a bus shelter drawn facing its own x axis)
+        if size is None:
+            size = np.array([row.length, row.width, row.height])
+            if quarter_turned(m, self.shape.frame.heading, cache.frame(mid).heading):
+                size = size[[1, 0, 2]]  # its length across the object's (a bus shelter drawn facing its own x axis)
         # the model's lowest point is z = 0 in its frame, and the pose only turns about the vertical
-        e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top, self.tree,
+        e = evidence(mid, reg.rmse, cache.surface(mid).distances(points_in_model), top,
+                     self.tree if tree is None else tree,
                      size, self.measured, self.noise, self.spacing,
                      self.params, sink=float(self.shape.frame.ground_z - m[2, 3]),
                      top_known=None if self.seen is None else self.seen.known(top))
         e.extra.update(transform=m, rz=float(np.mod(reg.rz, 2 * np.pi)), refined=False)
+        return e
+
+    def free(self, reg, mid):
+        """The evidence of model ``mid`` (one without symmetry) placed at any heading on the object's points
+        (:func:`~twinreg.matching.refine.free_pose`), scored on its judged points; its size the placed model's
+        measured in the object's frame as the object's was (an asymmetric model's stored length and width lie along
+        axes of its own). ``reg`` (the sections' registration, whose pose it replaces) kept in ``extra["reg"]``."""
+        cache, frame = self.cache, self.shape.frame
+        m = free_pose(self.sample, frame.ground_z, cache.coarse_tree(mid), cache.tree(mid), self.params)
+        placed = cache.geometry(mid).points @ m[:3, :3].T + m[:3, 3]
+        size = measure_size(placed, frame, False, self.params).as_array()  # as the object's was measured
+        # its top held to every point: a tree's thousands of points, thinned to the judged sample, would leave
+        # most of a crown's top with no point near it
+        every = np.asarray(self.cloud, dtype=np.float64)
+        e = self.scored(reg, mid, m, (self.sample - m[:3, 3]) @ m[:3, :3], size,
+                        BoundedTree(every) if len(every) > len(self.sample) else None)
+        turn = np.arctan2(m[1, 0], m[0, 0]) + cache.frame(mid).heading - frame.heading
+        e.extra.update(rz=float(np.mod(turn, 2 * np.pi)), refined=True, free=True, reg=reg, size=size)
         return e
 
     def placed(self, reg, mid):
@@ -634,6 +659,11 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
     screens = [scorer.screened(reg, mid) for reg, mid in candidates]
     found = [e for e, _ in screens]
     polished = [j == 0 or obj_pair is None for j in range(len(candidates))]
+    for j, (reg, mid) in enumerate(candidates):  # a model without symmetry at any heading too, where its height fits
+        if cache.asymmetric(mid) and abs(cache.row(mid).height - scorer.measured[2]) <= params.matching.free_height_tol:
+            e = scorer.free(reg, mid)
+            if e.score < found[j].score:
+                found[j], polished[j] = e, True
 
     def refine_at(j):
         found[j] = scorer.refined(*candidates[j], screens[j])
@@ -650,7 +680,7 @@ def _decided(shape, regs, cache: ModelCache, cloud, noise, spacing, params: Sett
 
     best = min((e.score for e in found), default=np.inf)
     for j, e in enumerate(list(found)):
-        if e.score <= best + reach:
+        if e.score <= best + reach and not e.extra["refined"]:
             refine_at(j)
     if found:  # the favourite end for end too: a box-like van's sections hardly tell its front from its back
         k = int(np.argmin([e.score for e in found]))
@@ -751,13 +781,17 @@ def _placed(shape: cosco.ObjectShape, regs, cache: ModelCache, found, decision, 
         r2, m2 = regs[1].reg, regs[1].model_id
         runner = {"model_id": m2, "name": cache.row(m2).name, "rmse_m": round(r2.rmse, 4)}
     rz = decision.best.extra["rz"] if decision is not None else reg.rz
+    outside = mid in found.nearest
+    if decision is not None and decision.best.extra.get("free"):  # its window along the object's axes, as placed
+        lo, hi = found.window
+        outside = not bool(np.all((decision.best.extra["size"] >= lo) & (decision.best.extra["size"] <= hi)))
     match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=rz, tz=reg.tz, du=reg.du, transform=m,
                   heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
                   verdict=decision.best.verdict if decision else None,
-                  confidence=(decision.confidence * (params.matching.outside_factor if mid in found.nearest else 1.0)
+                  confidence=(decision.confidence * (params.matching.outside_factor if outside else 1.0)
                               if decision else None),
                   margin_sigma=decision.margin_sigma if decision else None,
                   ambiguous_with=[cache.row(a).name for a in decision.ambiguous_with] if decision else [],
-                  outside_tolerance=mid in found.nearest,
+                  outside_tolerance=outside,
                   evidence=decision.best.as_dict() if decision else None)
     return ObjectMatch(shape, match, "", [c.model_id for c in regs])

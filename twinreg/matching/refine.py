@@ -147,3 +147,111 @@ def _refine_fast(q, grid_pts, starts, lo, shape, cell, reach, iterations, has_gr
     if turn > max_turn or np.sqrt(total[0, 3] ** 2 + total[1, 3] ** 2 + total[2, 3] ** 2) > max_shift:
         return np.eye(4)
     return total
+
+
+#: the coarse starts' fit: reach (m) and iterations at each stage, on the thinned model (:func:`free_pose`)
+COARSE_STAGES = ((1.0, 1), (0.7, 1), (0.5, 1), (0.35, 1), (0.25, 1))
+#: the kept starts' fit on the full model, down to the refinement's own reach and finer
+FINE_STAGES = ((0.6, 3), (0.4, 5), (0.25, 6), (0.15, 10), (0.1, 10))
+#: the kept pose's last fit, on every point
+POLISH_STAGES = ((0.1, 10), (0.05, 10))
+#: how near (m) a point of a coarse start must come to the thinned model to count as explained
+COARSE_NEAR = 0.2
+
+
+def free_pose(points: np.ndarray, ground_z: float, coarse, fine, params: Settings = DEFAULT) -> np.ndarray:
+    """(4, 4) a pose of a model without symmetry (model frame -> the points' frame) found at any heading: the
+    model stood on ``ground_z`` at every ``matching.free_step`` of heading, its centre on the points' centre and
+    ``matching.free_offset`` m around it, each start fitted by :func:`refine` unbounded on ``coarse`` (the model
+    thinned, a :class:`cosco.nearest.BoundedTree`), the ``matching.free_keep`` starts that explain most points
+    then fitted on ``fine`` (its sampled points, its height free) on as many points as a refinement takes, the one
+    whose points lie nearest (each capped at a third of the refinement's reach) kept and polished on every point.
+
+    A tree's sections give no axis and its four quarter turns miss its heading; seen from a street, its crown's
+    points lie to one side of its trunk (what a van saw), hence the starts around the centre.
+
+    >>> rng = np.random.default_rng(1)
+    >>> model = rng.uniform([-2.0, -1.0, 0.0], [2.0, 1.0, 3.0], (4000, 3))
+    >>> model = model[(model[:, 0] < 0.0) | (model[:, 1] < 0.0)]  # an L in plan: no mirror, no quarter turn
+    >>> m = yaw_pose(2.0); m[:3, 3] = [5.0, 3.0, 0.0]
+    >>> pts = model[::4] @ m[:3, :3].T + m[:3, 3]
+    >>> got = free_pose(pts, 0.0, BoundedTree(model[::3]), BoundedTree(model))
+    >>> bool(np.allclose(got[:3, 3], m[:3, 3], atol=0.05)), round(float(np.arctan2(got[1, 0], got[0, 0])), 2)
+    (True, 2.0)
+    """
+    p = np.asarray(points, dtype=np.float64)
+    mp = params.matching
+    loose = params.with_(matching={"refine_max_turn": 2 * np.pi, "refine_max_shift": np.inf})
+    few = p[::max(len(p) // 150, 1)]
+    centre = few[:, :2].mean(0)
+    model_centre = np.asarray(coarse.data, dtype=np.float64)[:, :2].mean(0)
+    offsets = np.array([(0.0, 0.0)] + [(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy])
+    headings = np.arange(0.0, 2 * np.pi - 1e-9, mp.free_step)
+    # every start at once: heading by heading, each of the offsets; the model stood on the ground
+    poses = np.repeat(np.array([yaw_pose(h) for h in headings]), len(offsets), axis=0)
+    shifts = centre + mp.free_offset * np.tile(offsets, (len(headings), 1))
+    poses[:, :2, 3] = shifts - np.einsum("sij,j->si", poses[:, :2, :2], model_centre)
+    poses[:, 2, 3] = ground_z
+    # the points in each start's model frame: (p - t) R, for every start
+    q = np.einsum("snj,sjk->snk", few[None, :, :] - poses[:, None, :3, 3], poses[:, :3, :3])
+    corrections, q = _fitted_starts(q, coarse, COARSE_STAGES)
+    d, _ = coarse.query(q.reshape(-1, 3), k=1, distance_upper_bound=COARSE_NEAR)
+    shares = np.isfinite(d).reshape(len(q), -1).mean(1)
+    starts = [(float(a), poses[k] @ np.linalg.inv(corrections[k])) for k, a in enumerate(shares)]
+    starts.sort(key=lambda s: -s[0])
+    best, best_gap = np.eye(4), np.inf
+    fitted = p[::max(int(np.ceil(len(p) / mp.refine_max_points)), 1)]  # as many as a refinement fits
+    near = mp.refine_reach / 3
+    for _, pose in starts[:mp.free_keep]:
+        c, q = _fitted((fitted - pose[:3, 3]) @ pose[:3, :3], fine, FINE_STAGES, loose, stand=False)
+        d, _ = fine.query(q, k=1, distance_upper_bound=near)
+        gap = float(np.mean(np.minimum(d, near)))
+        if gap < best_gap:
+            best, best_gap = pose @ np.linalg.inv(c), gap
+    # the kept pose polished on every point
+    c, _ = _fitted((p - best[:3, 3]) @ best[:3, :3], fine, POLISH_STAGES, loose, stand=False)
+    return best @ np.linalg.inv(c)
+
+
+def _fitted_starts(q: np.ndarray, tree, stages) -> tuple:
+    """(the corrections (s, 4, 4), the points corrected (s, n, 3)) of ``s`` starts' points ``q`` (s, n, 3) in the
+    model's frame, each fitted to ``tree`` as :func:`refine` fits one, stood on z = 0 (a turn and a shift in plan),
+    every start's pairs found in one query a stage's iteration (pairs within its reach; a start with fewer than 10
+    is not moved), every iteration run."""
+    s, n, _ = q.shape
+    total = np.repeat(np.eye(4)[None], s, axis=0)
+    data = np.asarray(tree.data, dtype=np.float64)
+    for reach, iterations in stages:
+        for _ in range(iterations):
+            d, idx = tree.query(q.reshape(-1, 3), k=1, distance_upper_bound=reach)
+            ok = np.isfinite(d).reshape(s, n)
+            dst = data[np.where(np.isfinite(d), idx, 0)].reshape(s, n, 3)
+            w = ok.astype(np.float64)
+            count = w.sum(1)
+            moved = count >= 10
+            c = np.maximum(count, 1.0)[:, None]
+            ms = np.einsum("sn,snk->sk", w, q[:, :, :2]) / c
+            md = np.einsum("sn,snk->sk", w, dst[:, :, :2]) / c
+            a, b = q[:, :, :2] - ms[:, None], dst[:, :, :2] - md[:, None]
+            num = np.einsum("sn,sn->s", w, a[:, :, 0] * b[:, :, 1] - a[:, :, 1] * b[:, :, 0])
+            den = np.einsum("sn,sn->s", w, a[:, :, 0] * b[:, :, 0] + a[:, :, 1] * b[:, :, 1])
+            theta = np.where(moved, np.arctan2(num, den), 0.0)
+            step = np.repeat(np.eye(4)[None], s, axis=0)
+            cos, sin = np.cos(theta), np.sin(theta)
+            step[:, 0, 0], step[:, 0, 1], step[:, 1, 0], step[:, 1, 1] = cos, -sin, sin, cos
+            step[:, :2, 3] = np.where(moved[:, None], md - np.einsum("sij,sj->si", step[:, :2, :2], ms), 0.0)
+            q = np.einsum("snj,skj->snk", q, step[:, :3, :3]) + step[:, None, :3, 3]
+            total = step @ total
+    return total, q
+
+
+def _fitted(q: np.ndarray, tree, stages, params: Settings, stand: bool = True) -> tuple:
+    """(the correction, the points corrected): :func:`refine` at each stage's reach and iterations in turn; ``stand``:
+    on z = 0 (turned and shifted in plan only), else its height fitted too (the ground under a crown is
+    measured beside it, a few centimetres off)."""
+    total = np.eye(4)
+    for reach, iterations in stages:
+        c = refine(q, tree, reach, iterations, params, ground=0.0 if stand else None)
+        q = q @ c[:3, :3].T + c[:3, 3]
+        total = c @ total
+    return total, q

@@ -55,3 +55,43 @@ def test_a_model_seen_on_one_slope_stands_on_the_ground():
     stood = refine(obj, cKDTree(model), reach=0.3, ground=slide[2])  # the ground measured under the object
     placed = obj @ stood[:3, :3].T + stood[:3, 3]
     assert np.median(np.linalg.norm(placed - face[::2], axis=1)) < 0.01
+
+
+def _crown(rng, n=20000):
+    """A tree-like model without symmetry: a trunk off the centre of a lopsided crown of three blobs of leaves'
+    shells (radii 2.5, 1.8 and 1.4 m), 6 m tall."""
+    parts = [np.column_stack([0.3 + 0.2 * np.cos(u := rng.uniform(0, 2 * np.pi, n // 10)),
+                              -0.4 + 0.2 * np.sin(u), rng.uniform(0.0, 2.5, n // 10)])]
+    for centre, r, k in (([0.0, 0.0, 4.0], 2.5, 5), ([2.6, 1.2, 3.4], 1.8, 3), ([-1.6, 2.2, 3.0], 1.4, 1)):
+        d = rng.normal(size=(k * n // 10, 3))
+        parts.append(np.asarray(centre) + r * d / np.linalg.norm(d, axis=1)[:, None])
+    return np.vstack(parts)
+
+
+def test_a_model_without_symmetry_is_found_at_any_heading_from_its_near_side():
+    """A lopsided crown seen from one side only (its points facing the road, x < its trunk's, the far half not
+    scanned), turned 200 degrees and moved 30 m away: free_pose finds its heading and position from the model's
+    starts at every 15 degrees; the control, refine from the nearest quarter turn at the near side's centre, does
+    not reach it (refused beyond its bounds, or stopped elsewhere)."""
+    from cosco.frames import yaw_pose
+    from cosco.nearest import BoundedTree
+    from twinreg.matching.refine import free_pose
+
+    rng = np.random.default_rng(4)
+    model = _crown(rng)
+    truth = yaw_pose(np.radians(200.0))
+    truth[:3, 3] = [30.0, -12.0, 0.0]
+    placed = model @ truth[:3, :3].T + truth[:3, 3]
+    near = placed[placed[:, 0] < 30.0 + 0.5][::4]  # what a scanner at x << 30 sees: the near side
+    near = near + rng.normal(0.0, 0.01, near.shape)
+    keys = np.floor(model / DEFAULT.matching.free_voxel).astype(np.int64)
+    coarse = model[np.sort(np.unique(keys, axis=0, return_index=True)[1])]
+    got = free_pose(near[::max(len(near) // 1500, 1)], 0.0, BoundedTree(coarse), BoundedTree(model))
+    turn = np.degrees(np.angle(np.exp(1j * (np.arctan2(got[1, 0], got[0, 0]) - np.radians(200.0)))))
+    assert abs(turn) < 1.0 and np.linalg.norm(got[:2, 3] - truth[:2, 3]) < 0.05, (turn, got[:3, 3])
+    # the control: the sections' nearest quarter turn (180 degrees) at the near side's centre, refined
+    start = yaw_pose(np.pi)
+    start[:2, 3] = near[:, :2].mean(0) - start[:2, :2] @ model[:, :2].mean(0)
+    c = refine((near - start[:3, 3]) @ start[:3, :3], BoundedTree(model), DEFAULT.matching.refine_reach)
+    pose = start @ np.linalg.inv(c)
+    assert np.linalg.norm(pose[:2, 3] - truth[:2, 3]) > 0.3, pose[:3, 3]
