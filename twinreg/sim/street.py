@@ -108,14 +108,17 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
     return meshes, labels, items, top
 
 
-#: how far (m) a facade stays from any placed model's plan: a tree's crown does not pass through a wall
-FACADE_CLEARANCE = 1.5
+#: how far (m) a facade steps back behind a placed model that would pass through it (a tree's crown)
+FACADE_CLEARANCE = 2.5
+#: the least length (m) of a facade set back behind a tree: a building's frontage (a shorter stretch of wall is a
+#: street object's size)
+FRONTAGE = 15.0
 
 
 def _facade(x: float, top: float, placed: list) -> list:
     """The boxes of a facade 0.3 m thick centred on ``x`` along the street (y from -2 to ``top``), 6 m tall on the
-    ground's slope; where one of the ``placed`` models' vertices (scene frame) reach within
-    :data:`FACADE_CLEARANCE` of its face, the facade steps back behind them (a recess, its two side walls
+    ground's slope; where one of the ``placed`` models' vertices (scene frame) reach through its face, the facade
+    steps back :data:`FACADE_CLEARANCE` behind them (a recess at least :data:`FRONTAGE` long, its two side walls
     included), as a building stands back behind a street tree."""
     import trimesh
 
@@ -128,12 +131,23 @@ def _facade(x: float, top: float, placed: list) -> list:
     recesses = []
     for v in placed:
         v = np.asarray(v)
-        if v[:, 0].max() > face - FACADE_CLEARANCE:
-            recesses.append((float(v[:, 1].min()) - FACADE_CLEARANCE, float(v[:, 1].max()) + FACADE_CLEARANCE,
-                             float(v[:, 0].max()) + FACADE_CLEARANCE))
-    out, y = [], -2.0
+        if v[:, 0].max() > face:  # it would pass through the wall
+            lo, hi = float(v[:, 1].min()) - FACADE_CLEARANCE, float(v[:, 1].max()) + FACADE_CLEARANCE
+            grow = max(FRONTAGE - (hi - lo), 0.0) / 2  # a building's frontage set back, not a niche
+            recesses.append((lo - grow, hi + grow, float(v[:, 0].max()) + FACADE_CLEARANCE))
+    merged: list = []  # overlapping recesses as one, as deep as the deepest
     for y0, y1, back in sorted(recesses):
+        if merged and y0 <= merged[-1][1] + 0.3:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], y1), max(merged[-1][2], back))
+        else:
+            merged.append((y0, y1, back))
+    out, y = [], -2.0
+    for y0, y1, back in merged:
         y0, y1 = max(y0, y), min(y1, top)
+        if y1 >= top:  # cut by the street's end: still a frontage long
+            y0 = max(min(y0, top - FRONTAGE), y)
+        if y0 <= -2.0:
+            y1 = min(max(y1, -2.0 + FRONTAGE), top)
         if y1 <= y0:
             continue
         if y0 > y:
