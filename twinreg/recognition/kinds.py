@@ -116,7 +116,8 @@ class KindResult:
     near: tuple = ()
     margin: float = 0.0
     fitted: str | None = None  # the kind it fits but is too near another to name (:func:`confirmed_by_model`)
-    fits: tuple = ()  # with sides its points do not measure: every kind it fits, which a model may confirm
+    fits: tuple = ()  # every kind it fits, which a model may confirm: with sides its points do not measure, or of a
+    # vote too close to name
 
 
 def distances(size, level: str, refs: References, params: Settings = DEFAULT, loose=None) -> np.ndarray:
@@ -495,8 +496,13 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
                           fitted=kind if sparse else None)
     got = _named(kind, d, rivals, votes, near, refs, params)
     if got.confidence < params.kinds.min_kind_confidence or unshown(surface, kind, params):
-        # a name is a claim: too near another kind to make, or a size that no surface of its own bears out
-        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, got.margin, kind)
+        # a name is a claim: too near another kind to make, or a size that no surface of its own bears out; the
+        # kinds of the vote it fits stay for a decided model's sections to tell apart (a cone's plan above its base
+        # is a hydrant's or a mailbox's)
+        close = tuple(k for k in votes if k != kind and fits(k)) if got.confidence < params.kinds.min_kind_confidence \
+            else ()
+        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, got.margin, kind,
+                          fits=close)
     return got
 
 
@@ -535,7 +541,8 @@ def confirmed_by_model(kind: KindResult, category: str | None, confidence: float
     """``kind``, or the kind an object fits (its size, its surface) but whose vote was too close to name when the
     model decided for it (at the floor or above, ``confidence``) is of that kind (``category``): its sections then
     tell a hydrant from a cone of one size, which the vote by size cannot; its kind's confidence the model's. An
-    object with sides its points do not measure fits every kind of :attr:`KindResult.fits`.
+    object with sides its points do not measure fits every kind of :attr:`KindResult.fits`, and so does one whose
+    vote was too close to name, for the kinds of that vote it fits.
 
     >>> k = KindResult("unknown", 0.0, {"hydrant": 0.6, "cone": 0.4}, fitted="hydrant")
     >>> confirmed_by_model(k, "hydrant", 0.93).kind, confirmed_by_model(k, "cone", 0.93).kind
