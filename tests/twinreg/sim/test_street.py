@@ -276,6 +276,22 @@ def test_a_cone_a_van_sees_on_a_few_lines_is_named_by_no_size(tmp_path):
     assert control.kind == "mailbox", control
 
 
+def _two_cars_and(slug: str, tmp_path):
+    """(a catalogue of two shared cars and the shared furniture model ``slug``, its run's settings, that model's
+    mesh (vertices, faces) as the simulator takes it)."""
+    from twinreg.catalogue.repository import Catalogue
+    from twinreg.settings import DEFAULT
+    from twinreg.stages import with_targets
+
+    cat = Catalogue(tmp_path / "lib")
+    for r in manifest_rows()[:2]:
+        cat.add(r["path"], unit=r["unit"], up=r["up"])
+    row = next(r for r in furniture_rows() if r["slug"] == slug)
+    cat.add(row["path"], name=slug, category=row["category"], scale=row["scale"])
+    rows = sorted(cat.list(), key=lambda r: r.name)
+    return cat, with_targets(cat, DEFAULT), next(m for r, m in zip(rows, cat.scan_meshes(rows)) if r.name == slug)[:2]
+
+
 def test_a_bus_shelter_drawn_facing_its_own_x_axis_gets_its_model_from_a_van(tmp_path, monkeypatch):
     """The shared bus shelter is drawn with its front along its own x axis (its length, 1.74 m, the shelter's
     depth). Scanned from a van at 16 m/s, measured 3.5 m along the kerb, it gets its model: the size window takes a
@@ -284,20 +300,10 @@ def test_a_bus_shelter_drawn_facing_its_own_x_axis_gets_its_model_from_a_van(tmp
     size (at most the nearest model outside the window)."""
     import cosco
     from cosco.visibility import object_grid
-    from twinreg.catalogue.repository import Catalogue
     from twinreg.matching import prefilter
     from twinreg.matching.match import Evidence, ModelCache, match_objects
-    from twinreg.settings import DEFAULT
-    from twinreg.stages import with_targets
 
-    cat = Catalogue(tmp_path / "lib")
-    for r in manifest_rows()[:2]:
-        cat.add(r["path"], unit=r["unit"], up=r["up"])
-    shelter = next(r for r in furniture_rows() if r["slug"] == "bus_stop")
-    cat.add(shelter["path"], name="bus_stop", category=shelter["category"], scale=shelter["scale"])
-    params = with_targets(cat, DEFAULT)
-    rows = sorted(cat.list(), key=lambda r: r.name)
-    mesh = next(m for r, m in zip(rows, cat.scan_meshes(rows)) if r.name == "bus_stop")
+    cat, params, mesh = _two_cars_and("bus_stop", tmp_path)
     pts, origins = _seen_from_the_road(mesh, 5.0, 16.0)
     seen = object_grid(pts, origins, params)
     shape = cosco.describe_object(pts, params, ground_z=0.0, seen=seen, lines=True)
@@ -364,21 +370,11 @@ def test_a_tree_seen_from_the_road_gets_its_model_at_its_heading(tmp_path, monke
     import cosco
     from cosco.frames import yaw_pose
     from cosco.visibility import object_grid
-    from twinreg.catalogue.repository import Catalogue
     from twinreg.matching.cache import ModelCache
     from twinreg.matching.match import Evidence, match_objects
-    from twinreg.settings import DEFAULT
     from twinreg.sim.mobile import scan_mobile, straight_drive
-    from twinreg.stages import with_targets
 
-    cat = Catalogue(tmp_path / "lib")
-    for r in manifest_rows()[:2]:
-        cat.add(r["path"], unit=r["unit"], up=r["up"])
-    oak = next(r for r in furniture_rows() if r["slug"] == "oak_tree")
-    cat.add(oak["path"], name="oak_tree", category=oak["category"], scale=oak["scale"])
-    params = with_targets(cat, DEFAULT)
-    rows = sorted(cat.list(), key=lambda r: r.name)
-    v, f = next(m for r, m in zip(rows, cat.scan_meshes(rows)) if r.name == "oak_tree")[:2]
+    cat, params, (v, f) = _two_cars_and("oak_tree", tmp_path)
     truth = yaw_pose(heading)
     truth[:3, 3] = [7.5, 0.0, 0.0]
     placed = np.asarray(v, dtype=np.float64) @ truth[:3, :3].T + truth[:3, 3]
