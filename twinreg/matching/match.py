@@ -529,6 +529,7 @@ class _Scorer:
         self.judged = judged  # >0: refined poses scored on that many points apart from the refinement's
         self.seen = seen  # where the object's scanners could see (the cloud's frame), None: everywhere
         self.cloud = cloud
+        self._every = None  # every point's tree (:meth:`every_tree`), built when first asked
         self.sample = sample_cloud(np.asarray(cloud, dtype=np.float64), params.matching.accept_max_points)
         # the evidence's bounded look-ups compiled where numba is in use (cosco.kernels), else the KD-tree's
         self.tree = BoundedTree(self.sample)
@@ -564,12 +565,18 @@ class _Scorer:
         size = measure_size(placed, frame, False, self.params).as_array()  # as the object's was measured
         # its top held to every point: a tree's thousands of points, thinned to the judged sample, would leave
         # most of a crown's top with no point near it
-        every = np.asarray(self.cloud, dtype=np.float64)
-        e = self.scored(reg, mid, m, (self.sample - m[:3, 3]) @ m[:3, :3], size,
-                        BoundedTree(every) if len(every) > len(self.sample) else None)
+        e = self.scored(reg, mid, m, (self.sample - m[:3, 3]) @ m[:3, :3], size, self.every_tree())
         turn = np.arctan2(m[1, 0], m[0, 0]) + cache.frame(mid).heading - frame.heading
         e.extra.update(rz=float(np.mod(turn, 2 * np.pi)), refined=True, free=True, reg=reg, size=size)
         return e
+
+    def every_tree(self):
+        """A :class:`~cosco.nearest.BoundedTree` of all the object's points (the judged sample's when that is all of
+        them), built once for the scorer's candidates."""
+        if self._every is None:
+            every = np.asarray(self.cloud, dtype=np.float64)
+            self._every = BoundedTree(every) if len(every) > len(self.sample) else self.tree
+        return self._every
 
     def placed(self, reg, mid):
         """(the (4, 4) transform, the points in the model's frame) as the section registration placed the

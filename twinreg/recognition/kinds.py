@@ -495,12 +495,12 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
         return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near,
                           fitted=kind if sparse else None)
     got = _named(kind, d, rivals, votes, near, refs, params)
-    if got.confidence < params.kinds.min_kind_confidence or unshown(surface, kind, params):
+    too_close = got.confidence < params.kinds.min_kind_confidence
+    if too_close or unshown(surface, kind, params):
         # a name is a claim: too near another kind to make, or a size that no surface of its own bears out; the
-        # kinds of the vote it fits stay for a decided model's sections to tell apart (a cone's plan above its base
-        # is a hydrant's or a mailbox's)
-        close = tuple(k for k in votes if k != kind and fits(k)) if got.confidence < params.kinds.min_kind_confidence \
-            else ()
+        # kinds of a close vote it fits stay for a decided model's sections to tell apart (a cone's plan above its
+        # base is a hydrant's or a mailbox's)
+        close = tuple(k for k in votes if k != kind and fits(k)) if too_close else ()
         return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, got.margin, kind,
                           fits=close)
     return got

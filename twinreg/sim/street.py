@@ -98,9 +98,9 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
         meshes.append((box.vertices, box.faces))
         labels.append(-2)
     if buildings:  # facades behind both pavements, following the ground's slope along the street
-        placed = [v for v, lab in zip(meshes, labels) if lab >= 0]
+        placed = [mesh[0] for mesh, lab in zip(meshes, labels) if lab >= 0]  # the items' vertices
         for x in (8.6, -8.0 - wider):
-            for box in _facade(x, top, [v for v, _ in placed] if x > 0 else []):
+            for box in _facade(x, top, placed if x > 0 else []):
                 meshes.append((box.vertices, box.faces))
                 labels.append(-3)
     meshes.append(_ground_mesh(-9.0 - wider if buildings else -4.0, 12.0, -3.0, top))
