@@ -29,28 +29,38 @@ def _boxes(p: np.ndarray, hag: np.ndarray, labels, members: dict, params: CoscoP
 
 def with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: float, origin) -> tuple:
     """``cand`` and ``comp`` with the overhang points ``lowest_runs`` set aside taken back (a sign's plate over its
-    post, a shelter's roof, the upper part of a wall a scan's gaps cut), except over a car's body (a canopy, a wire
-    stay off it, as in car mode). They join the components they touch (patches of ``voxel``), and link them: the
-    pieces of a wall become one wall again; a car's body neither joins nor links. Overhangs touching nothing form
-    components of their own (they count only once joined to something standing under them: the caller's rule).
-    The overhangs come after ``cand``'s own points in the result."""
+    post, a shelter's roof, the upper part of a wall a scan's gaps cut). They join the components they touch
+    (patches of ``voxel``), and link them: the pieces of a wall become one wall again; a car's body neither joins
+    nor links. Overhangs touching nothing form components of their own (they count only once joined to something
+    standing under them: the caller's rule). Over a car's body (a canopy, a wire) an overhang stays off the car, as
+    in car mode, and joins only what it touches besides the car (a tree's crown over a parked car is the tree's:
+    :func:`_canopies_joined`). The overhangs come after ``cand``'s own points in the result."""
     if len(over) == 0 or len(cand) == 0:
         return cand, comp
     labels, _, members = _members(comp)
-    body = _boxes(pts[cand], hag[cand], labels, members, params)[4]
-    over = over[~_over_bodies(pts, cand, body[np.searchsorted(labels, comp)], over, params)]
-    if len(over) == 0:
-        return cand, comp
+    body = _boxes(pts[cand], hag[cand], labels, members, params)[4][np.searchsorted(labels, comp)]
+    on_body = _over_bodies(pts, cand, body, over, params)
+    canopy, over = over[on_body], over[~on_body]
+    if len(over):
+        cand, comp = _overhangs_joined(pts, cand, comp, body, over, voxel, origin)
+        body = np.r_[body, np.zeros(len(over), dtype=bool)]
+    if len(canopy):
+        cand, comp = _canopies_joined(pts, cand, comp, body, canopy, voxel, origin)
+    return cand, comp
+
+
+def _overhangs_joined(pts, cand, comp, body, over, voxel: float, origin) -> tuple:
+    """:func:`with_overhangs`'s overhangs ``over`` (none over a car's body) joined to the components they touch,
+    linking them; ``body``: which of ``cand`` are a car body's points."""
     both = np.r_[cand, over]
     vc, _, _ = voxel_components(pts[both] - origin, voxel)
-    n = len(cand)
     # each voxel component's label: the smallest of the (non-body) components it touches, or a new one; the
     # components one voxel component touches become one (their smallest label): connected components of the graph
     # of (component, voxel component) pairs, each pair once (as many as there are components, not points)
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    mine = ~body[np.searchsorted(labels, comp)]
+    n, mine = len(cand), ~body
     nxt = int(comp.max()) + 1
     span = nxt
     pairs = np.unique(vc[:n][mine] * span + comp[mine])
@@ -68,6 +78,23 @@ def with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: float
     out_over = lab_v[inverse.ravel()]
     merged = root[comp]
     return both, np.r_[merged, out_over]
+
+
+def _canopies_joined(pts, cand, comp, body, canopy, voxel: float, origin) -> tuple:
+    """:func:`with_overhangs`'s overhangs over a car's body (``canopy``) joined to the component they touch through
+    patches of ``voxel`` off the car (``body``: which of ``cand`` are a car body's points), the smallest label where
+    they touch several: they link nothing. Those touching no such component are dropped (a canopy over a car, a wire
+    alone, stay off it)."""
+    off = np.flatnonzero(~body)
+    vc, _, _ = voxel_components(pts[np.r_[cand[off], canopy]] - origin, voxel)
+    n = len(off)
+    low = np.full(int(vc.max()) + 1, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(low, vc[:n], comp[off])
+    lab = low[vc[n:]]
+    joined = lab != np.iinfo(np.int64).max
+    if not joined.any():
+        return cand, comp
+    return np.r_[cand, canopy[joined]], np.r_[comp, lab[joined]]
 
 
 def standing_overhangs(p, hag, comp, n_kept: int, params: CoscoParams) -> np.ndarray:

@@ -185,3 +185,36 @@ def test_a_crown_touching_the_facade_under_the_ceiling_leaves_the_wall():
     assert len(car) == 1 and (labels[car[0].indices] == names.index("car")).mean() > 0.99
     assert "tree" not in _owner(segment_objects(pts, hag, street, is_ground=hag < 0.03), labels, names)
 
+
+
+def _crown_over_a_car(seed=0, trunk: bool = True):
+    """A tree whose crown (2.5-4 m up) reaches over a car parked beside its trunk, and a canopy alone (no trunk
+    seen) over a second car."""
+    rng = np.random.default_rng(seed)
+    parts = {"ground": _ground(rng),
+             "car": _box(rng, [5, 5, 0.2], [9.5, 6.8, 1.5], 4000),
+             "tree": np.vstack([np.c_[rng.normal(11.5, 0.1, 500), rng.normal(6, 0.1, 500), rng.uniform(0.05, 2.6, 500)],
+                                _box(rng, [7.5, 3.5, 2.5], [15.5, 8.5, 4.0], 6000)]),
+             "car_b": _box(rng, [5, 20, 0.2], [9.5, 21.8, 1.5], 4000),
+             "canopy": _box(rng, [6, 19.5, 2.5], [8.5, 22.5, 3.0], 800)}
+    return _labelled(parts)
+
+
+def test_a_crown_over_a_parked_car_is_the_trees():
+    """What hangs over a car stays off it; over the car, a tree's crown is still the tree's (it joins what it
+    touches off the car: a street's van, whose trees overhang the parked cars, lost a crown's near part so). A canopy
+    over a car that stands on nothing is no target, and neither car changes."""
+    pts, hag, labels, names = _crown_over_a_car()
+    seg = segment_objects(pts, hag, DEFAULT.with_(segment={"targets": "all"}), is_ground=hag < 0.03)
+    every = _owner(seg, labels, names)
+    tree = every["tree"]
+    assert len(tree) == 1
+    mine = labels == names.index("tree")
+    over = mine & (pts[:, 0] < 9.5) & (pts[:, 1] < 6.8) & (pts[:, 1] > 5)
+    assert over.sum() > 300 and np.isin(np.flatnonzero(over), tree[0].indices).all()
+    assert (labels[tree[0].indices] == names.index("tree")).all()
+    car_mode = _owner(segment_objects(pts, hag, DEFAULT, is_ground=hag < 0.03), labels, names)
+    for name in ("car", "car_b"):
+        assert len(every[name]) == 1 and np.array_equal(every[name][0].indices, car_mode[name][0].indices), name
+    canopy = np.flatnonzero(labels == names.index("canopy"))
+    assert not any(np.isin(canopy, o.indices).any() for o in seg.objects if o.target)  # it stands on nothing
