@@ -19,11 +19,13 @@ from .params import DEFAULT, CoscoParams
 @dataclass
 class SeenGrid:
     """``seen`` (nx, ny, nz) bool: a line of sight from some viewpoint reaches the voxel (or a point lies in it);
-    ``lo`` (3,) the grid's corner, ``voxel`` its size (m). Outside the grid everything counts as seen."""
+    ``lo`` (3,) the grid's corner, ``voxel`` its size (m). Outside the grid everything counts as seen. ``views``
+    (k, 3): the scanner positions it was seen from (None: not kept)."""
 
     seen: np.ndarray
     lo: np.ndarray
     voxel: float
+    views: np.ndarray | None = None
 
     def known(self, q: np.ndarray) -> np.ndarray:
         """(m,) bool: whether each of (m, 3) points lies where a scanner could see."""
@@ -126,4 +128,4 @@ def seen_grid(points: np.ndarray, viewpoints: np.ndarray, voxel: float = 0.1, ma
         newly = np.flatnonzero(todo)[~blocked]
         seen[newly] = True
         todo[newly] = False
-    return SeenGrid(seen.reshape(shape), lo, voxel)
+    return SeenGrid(seen.reshape(shape), lo, voxel, views)

@@ -559,16 +559,28 @@ class _Scorer:
         (:func:`~twinreg.matching.refine.free_pose`), scored on its judged points; its size the placed model's
         measured in the object's frame as the object's was (an asymmetric model's stored length and width lie along
         axes of its own). ``reg`` (the sections' registration, whose pose it replaces) kept in ``extra["reg"]``."""
-        cache, frame = self.cache, self.shape.frame
-        m = free_pose(self.sample, frame.ground_z, cache.coarse_tree(mid), cache.tree(mid), self.params)
+        cache, frame, away = self.cache, self.shape.frame, self.away()
+        m = free_pose(self.sample, frame.ground_z, cache.coarse_tree(mid), cache.tree(mid), self.params, away)
         placed = cache.geometry(mid).points @ m[:3, :3].T + m[:3, 3]
         size = measure_size(placed, frame, False, self.params).as_array()  # as the object's was measured
+        judged = measured_axes(frame.heading, away)
         # its top held to every point: a tree's thousands of points, thinned to the judged sample, would leave
         # most of a crown's top with no point near it
         e = self.scored(reg, mid, m, (self.sample - m[:3, 3]) @ m[:3, :3], size, self.every_tree())
         turn = np.arctan2(m[1, 0], m[0, 0]) + cache.frame(mid).heading - frame.heading
-        e.extra.update(rz=float(np.mod(turn, 2 * np.pi)), refined=True, free=True, reg=reg, size=size)
+        e.extra.update(rz=float(np.mod(turn, 2 * np.pi)), refined=True, free=True, reg=reg, size=size,
+                       judged=judged)
         return e
+
+    def away(self):
+        """(2,) the unit vector in plan from the object's scanner positions towards its points' centre, or None
+        where they are not known (or stand over it)."""
+        views = None if self.seen is None else self.seen.views
+        if views is None or not len(views):
+            return None
+        v = self.sample[:, :2].mean(0) - np.asarray(views, dtype=np.float64)[:, :2].mean(0)
+        n = float(np.hypot(*v))
+        return v / n if n > 1e-6 else None
 
     def every_tree(self):
         """A :class:`~cosco.nearest.BoundedTree` of all the object's points (the judged sample's when that is all of
@@ -766,6 +778,21 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
     return _placed(shape, regs, cache, found, decision, params), decision
 
 
+def measured_axes(heading: float, away) -> np.ndarray:
+    """(3,) bool: which of an object's length, width and height (its frame turned ``heading`` rad) the scanners
+    measured. From one side (``away``, the unit vector in plan from them towards it; None: from everywhere, as from
+    the air), not the axis nearer that way: its far part they could not see (a crown's depth from a van).
+
+    >>> measured_axes(0.0, None).tolist(), measured_axes(0.3, np.array([0.0, 1.0])).tolist()
+    ([True, True, True], [True, False, True])
+    """
+    judged = np.ones(3, dtype=bool)
+    if away is not None:
+        u = np.array([np.cos(heading), np.sin(heading)])
+        judged[0 if abs(u @ away) >= abs(u[0] * away[1] - u[1] * away[0]) else 1] = False
+    return judged
+
+
 def _placed(shape: cosco.ObjectShape, regs, cache: ModelCache, found, decision, params: Settings) -> ObjectMatch:
     """The :class:`ObjectMatch` of the winner ``regs[0]`` (its ``decision``, or None: the lowest RMSE unverified)."""
     n_candidates = found.n_window
@@ -790,8 +817,9 @@ def _placed(shape: cosco.ObjectShape, regs, cache: ModelCache, found, decision, 
     rz = decision.best.extra["rz"] if decision is not None else reg.rz
     outside = mid in found.nearest
     if decision is not None and decision.best.extra.get("free"):  # its window along the object's axes, as placed
-        lo, hi = found.window
-        outside = not bool(np.all((decision.best.extra["size"] >= lo) & (decision.best.extra["size"] <= hi)))
+        lo, hi = found.window  # (along the axes the scanners measured)
+        size, judged = decision.best.extra["size"], decision.best.extra["judged"]
+        outside = not bool(np.all(((size >= lo) & (size <= hi))[judged]))
     match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=rz, tz=reg.tz, du=reg.du, transform=m,
                   heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
                   verdict=decision.best.verdict if decision else None,

@@ -159,7 +159,8 @@ POLISH_STAGES = ((0.1, 10), (0.05, 10))
 COARSE_NEAR = 0.2
 
 
-def free_pose(points: np.ndarray, ground_z: float, coarse, fine, params: Settings = DEFAULT) -> np.ndarray:
+def free_pose(points: np.ndarray, ground_z: float, coarse, fine, params: Settings = DEFAULT,
+              away: np.ndarray | None = None) -> np.ndarray:
     """(4, 4) a pose of a model without symmetry (model frame -> the points' frame) found at any heading: the
     model stood on ``ground_z`` at every ``matching.free_step`` of heading, its centre on the points' centre and
     ``matching.free_offset`` m around it, each start fitted by :func:`refine` unbounded on ``coarse`` (the model
@@ -168,7 +169,10 @@ def free_pose(points: np.ndarray, ground_z: float, coarse, fine, params: Setting
     whose points lie nearest (each capped at a third of the refinement's reach) kept and polished on every point.
 
     A tree's sections give no axis and its four quarter turns miss its heading; seen from a street, its crown's
-    points lie to one side of its trunk (what a van saw), hence the starts around the centre.
+    points lie to one side of its trunk (what a van saw), hence the starts around the centre. ``away`` (2,), a unit
+    vector in plan from the scanners towards the points (where their positions are known): what they could not see
+    lies beyond the points, so three more centres lie twice ``matching.free_offset`` that way (the near half of a 9 m
+    crown has its centre about 2 m short of the trunk's).
 
     >>> rng = np.random.default_rng(1)
     >>> model = rng.uniform([-2.0, -1.0, 0.0], [2.0, 1.0, 3.0], (4000, 3))
@@ -186,6 +190,9 @@ def free_pose(points: np.ndarray, ground_z: float, coarse, fine, params: Setting
     centre = few[:, :2].mean(0)
     model_centre = np.asarray(coarse.data, dtype=np.float64)[:, :2].mean(0)
     offsets = np.array([(0.0, 0.0)] + [(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy])
+    if away is not None:
+        u = np.asarray(away, dtype=np.float64)
+        offsets = np.vstack([offsets, 2 * u + np.outer((-1.0, 0.0, 1.0), (-u[1], u[0]))])
     headings = np.arange(0.0, 2 * np.pi - 1e-9, mp.free_step)
     # every start at once: heading by heading, each of the offsets; the model stood on the ground
     poses = np.repeat(np.array([yaw_pose(h) for h in headings]), len(offsets), axis=0)
