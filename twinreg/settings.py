@@ -61,7 +61,8 @@ class MatchingParams:
     A model without symmetry (issue 50: a tree, whose sections give no axis and whose quarter turns miss its
     heading) is also placed at any heading (refine.py :func:`~twinreg.matching.refine.free_pose`): every
     ``free_step`` rad and at the object's centre and ``free_offset`` m around it (a crown seen from one side lies
-    off its trunk), each start fitted on a model thinned to ``free_voxel`` m; the ``free_keep`` best refined on
+    off its trunk), and twice that beyond the centre, away from the scanners where their positions are known; each
+    start fitted on a model thinned to ``free_voxel`` m; the ``free_keep`` best refined on
     the full model. That placement replaces the sections' where it scores lower. It is searched only where the
     model's height lies within ``free_height_tol`` m of the object's (a street's real trees, of every height, met the
     oak as their nearest model and cost 0.1 s each).
