@@ -30,7 +30,15 @@ from .components import (
     lowest_runs,
     voxel_components,
 )
-from .street import join_stacked, off_walls, reach_link, reach_up, standing_overhangs, with_overhangs
+from .street import (
+    canopies_joined,
+    join_stacked,
+    off_walls,
+    reach_link,
+    reach_up,
+    standing_overhangs,
+    with_overhangs,
+)
 
 __all__ = ["DetectedObject", "Segmentation", "far_outliers", "lowest_runs", "n_cells", "point_spacing",
            "segment_objects", "voxel_components"]
@@ -72,7 +80,7 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, 
     comp = join_in_line(pts[cand, :2], hag[cand], comp, params, spacing)
     if street:  # the overhangs taken back, a street object's stacked pieces joined
         n_kept = len(cand)
-        cand, comp = with_overhangs(pts, hag, cand, comp, over, params, voxel, origin)
+        cand, comp, canopy = with_overhangs(pts, hag, cand, comp, over, params, voxel, origin)
         if from_ground:
             comp = off_walls(pts[cand], hag[cand], comp, params, voxel)
         comp = join_stacked(pts[cand], hag[cand], comp, params, voxel)
@@ -86,8 +94,9 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, 
         idx = cand[rows]
         if len(idx) >= least or (len(idx) >= 2 and hag[idx].max() > high):
             objects.append(describe(pts, hag, idx, params, cell, spacing))
-    if street:  # thin uprights grown up through the ceiling
+    if street:  # thin uprights grown up through the ceiling, then the canopies over cars joined to what they touch
         objects = [o for o in reach_up(pts, hag, ground, objects, params, cell, spacing) if o.n_points >= least]
+        objects = canopies_joined(pts, hag, objects, canopy, params, voxel, origin, cell, spacing)
     objects.sort(key=lambda o: tuple(np.round(pts[o.indices, :2].mean(0), 1)))
     for k, o in enumerate(objects):
         labels[o.indices] = k

@@ -29,24 +29,22 @@ def _boxes(p: np.ndarray, hag: np.ndarray, labels, members: dict, params: CoscoP
 
 def with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: float, origin) -> tuple:
     """``cand`` and ``comp`` with the overhang points ``lowest_runs`` set aside taken back (a sign's plate over its
-    post, a shelter's roof, the upper part of a wall a scan's gaps cut). They join the components they touch
-    (patches of ``voxel``), and link them: the pieces of a wall become one wall again; a car's body neither joins
-    nor links. Overhangs touching nothing form components of their own (they count only once joined to something
-    standing under them: the caller's rule). Over a car's body (a canopy, a wire) an overhang stays off the car, as
-    in car mode, and joins only what it touches besides the car (a tree's crown over a parked car is the tree's:
-    :func:`_canopies_joined`). The overhangs come after ``cand``'s own points in the result."""
+    post, a shelter's roof, the upper part of a wall a scan's gaps cut), except over a car's body (a canopy, a wire
+    stay off it, as in car mode). They join the components they touch (patches of ``voxel``), and link them: the
+    pieces of a wall become one wall again; a car's body neither joins nor links. Overhangs touching nothing form
+    components of their own (they count only once joined to something standing under them: the caller's rule).
+    The overhangs come after ``cand``'s own points in the result; the third value, the rows of those over a car's
+    body, left for :func:`canopies_joined` once the objects are made."""
+    none = np.zeros(0, dtype=np.int64)
     if len(over) == 0 or len(cand) == 0:
-        return cand, comp
+        return cand, comp, none
     labels, _, members = _members(comp)
     body = _boxes(pts[cand], hag[cand], labels, members, params)[4][np.searchsorted(labels, comp)]
     on_body = _over_bodies(pts, cand, body, over, params)
     canopy, over = over[on_body], over[~on_body]
     if len(over):
         cand, comp = _overhangs_joined(pts, cand, comp, body, over, voxel, origin)
-        body = np.r_[body, np.zeros(len(over), dtype=bool)]
-    if len(canopy):
-        cand, comp = _canopies_joined(pts, cand, comp, body, canopy, voxel, origin)
-    return cand, comp
+    return cand, comp, canopy
 
 
 def _overhangs_joined(pts, cand, comp, body, over, voxel: float, origin) -> tuple:
@@ -80,21 +78,37 @@ def _overhangs_joined(pts, cand, comp, body, over, voxel: float, origin) -> tupl
     return both, np.r_[merged, out_over]
 
 
-def _canopies_joined(pts, cand, comp, body, canopy, voxel: float, origin) -> tuple:
-    """:func:`with_overhangs`'s overhangs over a car's body (``canopy``) joined to the component they touch through
-    patches of ``voxel`` off the car (``body``: which of ``cand`` are a car body's points), the smallest label where
-    they touch several: they link nothing. Those touching no such component are dropped (a canopy over a car, a wire
-    alone, stay off it)."""
-    off = np.flatnonzero(~body)
-    vc, _, _ = voxel_components(pts[np.r_[cand[off], canopy]] - origin, voxel)
-    n = len(off)
+def canopies_joined(pts, hag, objects: list, canopy, params: CoscoParams, voxel: float, origin, cell: float,
+                    spacing: float) -> list:
+    """``objects`` with the overhangs over a car's body (``canopy``: :func:`with_overhangs`'s third value) joined to
+    the object they touch through patches of ``voxel`` off the cars' bodies, the one listed first where they touch
+    several: they link nothing, and stay off the car (a tree's crown over a parked car is the tree's). Joined last,
+    to the objects the passes made, so that it moves none of their decisions: an object keeps its target flag.
+    Those touching no object off a car are dropped (a canopy alone over a car, a wire)."""
+    if len(canopy) and objects:  # not those an object took already (a crown's top grown up through the ceiling)
+        canopy = canopy[~np.isin(canopy, np.concatenate([o.indices for o in objects]))]
+    if len(canopy) == 0 or not objects:
+        return objects
+    s = params.segment
+    off = [k for k, o in enumerate(objects)
+           if not (o.base <= s.max_base and o.height <= s.car_height[1] and hag[o.indices].max() <= s.car_height[1]
+                   and float(np.hypot(*np.ptp(pts[o.indices, :2], axis=0))) >= s.car_width[0])]
+    if not off:
+        return objects
+    rows = np.concatenate([objects[k].indices for k in off])
+    owner = np.concatenate([np.full(objects[k].n_points, k, dtype=np.int64) for k in off])
+    vc, _, _ = voxel_components(pts[np.r_[rows, canopy]] - origin, voxel)
+    n = len(rows)
     low = np.full(int(vc.max()) + 1, np.iinfo(np.int64).max, dtype=np.int64)
-    np.minimum.at(low, vc[:n], comp[off])
+    np.minimum.at(low, vc[:n], owner)
     lab = low[vc[n:]]
     joined = lab != np.iinfo(np.int64).max
-    if not joined.any():
-        return cand, comp
-    return np.r_[cand, canopy[joined]], np.r_[comp, lab[joined]]
+    out = list(objects)
+    for k in np.unique(lab[joined]):
+        o = objects[k]
+        grown = describe(pts, hag, np.r_[o.indices, canopy[joined & (lab == k)]], params, cell, spacing)
+        out[k] = dataclasses.replace(grown, target=o.target)
+    return out
 
 
 def standing_overhangs(p, hag, comp, n_kept: int, params: CoscoParams) -> np.ndarray:
