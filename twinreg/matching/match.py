@@ -563,7 +563,9 @@ class _Scorer:
         m = free_pose(self.sample, frame.ground_z, cache.coarse_tree(mid), cache.tree(mid), self.params, away)
         placed = cache.geometry(mid).points @ m[:3, :3].T + m[:3, 3]
         size = measure_size(placed, frame, False, self.params).as_array()  # as the object's was measured
-        judged = measured_axes(frame.heading, away)
+        views = None if away is None else self.seen.views
+        below = views is not None and frame.ground_z + self.measured[2] > float(np.mean(views[:, 2]))
+        judged = measured_bounds(frame.heading, away, below)
         # its top held to every point: a tree's thousands of points, thinned to the judged sample, would leave
         # most of a crown's top with no point near it
         e = self.scored(reg, mid, m, (self.sample - m[:3, 3]) @ m[:3, :3], size, self.every_tree())
@@ -778,18 +780,24 @@ def _outcome(shape: cosco.ObjectShape, regs, cache: ModelCache, found, cloud=Non
     return _placed(shape, regs, cache, found, decision, params), decision
 
 
-def measured_axes(heading: float, away) -> np.ndarray:
-    """(3,) bool: which of an object's length, width and height (its frame turned ``heading`` rad) the scanners
-    measured. From one side (``away``, the unit vector in plan from them towards it; None: from everywhere, as from
-    the air), not the axis nearer that way: its far part they could not see (a crown's depth from a van).
+def measured_bounds(heading: float, away, below: bool = False) -> np.ndarray:
+    """(2, 3) bool: which bounds of an object's length, width and height (its frame turned ``heading`` rad) the
+    scanners measured, the lower (row 0: the object is at least that) and the upper (row 1: at most). From one side
+    (``away``, the unit vector in plan from them towards it; None: from everywhere, as from the air): neither along
+    the axis nearer that way, whose far part they could not see (a crown's depth from a van); and where the object's
+    top is above them (``below``), not its height's upper bound: they saw its top from below (a crown's highest
+    leaves behind its lower ones).
 
-    >>> measured_axes(0.0, None).tolist(), measured_axes(0.3, np.array([0.0, 1.0])).tolist()
-    ([True, True, True], [True, False, True])
+    >>> measured_bounds(0.0, None).all(), measured_bounds(0.3, np.array([0.0, 1.0])).tolist()
+    (np.True_, [[True, False, True], [True, False, True]])
+    >>> measured_bounds(0.3, np.array([0.0, 1.0]), below=True)[1].tolist()
+    [True, False, False]
     """
-    judged = np.ones(3, dtype=bool)
+    judged = np.ones((2, 3), dtype=bool)
     if away is not None:
         u = np.array([np.cos(heading), np.sin(heading)])
-        judged[0 if abs(u @ away) >= abs(u[0] * away[1] - u[1] * away[0]) else 1] = False
+        judged[:, 0 if abs(u @ away) >= abs(u[0] * away[1] - u[1] * away[0]) else 1] = False
+        judged[1, 2] = not below
     return judged
 
 
@@ -819,7 +827,7 @@ def _placed(shape: cosco.ObjectShape, regs, cache: ModelCache, found, decision, 
     if decision is not None and decision.best.extra.get("free"):  # its window along the object's axes, as placed
         lo, hi = found.window  # (along the axes the scanners measured)
         size, judged = decision.best.extra["size"], decision.best.extra["judged"]
-        outside = not bool(np.all(((size >= lo) & (size <= hi))[judged]))
+        outside = not bool(np.all(((size >= lo) | ~judged[0]) & ((size <= hi) | ~judged[1])))
     match = Match(model_id=mid, name=row.name, rmse=reg.rmse, rz=rz, tz=reg.tz, du=reg.du, transform=m,
                   heading=heading, centre=centre, runner_up=runner, n_candidates=n_candidates, n_trials=len(regs),
                   verdict=decision.best.verdict if decision else None,

@@ -413,7 +413,7 @@ def test_a_tree_seen_from_the_road_gets_its_model_at_its_heading(tmp_path, monke
     # its size window judged on its length and height: the van measured the crown's depth short (its far part
     # hidden); the control, the depth judged too, puts it outside the window
     assert outside is False
-    monkeypatch.setattr(match, "measured_axes", lambda heading, away: np.ones(3, dtype=bool))
+    monkeypatch.setattr(match, "measured_bounds", lambda heading, away, below=False: np.ones((2, 3), dtype=bool))
     assert placement()[3] is True
     monkeypatch.setattr(ModelCache, "asymmetric", lambda self, mid: False)  # the control: the sections' pose only
     name, shift, turn, _ = placement()
