@@ -501,8 +501,13 @@ def _vote(size, d: np.ndarray, loose, refs: References, params: Settings, surfac
         # kinds of a close vote it fits stay for a decided model's sections to tell apart (a cone's plan above its
         # base is a hydrant's or a mailbox's)
         close = tuple(k for k in votes if k != kind and fits(k)) if too_close else ()
-        return KindResult(background_kind(size, surface, params, refs.ranges), 0.0, votes, near, got.margin, kind,
-                          fits=close)
+        # only too close, it fits the kind voted first, its surface included: no background kind is named either (a
+        # van's 60-point hydrant is as scattered as a bush, and a hydrant's shell says it may be one), unless a kind
+        # of the vote is porous itself (a tree or a lamp post: vegetation is what a tree would be too)
+        alike = (too_close and not unshown(surface, kind, params)
+                 and not any(k in params.open_world.porous for k in (kind, *close)))
+        return KindResult(UNKNOWN if alike else background_kind(size, surface, params, refs.ranges), 0.0, votes, near,
+                          got.margin, kind, fits=close)
     return got
 
 
