@@ -58,6 +58,20 @@ def street_models(cat, seed: int) -> tuple[list, list, list]:
     return rows, [cars[k] for k in np.random.default_rng(seed).permutation(len(cars))], furniture
 
 
+def van_street(cat, seed: int):
+    """The van's street of ``seed`` (8 m/s, the catalogue's models) as build-twin reads it: (the street, its scan,
+    the run's settings, the :class:`~twinreg.io.points.PointSet` with each point's scanner position)."""
+    from twinreg.io.points import PointSet
+    from twinreg.settings import DEFAULT
+    from twinreg.sim.street import mobile_street
+    from twinreg.stages import with_targets
+
+    _, cars, furniture = street_models(cat, seed)
+    st, scan = mobile_street(cars, furniture, n_cars=8, seed=seed)
+    points = PointSet(path=None, points=st.points, offset=np.zeros(3), unit="m", origins=scan.origins)
+    return st, scan, with_targets(cat, DEFAULT), points
+
+
 def time_twin(cat, seed: int, folder: Path) -> dict:
     """The van's street of ``seed`` written as a survey delivers it (``simulate-street``'s code: scan.laz,
     trajectory.csv), then ``twinreg build-twin --trajectory`` on it as a whole process: wall seconds and the peak

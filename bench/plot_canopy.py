@@ -34,19 +34,12 @@ def main() -> None:
     import matplotlib.pyplot as plt
 
     import cosco.segment as segment
-    from bench_street import catalogue, street_models
+    from bench_street import catalogue, van_street
     from twinreg.detect import detect_points
-    from twinreg.io.points import PointSet
-    from twinreg.settings import DEFAULT
-    from twinreg.sim.street import item_objects, mobile_street
-    from twinreg.stages import with_targets
+    from twinreg.sim.street import item_objects
 
     with tempfile.TemporaryDirectory() as tmp:
-        cat = catalogue(Path(tmp) / "lib")
-        _, cars, furniture = street_models(cat, args.seed)
-        st, scan = mobile_street(cars, furniture, n_cars=8, seed=args.seed)
-        params = with_targets(cat, DEFAULT)
-    points = PointSet(path=None, points=st.points, offset=np.zeros(3), unit="m", origins=scan.origins)
+        st, _, params, points = van_street(catalogue(Path(tmp) / "lib"), args.seed)
 
     def owners(joined: bool) -> np.ndarray:
         """Each scan point's object (-1: none) as build-twin detects them, the canopies joined or not."""

@@ -34,24 +34,18 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bench_street import catalogue, street_models
+    from bench_street import catalogue, van_street
     from cosco.frames import yaw_pose
     from twinreg.detect import describe_detected, detect_points, object_points, objects_seen
-    from twinreg.io.points import PointSet
     from twinreg.matching.acceptance import scene_noise
     from twinreg.matching.cache import ModelCache
     from twinreg.matching.match import Evidence, match_objects
-    from twinreg.settings import DEFAULT
-    from twinreg.sim.street import item_objects, mobile_street
-    from twinreg.stages import with_targets
+    from twinreg.sim.street import item_objects
 
     with tempfile.TemporaryDirectory() as tmp:
         cat = catalogue(Path(tmp) / "cat")
-        _, cars, furniture = street_models(cat, args.seed)
-        st, scan = mobile_street(cars, furniture, n_cars=8, seed=args.seed)
-        params = with_targets(cat, DEFAULT)
-        det = detect_points(PointSet(path=None, points=st.points, offset=np.zeros(3), unit="m",
-                                     origins=scan.origins), params)
+        st, _, params, points = van_street(cat, args.seed)
+        det = detect_points(points, params)
         owner = item_objects(st, det.objects)
         k = next(i for i, it in enumerate(st.items) if it.name == "oak_tree")
         item, obj = st.items[k], det.objects[owner[k]]
