@@ -93,6 +93,18 @@ def cell_keys(cells: np.ndarray) -> np.ndarray:
     return key
 
 
+def first_in_voxels(points: np.ndarray, voxel: float) -> np.ndarray:
+    """(m,) sorted rows of (n, d) ``points``: the first point of each occupied voxel of ``voxel`` m (a thinning that
+    keeps the points themselves, in their order).
+
+    >>> first_in_voxels(np.array([[0.01, 0, 0], [1.0, 0, 0], [0.02, 0, 0]]), 0.1).tolist()
+    [0, 1]
+    """
+    p = np.asarray(points, dtype=np.float64)
+    _, first = np.unique(cell_keys(np.floor(p / voxel).astype(np.int64)), return_index=True)
+    return np.sort(first)
+
+
 def voxel_downsample(points: np.ndarray, voxel: float) -> tuple[np.ndarray, np.ndarray]:
     """Centroids of the occupied voxels and their point counts.
 

@@ -89,11 +89,10 @@ def canopies_joined(pts, hag, objects: list, canopy, params: CoscoParams, voxel:
         canopy = canopy[~np.isin(canopy, np.concatenate([o.indices for o in objects]))]
     if len(canopy) == 0 or not objects:
         return objects
-    s = params.segment
-    off = [k for k, o in enumerate(objects)
-           if not (o.base <= s.max_base and o.height <= s.car_height[1] and hag[o.indices].max() <= s.car_height[1]
-                   and float(np.hypot(*np.ptp(pts[o.indices, :2], axis=0))) >= s.car_width[0])]
-    if not off:
+    keys = range(len(objects))
+    body = _boxes(pts, hag, keys, {k: o.indices for k, o in zip(keys, objects)}, params)[4]  # the cars' bodies
+    off = np.flatnonzero(~body)
+    if not len(off):
         return objects
     rows = np.concatenate([objects[k].indices for k in off])
     owner = np.concatenate([np.full(objects[k].n_points, k, dtype=np.int64) for k in off])

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 import cosco
+from cosco.arrays import first_in_voxels
 from cosco.footprint import hull_rows
 from cosco.nearest import BoundedTree
 
@@ -71,9 +72,7 @@ class ModelCache:
         :func:`~twinreg.matching.refine.free_pose`."""
         if model_id not in self._coarse:
             p = self.geometry(model_id).points
-            keys = np.floor(p / self.params.matching.free_voxel).astype(np.int64)
-            _, first = np.unique(keys, axis=0, return_index=True)
-            self._coarse[model_id] = BoundedTree(p[np.sort(first)])
+            self._coarse[model_id] = BoundedTree(p[first_in_voxels(p, self.params.matching.free_voxel)])
         return self._coarse[model_id]
 
     def top(self, model_id: int) -> np.ndarray:

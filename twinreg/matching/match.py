@@ -563,8 +563,7 @@ class _Scorer:
         m = free_pose(self.sample, frame.ground_z, cache.coarse_tree(mid), cache.tree(mid), self.params, away)
         placed = cache.geometry(mid).points @ m[:3, :3].T + m[:3, 3]
         size = measure_size(placed, frame, False, self.params).as_array()  # as the object's was measured
-        views = None if away is None else self.seen.views
-        below = views is not None and frame.ground_z + self.measured[2] > float(np.mean(views[:, 2]))
+        below = away is not None and frame.ground_z + self.measured[2] > float(np.mean(self.seen.views[:, 2]))
         judged = measured_bounds(frame.heading, away, below)
         # its top held to every point: a tree's thousands of points, thinned to the judged sample, would leave
         # most of a crown's top with no point near it

@@ -4,6 +4,7 @@ model seen on one slope stands on the ground."""
 import numpy as np
 from scipy.spatial import cKDTree
 
+from cosco.arrays import first_in_voxels
 from twinreg.settings import DEFAULT
 from twinreg.matching.refine import refine
 
@@ -84,8 +85,7 @@ def test_a_model_without_symmetry_is_found_at_any_heading_from_its_near_side():
     placed = model @ truth[:3, :3].T + truth[:3, 3]
     near = placed[placed[:, 0] < 30.0 + 0.5][::4]  # what a scanner at x << 30 sees: the near side
     near = near + rng.normal(0.0, 0.01, near.shape)
-    keys = np.floor(model / DEFAULT.matching.free_voxel).astype(np.int64)
-    coarse = model[np.sort(np.unique(keys, axis=0, return_index=True)[1])]
+    coarse = model[first_in_voxels(model, DEFAULT.matching.free_voxel)]
     got = free_pose(near[::max(len(near) // 1500, 1)], 0.0, BoundedTree(coarse), BoundedTree(model))
     turn = np.degrees(np.angle(np.exp(1j * (np.arctan2(got[1, 0], got[0, 0]) - np.radians(200.0)))))
     assert abs(turn) < 1.0 and np.linalg.norm(got[:2, 3] - truth[:2, 3]) < 0.05, (turn, got[:3, 3])

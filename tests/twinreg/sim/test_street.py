@@ -361,11 +361,10 @@ def test_a_cone_s_base_plate_in_the_ground_band_is_neither_seen_nor_missed(tmp_p
     assert unseen(whole) > DEFAULT.matching.accept_max_unseen, unseen(whole)  # the control: refused
 
 
-def _oak_from_a_van(tmp_path, heading: float, band: float = np.inf):
+def _oak_from_a_van(tmp_path, heading: float):
     """The shared oak turned ``heading`` (rad) 7.5 m from a van's drive at 8 m/s, scanned: (a function placing it
     as match_objects does: its model's name, metres and degrees from the truth, and whether it was outside the size
-    window; the object's points). ``band``: only the points that many metres from the crown's nearest (a crown whose
-    far part the van could not see)."""
+    window; the object's points)."""
     import cosco
     from cosco.frames import yaw_pose
     from cosco.visibility import object_grid
@@ -380,7 +379,6 @@ def _oak_from_a_van(tmp_path, heading: float, band: float = np.inf):
     ground = (np.array([[-3.0, -45, 0], [20, -45, 0], [20, 45, 0], [-3.0, 45, 0]]), np.array([[0, 1, 2], [0, 2, 3]]))
     scan = scan_mobile([(placed, f), ground], straight_drive((0.0, -40.0), (0.0, 40.0), speed=8.0))
     keep = (scan.labels == 0) & (scan.points[:, 2] > 0.15)
-    keep &= scan.points[:, 0] < scan.points[keep, 0].min() + band
     pts, origins = scan.points[keep], scan.origins[keep]
     seen = object_grid(pts, origins, params)
     shape = cosco.describe_object(pts, params, ground_z=0.0, seen=seen, lines=True)
