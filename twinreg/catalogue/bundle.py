@@ -108,7 +108,10 @@ def _snapshot(db: Path, snapshot: Path) -> tuple[list, str | None]:
     """Copy the database ``db`` to ``snapshot`` (read-only access); returns the rows' (sha256, stored_file,
     mesh_file) and the schema revision."""
     src = None
-    for uri in (f"file:{db}?mode=ro", f"file:{db}?immutable=1"):  # immutable: a read-only folder of a WAL database
+    # read-write first, though nothing is written: closing such a connection, the last one, removes the WAL's
+    # -wal and -shm files, which a read-only one leaves in the user's folder (an output folder holding them could
+    # no longer be replaced); then read-only; immutable: a read-only folder of a WAL database
+    for uri in (f"file:{db}?mode=rw", f"file:{db}?mode=ro", f"file:{db}?immutable=1"):
         try:
             src = sqlite3.connect(uri, uri=True)
             src.execute("SELECT 1 FROM ref_models LIMIT 1").fetchall()

@@ -79,6 +79,19 @@ def _listing(folder: Path) -> list[str]:
     return sorted(out)
 
 
+#: what SQLite keeps beside a database while it is open (or after a reader that could not remove them)
+SQLITE_SIDECARS = ("-wal", "-shm", "-journal")
+
+
+def _sidecar(entry: str, listed: set) -> bool:
+    """True when ``entry`` is SQLite's file beside a database twinreg wrote (a catalogue in OUT opened since).
+
+    >>> _sidecar("library/catalogue.sqlite-shm", {"library/catalogue.sqlite"}), _sidecar("x.pdf-wal", set())
+    (True, False)
+    """
+    return any(entry.endswith(s) and entry[:-len(s)] in listed for s in SQLITE_SIDECARS)
+
+
 def marked_kind(folder, marker: dict | None = None) -> str | None:
     """What a folder twinreg wrote holds (:data:`KINDS`): its marker's ``kind``, else (a marker written before
     kinds were recorded) guessed from its files; None when unknown."""
@@ -126,7 +139,8 @@ def check_replaceable(target, protect=(), kind: str | None = None) -> Path:
     if kind is not None and held is not None and held != kind:
         raise ExportError(f"{target}: holds a {held} (written by twinreg {KINDS[held]}), which this command does not "
                           f"replace with a {kind}; choose another --out")
-    foreign = [e for e in entries if e != MARKER and e not in listed and not e.startswith(WORK_PREFIX)]
+    foreign = [e for e in entries if e != MARKER and e not in listed and not e.startswith(WORK_PREFIX)
+               and not _sidecar(e, listed)]
     if foreign:
         shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
         raise ExportError(f"{target}: holds files twinreg did not write ({shown}); move them out or choose another "

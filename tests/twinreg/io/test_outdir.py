@@ -70,6 +70,15 @@ def test_only_a_folder_twinreg_wrote_is_replaced(tmp_path):
     with staged_folder(out) as stage:
         (stage / "a.txt").write_text("second")
     assert (out / "a.txt").read_text() == "second" and not (out / "sub").exists()
+    (out / "a.txt-wal").write_text("SQLite's file beside a.txt, were it a database: twinreg's")
+    with staged_folder(out) as stage:
+        (stage / "a.txt").write_text("third")
+    assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, "a.txt"])
+    (out / "mine.txt-wal").write_text("beside no file twinreg wrote: the user's")
+    with pytest.raises(ExportError, match="mine.txt-wal"):
+        with staged_folder(out):
+            pass
+    (out / "mine.txt-wal").unlink()
     (out / "mine.txt").write_text("the user's")
     with pytest.raises(ExportError, match="mine.txt"):
         with staged_folder(out):

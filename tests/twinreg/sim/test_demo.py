@@ -1,6 +1,7 @@
 """The demo: parametric cars through add-model, a simulated scan, build-twin; deterministic by seed."""
 
 import json
+import sqlite3
 import zipfile
 
 import numpy as np
@@ -39,9 +40,20 @@ def test_demo_runs_and_is_deterministic(tmp_path):
     b = json.loads(res.stdout)
     strip = lambda d: [{k: v for k, v in o.items()} for o in d["objects"]]  # noqa: E731
     assert strip(a) == strip(b)
-    # an earlier demo is replaced; a folder holding the user's own files is not touched
+    # an earlier demo is replaced, after its catalogue was exported (which leaves nothing beside it) and opened by
+    # a read-only reader (which leaves SQLite's -wal and -shm files: still the demo's own catalogue)
+    lib = tmp_path / "a" / "library"
+    res = runner.invoke(app, ["export-library", str(tmp_path / "lib.zip"), "--library", str(lib)])
+    assert res.exit_code == 0, res.output
+    assert not list(lib.glob("catalogue.sqlite-*"))
+    ro = sqlite3.connect(f"file:{lib / 'catalogue.sqlite'}?mode=ro", uri=True)
+    ro.execute("SELECT count(*) FROM ref_models").fetchall()
+    ro.close()
+    assert sorted(p.name for p in lib.glob("catalogue.sqlite-*")) == ["catalogue.sqlite-shm", "catalogue.sqlite-wal"]
     res = runner.invoke(app, ["demo", "--out", str(tmp_path / "a"), "--seed", "3"])
     assert res.exit_code == 0, res.output
+    assert not list(lib.glob("catalogue.sqlite-*"))
+    # a folder holding the user's own files is not touched
     mine = tmp_path / "mine"
     (mine / "library").mkdir(parents=True)
     (mine / "library" / "catalogue.sqlite").write_text("the user's catalogue")
