@@ -82,11 +82,15 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
         y += length / 2 + rng.uniform(0.8, 2.0)
     end = y
     y = 1.0
+    # the cars' spaces, absent ones' too: two surveys of one street differ only by what is absent
+    parked = [_car_box(transform(m[0], pose_matrix(it.x, it.y, it.heading, float(ground_height(it.x, it.y)))), it)
+              for (_, _, m), it in zip([cars[k % len(cars)] for k in range(n_cars)], items)]
     for k in rng.permutation(len(furniture)):
         kind, name, mesh = furniture[k]
         extent = np.ptp(np.asarray(mesh[0])[:, :2], axis=0)
         y += float(extent.max()) / 2
-        put(kind, name, mesh, 5.6 + rng.uniform(-0.3, 0.3), y, rng.uniform(0, 2 * np.pi))
+        x, heading = 5.6 + rng.uniform(-0.3, 0.3), rng.uniform(0, 2 * np.pi)
+        put(kind, name, mesh, x, y, _clear_heading(np.asarray(mesh[0]), x, y, heading, parked))
         y += float(extent.max()) / 2 + rng.uniform(*spacing)
     top = max(end, y) + 2.0
     import trimesh
@@ -106,6 +110,39 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
     meshes.append(_ground_mesh(-9.0 - wider if buildings else -4.0, 12.0, -3.0, top))
     labels.append(-1)
     return meshes, labels, items, top
+
+
+def _car_box(v: np.ndarray, item) -> tuple:
+    """A parked car's space: (centre (2,), unit axis along it (2,), half length, half width, roof z) from its placed
+    vertices ``v`` and its :class:`PlacedItem`."""
+    along = np.array([np.cos(item.heading), np.sin(item.heading)])
+    d = v[:, :2] - [item.x, item.y]
+    u, w = d @ along, d @ [-along[1], along[0]]
+    return np.array([item.x, item.y]), along, float(np.abs(u).max()), float(np.abs(w).max()), float(v[:, 2].max())
+
+
+def _clear_heading(v: np.ndarray, x: float, y: float, heading: float, parked: list, turns: int = 12) -> float:
+    """The heading at which a furniture model (vertices ``v`` in its frame) stands at (x, y) clear of every
+    ``parked`` car's space (:func:`_car_box`): ``heading`` itself, else the first of ``turns`` steps round from it
+    whose model reaches into no car's space under its roof (a street tree's crown hangs over parked cars, but no
+    car stands in its branches), else the one reaching least deep. No random draw is spent, so every other item of
+    the street stands where it did."""
+    z = float(ground_height(x, y))
+    best, least = heading, -np.inf
+    for k in range(turns):
+        h = heading + 2 * np.pi * k / turns
+        p = transform(v, pose_matrix(x, y, h, z))
+        clear = np.inf
+        for centre, along, half_l, half_w, roof in parked:
+            d = p[:, :2] - centre
+            inside = (np.abs(d @ along) < half_l) & (np.abs(d @ [-along[1], along[0]]) < half_w)
+            if inside.any():
+                clear = min(clear, float(p[inside, 2].min()) - roof)
+        if clear >= 0.0:
+            return float(h)
+        if clear > least:
+            best, least = float(h), clear
+    return best
 
 
 #: how far (m) a facade steps back behind a placed model that would pass through it (a tree's crown)

@@ -474,3 +474,52 @@ def test_a_facade_stands_back_behind_a_street_tree(street_lib):
             assert gap.min() > 0.0
             if v is oak:
                 assert gap.min() >= FACADE_CLEARANCE - 1e-9, gap.min()
+
+
+def _in_car_spaces(meshes, labels, items) -> float:
+    """The deepest (m) any furniture model's vertex lies under a parked car's roof inside its space (-inf: none)."""
+    from twinreg.sim.street import _car_box
+
+    placed = {lab: np.asarray(m[0]) for m, lab in zip(meshes, labels) if lab >= 0}
+    spaces = [_car_box(placed[k], it) for k, it in enumerate(items) if it.kind == "car"]
+    deepest = -np.inf
+    for k, it in enumerate(items):
+        if it.kind == "car":
+            continue
+        for centre, along, half_l, half_w, roof in spaces:
+            d = placed[k][:, :2] - centre
+            inside = (np.abs(d @ along) < half_l) & (np.abs(d @ [-along[1], along[0]]) < half_w)
+            if inside.any():
+                deepest = max(deepest, roof - float(placed[k][inside, 2].min()))
+    return deepest
+
+
+def test_no_parked_car_stands_in_a_street_trees_branches(street_lib, catalogue16, monkeypatch):
+    """The oak's crown (9 m across, on the pavement 3.6 m from the parked cars) hangs over them at some headings,
+    and at some reaches below a car's roof inside its space: a car parked in its branches, which no street holds
+    (and which a scan could not tell apart). The street turns such a tree round until it clears every car's space,
+    spending no random draw: every item stands where it did, and only a turned tree's heading differs, by whole
+    steps. The control (the tree at its drawn heading) has cars in the crown on some of the same seeds."""
+    from twinreg.sim import street as street_module
+
+    rows = street_lib.list()
+    furniture = [(r.category, r.name, m) for r, m in zip(rows, street_lib.scan_meshes(rows)) if r.category != "car"]
+    rows = sorted(catalogue16.list(), key=lambda r: r.name)
+    cars = [("car", r.name, m) for r, m in zip(rows, catalogue16.scan_meshes(rows))]
+    seeds = range(1, 31)
+    made = [street_module.street_meshes(cars, furniture, 8, seed, buildings=True) for seed in seeds]
+    monkeypatch.setattr(street_module, "_clear_heading", lambda v, x, y, heading, parked: heading)
+    drawn = [street_module.street_meshes(cars, furniture, 8, seed, buildings=True) for seed in seeds]
+    inside = [_in_car_spaces(m, lab, it) for m, lab, it, _ in made]
+    inside_drawn = [_in_car_spaces(m, lab, it) for m, lab, it, _ in drawn]
+    assert max(inside) <= 0.0, inside
+    assert sum(d > 0.0 for d in inside_drawn) >= 2, inside_drawn  # the control: cars in the branches
+    turned = 0
+    for (_, _, items, _), (_, _, before, _) in zip(made, drawn):
+        for a, b in zip(items, before):
+            assert (a.kind, a.name, a.x, a.y, a.height) == (b.kind, b.name, b.x, b.y, b.height)
+            steps = np.mod(a.heading - b.heading, 2 * np.pi) / (2 * np.pi / 12)
+            assert abs(steps - round(steps)) < 1e-6
+            turned += a.heading != b.heading
+            assert a.heading == b.heading or a.kind == "tree"
+    assert turned >= 2
