@@ -32,6 +32,7 @@ from .components import (
 )
 from .street import (
     canopies_joined,
+    cars_under_crowns,
     join_stacked,
     off_walls,
     reach_link,
@@ -55,7 +56,8 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, 
     ``hag < params.ground.tol``. on_components : called with the number of components once they are known, before
     the passes that join and cut them (a caller may then choose how the rest runs), or None. ``from_ground``: the scan
     was made from the ground (a vehicle's sweep, a van's survey), where a wall is seen standing: a street's walls give
-    back what only hangs on them (:func:`.street.off_walls`). Objects are ordered by x then y of their centre.
+    back what only hangs on them (:func:`.street.off_walls`), and a car's sides and roof end where a crown's leaves
+    touching it begin (:func:`.street.cars_under_crowns`). Objects are ordered by x then y of their centre.
     """
     pts = as_points(points)
     hag = np.asarray(hag, dtype=np.float64)
@@ -73,6 +75,8 @@ def segment_objects(points, hag, params: CoscoParams = DEFAULT, is_ground=None, 
     if on_components is not None:
         on_components(n_comp)
     cell = max(0.1, spacing)  # footprint cells: each point stands for about one spacing squared
+    if street and from_ground:  # a car cut from a street tree's low crown that touches it
+        comp = cars_under_crowns(pts, hag, cand, comp, params, voxel)
     # the cars' passes: pieces joined to their car, too large objects cut, a bonnet or a boot joined in line
     comp = absorb_fragments(pts[cand, :2], hag[cand], comp, params)
     comp = split_too_big(pts, hag, cand, comp, params, cell, spacing)

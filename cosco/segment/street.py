@@ -27,6 +27,113 @@ def _boxes(p: np.ndarray, hag: np.ndarray, labels, members: dict, params: CoscoP
     return lo, hi, base, top, body
 
 
+def cars_under_crowns(pts, hag, cand, comp, params: CoscoParams, voxel: float) -> np.ndarray:
+    """``comp`` with each car that a street tree's low crown touches cut out of the crown: a component taller than a
+    car (``segment.car_height``) whose points under :data:`CROWN_CUT` (over a car's wheels, under its bonnet) fall
+    into car-sized parts standing on the ground gives each car the points in its footprint, with the pieces whose
+    centre lies there (its far side seen through its glass), under the highest height at which they still fall
+    apart from the rest (at most the car class's height) and under the car's roof (:func:`_roof`: the leaves touching it are a sparse few; a part that no roof ends is no car: a hedge,
+    whose leaves go on up); the rest, at least ``segment.object_min_points`` points, keep their label."""
+    seg = params.segment
+    out = comp.copy()
+    nxt = int(comp.max()) + 1 if len(comp) else 0
+    labels, _, members = _members(comp, seg.min_points)
+    for lab in labels:
+        rows = members.get(lab)
+        if rows is None or hag[cand[rows]].max() <= seg.car_height[1]:
+            continue
+        for car in _cars_below(pts[cand[rows]], hag[cand[rows]], params, voxel):
+            out[rows[car]] = nxt
+            nxt += 1
+    return out
+
+
+#: the heights (m) :func:`cars_under_crowns` cuts at: the first, over a car's wheels and under its bonnet, then up
+#: in steps of the second
+CROWN_CUT = (1.2, 0.1)
+
+
+def _cars_below(p: np.ndarray, h: np.ndarray, params: CoscoParams, voxel: float) -> list:
+    """:func:`cars_under_crowns` on one component's points ``p`` and heights ``h``: its cars' row masks ([]:
+    none)."""
+    seg = params.segment
+    first, step = CROWN_CUT
+    rects = _footprints(p, h, first, params, voxel)
+    if not rects:
+        return []
+    top = first
+    for cut in np.arange(first + step, seg.car_height[1] + 1e-9, step):
+        if not _footprints(p, h, cut, params, voxel):
+            break
+        top = cut
+    cars, taken = [], np.zeros(len(p), dtype=bool)
+    for r in rects:
+        mine = _in_rect(p, r, voxel) & (h < top) & ~taken
+        roof = _roof(h[mine], first)
+        if np.isfinite(roof):  # else no roof ends it: a hedge's leaves go on up (or a roof over the gap)
+            mine &= h < roof
+            cars.append(mine)
+            taken |= mine
+    return cars if cars and (~taken).sum() >= seg.object_min_points else []
+
+
+#: :func:`_roof`'s slices (m), and the share of their median count under which a slice holds no more of the car
+ROOF_SLICE = (0.05, 0.1)
+
+
+def _roof(h: np.ndarray, first: float) -> float:
+    """The height (m) over ``first`` at which a car's points ``h`` (heights above ground) end: walking up in slices
+    of :data:`ROOF_SLICE`, the first slice holding under its share of the median count of the slices under it (a
+    car's sides and roof give every slice its points, up to the roof's; a crown's leaves touching the roof are
+    a sparse few above it); all of them (inf) where none does.
+
+    >>> car, leaves = np.linspace(1.2, 1.6, 400, endpoint=False), np.linspace(1.6, 1.8, 12, endpoint=False)
+    >>> round(_roof(np.r_[car, leaves], 1.2), 2), _roof(car, 1.2)
+    (1.6, inf)
+    """
+    size, share = ROOF_SLICE
+    above = h[h >= first]
+    if len(above) == 0:
+        return np.inf
+    counts = np.bincount(((above - first) / size).astype(np.int64))
+    for k in range(2, len(counts)):
+        if counts[k] < share * np.median(counts[:k]):
+            return first + k * size
+    return np.inf
+
+
+def _footprints(p: np.ndarray, h: np.ndarray, cut: float, params: CoscoParams, voxel: float) -> list:
+    """The footprints (rectangles) of the car-sized parts standing on the ground into which the points under
+    ``cut`` fall apart, each with the pieces whose centre lies in it; [] where none does."""
+    from ..footprint import min_area_rectangle
+
+    seg = params.segment
+    low = np.flatnonzero(h < cut)
+    if len(low) < seg.min_points:
+        return []
+    part, _, _ = voxel_components(p[low], voxel)
+    parts = list(_members(part)[2].values())
+    centres = np.array([p[low[rows], :2].mean(0) for rows in parts])
+    rects = []
+    for rows in parts:
+        q = low[rows]
+        if len(q) < seg.min_points or h[q].min() > seg.max_base:
+            continue
+        r = min_area_rectangle(p[q, :2])
+        if (seg.car_length[0] <= r.length <= seg.car_length[1]
+                and seg.car_width[0] <= r.width <= seg.car_width[1]):
+            inside = np.flatnonzero(_in_rect(p, r, params.joins.fragment_margin, centres))
+            rects.append(min_area_rectangle(p[np.concatenate([low[parts[k]] for k in inside]), :2]))
+    return rects
+
+
+def _in_rect(p: np.ndarray, r, margin: float, xy: np.ndarray | None = None) -> np.ndarray:
+    """Which of the points ``xy`` (default ``p``'s plan) lie in the rectangle ``r`` grown by ``margin`` m."""
+    d = (p[:, :2] if xy is None else xy) - r.centre
+    axis = np.array([np.cos(r.angle), np.sin(r.angle)])
+    return (np.abs(d @ axis) <= r.length / 2 + margin) & (np.abs(d @ [-axis[1], axis[0]]) <= r.width / 2 + margin)
+
+
 def with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: float, origin) -> tuple:
     """``cand`` and ``comp`` with the overhang points ``lowest_runs`` set aside taken back (a sign's plate over its
     post, a shelter's roof, the upper part of a wall a scan's gaps cut), except over a car's body (a canopy, a wire

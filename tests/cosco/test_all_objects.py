@@ -218,3 +218,50 @@ def test_a_crown_over_a_parked_car_is_the_trees():
         assert len(every[name]) == 1 and np.array_equal(every[name][0].indices, car_mode[name][0].indices), name
     canopy = np.flatnonzero(labels == names.index("canopy"))
     assert not any(np.isin(canopy, o.indices).any() for o in seg.objects if o.target)  # it stands on nothing
+
+
+def _crown_touching_a_car(seed=0, trunk: bool = True):
+    """A tree whose crown hangs down to 2 cm over a parked car's roof (1.5 m), over a third of the car, with its
+    trunk 2 m beside the car (or none seen), the crown's leaves thinner than the car's surfaces."""
+    rng = np.random.default_rng(seed)
+    crown = _box(rng, [7.5, 3.0, 1.52], [15.5, 6.0, 5.0], 9000)
+    parts = {"ground": _ground(rng),
+             "car": _box(rng, [5, 5, 0.2], [9.5, 6.8, 1.5], 4000),
+             "tree": np.vstack([np.c_[rng.normal(11.5, 0.1, 500), rng.normal(4.5, 0.1, 500),
+                                      rng.uniform(0.05, 1.6, 500)], crown]) if trunk else crown}
+    return _labelled(parts)
+
+
+def test_a_car_a_crown_touches_is_cut_from_it(monkeypatch):
+    """A crown whose leaves touch a car's roof joins the car's column runs (no gap under them): the car and the
+    tree are one component, too tall for a car, and neither would be found. The car is cut out of it at its
+    footprint and its roof, with or without the tree's trunk seen; the control (no such pass) leaves no object that
+    is mostly the car, and neither does a scan from the air (where a crown hides the roof it touches), nor car
+    mode. A hedge whose leaves go on up from its foot is no car: no roof ends it."""
+    import cosco.segment as segment
+
+    street = DEFAULT.with_(segment={"targets": "all"})
+
+    def mostly_car(seg, labels, names) -> bool:
+        return any((labels[o.indices] == names.index("car")).mean() > 0.5 for o in seg.objects)
+
+    for trunk in (True, False):
+        pts, hag, labels, names = _crown_touching_a_car(trunk=trunk)
+        every = _owner(segment_objects(pts, hag, street, is_ground=hag < 0.03, from_ground=True), labels, names)
+        assert len(every["car"]) == 1 and every["car"][0].height < 1.55, trunk
+        alone = labels != names.index("tree")  # the car's object without the tree: the same points
+        were = _owner(segment_objects(pts[alone], hag[alone], street, is_ground=hag[alone] < 0.03, from_ground=True),
+                      labels[alone], names)
+        assert np.array_equal(every["car"][0].indices, np.flatnonzero(alone)[were["car"][0].indices]), trunk
+        assert len(every["tree"]) == 1 and (labels[every["tree"][0].indices] == names.index("tree")).all(), trunk
+        assert not mostly_car(segment_objects(pts, hag, street, is_ground=hag < 0.03), labels, names)  # the air
+    with monkeypatch.context() as m:
+        m.setattr(segment, "cars_under_crowns", lambda pts, hag, cand, comp, params, voxel: comp)
+        assert not mostly_car(segment_objects(pts, hag, street, is_ground=hag < 0.03, from_ground=True), labels, names)
+    # a hedge 6 m long, 1.3 m wide, its leaves from 0.2 m to 2 m, under a tree's crown: one object, as it was
+    rng = np.random.default_rng(1)
+    hedge = {"ground": _ground(rng), "hedge": _box(rng, [5, 5, 0.2], [11, 6.3, 2.0], 6000),
+             "tree": _box(rng, [6, 3.5, 1.9], [12, 8, 5.0], 6000)}
+    pts, hag, labels, names = _labelled(hedge)
+    seg = segment_objects(pts, hag, street, is_ground=hag < 0.03, from_ground=True)
+    assert sum((labels[o.indices] == names.index("hedge")).any() for o in seg.objects) == 1
