@@ -72,6 +72,29 @@ def van_street(cat, seed: int):
     return st, scan, with_targets(cat, DEFAULT), points
 
 
+def owners(st, points, params, replaced: dict | None = None) -> tuple:
+    """Each scan point's object (-1: none) and each item's (:func:`~twinreg.sim.street.item_objects`), detected as
+    build-twin does, with the :mod:`cosco.segment` passes named in ``replaced`` swapped for the functions given (a
+    picture's control: the code without one pass)."""
+    import cosco.segment as segment
+    from twinreg.detect import detect_points
+    from twinreg.sim.street import item_objects
+
+    replaced = replaced or {}
+    kept = {name: getattr(segment, name) for name in replaced}
+    for name, f in replaced.items():
+        setattr(segment, name, f)
+    try:
+        det = detect_points(points, params)
+    finally:
+        for name, f in kept.items():
+            setattr(segment, name, f)
+    own = np.full(len(st.points), -1)
+    for k, o in enumerate(det.objects):
+        own[o.indices] = k
+    return own, item_objects(st, det.objects)
+
+
 def time_twin(cat, seed: int, folder: Path) -> dict:
     """The van's street of ``seed`` written as a survey delivers it (``simulate-street``'s code: scan.laz,
     trajectory.csv), then ``twinreg build-twin --trajectory`` on it as a whole process: wall seconds and the peak

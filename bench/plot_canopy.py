@@ -33,30 +33,14 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    import cosco.segment as segment
-    from bench_street import catalogue, van_street
-    from twinreg.detect import detect_points
-    from twinreg.sim.street import item_objects
+    from bench_street import catalogue, owners, van_street
 
     with tempfile.TemporaryDirectory() as tmp:
         st, _, params, points = van_street(catalogue(Path(tmp) / "lib"), args.seed)
 
-    def owners(joined: bool) -> np.ndarray:
-        """Each scan point's object (-1: none) as build-twin detects them, the canopies joined or not."""
-        keep = segment.canopies_joined
-        if not joined:
-            segment.canopies_joined = lambda pts, hag, objects, *rest: objects
-        try:
-            det = detect_points(points, params)
-        finally:
-            segment.canopies_joined = keep
-        own = np.full(len(st.points), -1)
-        for k, o in enumerate(det.objects):
-            own[o.indices] = k
-        return own, item_objects(st, det.objects)
-
-    now, now_items = owners(True)
-    before, before_items = owners(False)
+    now, now_items = owners(st, points, params)
+    # the control: the canopies over cars not joined (dropped, as before)
+    before, before_items = owners(st, points, params, {"canopies_joined": lambda pts, hag, objects, *rest: objects})
     oak = next(i for i, item in enumerate(st.items) if item.kind == "tree")
     mine = st.labels == oak
     kept = mine & (before == before_items[oak])

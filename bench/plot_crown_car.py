@@ -33,40 +33,27 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    import cosco.segment as segment
-    from bench_street import catalogue, van_street
-    from twinreg.detect import detect_points
-    from twinreg.sim.street import item_objects
+    from bench_street import catalogue, owners, van_street
 
     with tempfile.TemporaryDirectory() as tmp:
         st, _, params, points = van_street(catalogue(Path(tmp) / "lib"), args.seed)
 
-    def owners(cut: bool) -> tuple:
-        """Each scan point's object (-1: none) and each item's, the cars cut from the crowns or not."""
-        keep = segment.cars_under_crowns
-        if not cut:
-            segment.cars_under_crowns = lambda pts, hag, cand, comp, *rest: comp
-        try:
-            det = detect_points(points, params)
-        finally:
-            segment.cars_under_crowns = keep
-        own = np.full(len(st.points), -1)
-        for k, o in enumerate(det.objects):
-            own[o.indices] = k
-        return own, item_objects(st, det.objects)
+    # each point's object and each item's, the cars cut from the crowns or not (the control)
+    detected = {cut: owners(st, points, params, None if cut else
+                            {"cars_under_crowns": lambda pts, hag, cand, comp, *rest: comp}) for cut in (False, True)}
 
     oak = next(i for i, item in enumerate(st.items) if item.kind == "tree")
     item = st.items[oak]
     cars = [k for k, i in enumerate(st.items) if i.kind == "car"]
     # the car under the crown: the one whose points share an object with the oak's when nothing cuts them
-    before, _ = owners(False)
+    before, _ = detected[False]
     shared = [k for k in cars if np.isin(before[st.labels == k], before[(st.labels == oak) & (before >= 0)]).any()]
     car = shared[0] if shared else min(cars, key=lambda k: np.hypot(st.items[k].x - item.x, st.items[k].y - item.y))
     centre = np.array([st.items[car].x, st.items[car].y])
     near = (np.abs(st.points[:, 1] - centre[1]) < 6.0) & (st.points[:, 0] < centre[0] + 6.0) & (st.labels != -1)
     fig, axes = plt.subplots(1, 2, figsize=(14, 5.2), sharey=True)
     for ax, cut, title in zip(axes, (False, True), ("without the cut (the code before)", "cut from the crown (now)")):
-        own, items = owners(cut)
+        own, items = detected[cut]
         car_obj, oak_obj = items[car], items[oak]
         in_oak = near & (own == oak_obj) & (oak_obj >= 0)
         lost = in_oak & (st.labels == car)  # the car's points in the oak's object

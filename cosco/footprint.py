@@ -33,6 +33,17 @@ class Rectangle:
         hl, hw = self.length / 2, self.width / 2
         return np.array([self.centre + su * hl * u + sv * hw * v for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
 
+    def contains(self, xy: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """(n,) bool: which of the (n, 2) points ``xy`` lie in the rectangle grown by ``margin`` m on every side.
+
+        >>> r = Rectangle(np.zeros(2), 0.0, 4.0, 2.0)
+        >>> r.contains(np.array([[1.9, 0.9], [2.1, 0.0], [0.0, 1.1]])).tolist(), r.contains(np.array([[2.1, 0]]), 0.2)
+        ([True, False, False], array([ True]))
+        """
+        d = np.asarray(xy, dtype=np.float64) - self.centre
+        u = np.array([np.cos(self.angle), np.sin(self.angle)])
+        return (np.abs(d @ u) <= self.length / 2 + margin) & (np.abs(d @ [-u[1], u[0]]) <= self.width / 2 + margin)
+
 
 def hull_rows(xy: np.ndarray) -> np.ndarray:
     """The rows of (n, 2) points on their convex hull, in order around it; every row for a degenerate (collinear)

@@ -45,11 +45,7 @@ def absorb_fragments(xy: np.ndarray, hag: np.ndarray, comp: np.ndarray, params: 
         for host in (hosts[k] for k in near):
             if host == lab or c > share * len(members[host]) or lows[lab] > tops[host]:
                 continue  # too big to be a piece, or above the host's top (a branch over a car)
-            r = rects[host]
-            d = centres[lab] - r.centre
-            u = abs(d @ [np.cos(r.angle), np.sin(r.angle)])
-            v = abs(d @ [-np.sin(r.angle), np.cos(r.angle)])
-            if u <= r.length / 2 + margin and v <= r.width / 2 + margin:
+            if rects[host].contains(centres[lab][None], margin)[0]:
                 out[members[lab]] = host
                 break
     return out

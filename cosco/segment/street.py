@@ -32,8 +32,9 @@ def cars_under_crowns(pts, hag, cand, comp, params: CoscoParams, voxel: float) -
     car (``segment.car_height``) whose points under :data:`CROWN_CUT` (over a car's wheels, under its bonnet) fall
     into car-sized parts standing on the ground gives each car the points in its footprint, with the pieces whose
     centre lies there (its far side seen through its glass), under the highest height at which they still fall
-    apart from the rest (at most the car class's height) and under the car's roof (:func:`_roof`: the leaves touching it are a sparse few; a part that no roof ends is no car: a hedge,
-    whose leaves go on up); the rest, at least ``segment.object_min_points`` points, keep their label."""
+    apart from the rest (at most the car class's height) and under the car's roof (:func:`_roof`: the leaves
+    touching it are a sparse few; a part that no roof ends is no car: a hedge, whose leaves go on up); the rest, at
+    least ``segment.object_min_points`` points, keep their label."""
     seg = params.segment
     out = comp.copy()
     nxt = int(comp.max()) + 1 if len(comp) else 0
@@ -68,7 +69,7 @@ def _cars_below(p: np.ndarray, h: np.ndarray, params: CoscoParams, voxel: float)
         top = cut
     cars, taken = [], np.zeros(len(p), dtype=bool)
     for r in rects:
-        mine = _in_rect(p, r, voxel) & (h < top) & ~taken
+        mine = r.contains(p[:, :2], voxel) & (h < top) & ~taken
         roof = _roof(h[mine], first)
         if np.isfinite(roof):  # else no roof ends it: a hedge's leaves go on up (or a roof over the gap)
             mine &= h < roof
@@ -122,16 +123,9 @@ def _footprints(p: np.ndarray, h: np.ndarray, cut: float, params: CoscoParams, v
         r = min_area_rectangle(p[q, :2])
         if (seg.car_length[0] <= r.length <= seg.car_length[1]
                 and seg.car_width[0] <= r.width <= seg.car_width[1]):
-            inside = np.flatnonzero(_in_rect(p, r, params.joins.fragment_margin, centres))
+            inside = np.flatnonzero(r.contains(centres, params.joins.fragment_margin))
             rects.append(min_area_rectangle(p[np.concatenate([low[parts[k]] for k in inside]), :2]))
     return rects
-
-
-def _in_rect(p: np.ndarray, r, margin: float, xy: np.ndarray | None = None) -> np.ndarray:
-    """Which of the points ``xy`` (default ``p``'s plan) lie in the rectangle ``r`` grown by ``margin`` m."""
-    d = (p[:, :2] if xy is None else xy) - r.centre
-    axis = np.array([np.cos(r.angle), np.sin(r.angle)])
-    return (np.abs(d @ axis) <= r.length / 2 + margin) & (np.abs(d @ [-axis[1], axis[0]]) <= r.width / 2 + margin)
 
 
 def with_overhangs(pts, hag, cand, comp, over, params: CoscoParams, voxel: float, origin) -> tuple:

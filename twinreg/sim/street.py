@@ -63,28 +63,29 @@ def street_meshes(cars: list, furniture: list, n_cars: int = 8, seed: int = 0, s
     rng = np.random.default_rng(seed)
     meshes, labels, items = [], [], []
 
-    def put(kind, name, mesh, x, y, heading):
+    def put(kind, name, mesh, x, y, heading) -> np.ndarray:
+        """Place the item (its mesh only where it is not absent); its placed vertices."""
         v, f = mesh[0], mesh[1]
-        z = float(ground_height(x, y))
+        placed = transform(v, pose_matrix(x, y, heading, float(ground_height(x, y))))
         if name not in absent:
-            meshes.append((transform(v, pose_matrix(x, y, heading, z)), f))
+            meshes.append((placed, f))
             labels.append(len(items))
         items.append(PlacedItem(kind, name, float(x), float(y), float(np.mod(heading, 2 * np.pi)),
                                 float(np.ptp(np.asarray(v)[:, 2]))))
+        return placed
 
     y = 0.0
+    parked = []  # the cars' spaces, absent ones' too: two surveys of one street differ only by what is absent
     for k in range(n_cars):  # along +Y, some facing each way
         kind, name, mesh = cars[k % len(cars)]
         length = float(np.ptp(np.asarray(mesh[0])[:, 0]))
         y += length / 2
-        put(kind, name, mesh, 2.0 + rng.uniform(-0.15, 0.15), y, np.pi / 2 + (np.pi if rng.random() < 0.3 else 0.0)
-            + rng.normal(0, 0.03))
+        placed = put(kind, name, mesh, 2.0 + rng.uniform(-0.15, 0.15), y,
+                     np.pi / 2 + (np.pi if rng.random() < 0.3 else 0.0) + rng.normal(0, 0.03))
+        parked.append(_car_box(placed, items[-1]))
         y += length / 2 + rng.uniform(0.8, 2.0)
     end = y
     y = 1.0
-    # the cars' spaces, absent ones' too: two surveys of one street differ only by what is absent
-    parked = [_car_box(transform(m[0], pose_matrix(it.x, it.y, it.heading, float(ground_height(it.x, it.y)))), it)
-              for (_, _, m), it in zip([cars[k % len(cars)] for k in range(n_cars)], items)]
     for k in rng.permutation(len(furniture)):
         kind, name, mesh = furniture[k]
         extent = np.ptp(np.asarray(mesh[0])[:, :2], axis=0)
@@ -131,18 +132,24 @@ def _clear_heading(v: np.ndarray, x: float, y: float, heading: float, parked: li
     best, least = heading, -np.inf
     for k in range(turns):
         h = heading + 2 * np.pi * k / turns
-        p = transform(v, pose_matrix(x, y, h, z))
-        clear = np.inf
-        for centre, along, half_l, half_w, roof in parked:
-            d = p[:, :2] - centre
-            inside = (np.abs(d @ along) < half_l) & (np.abs(d @ [-along[1], along[0]]) < half_w)
-            if inside.any():
-                clear = min(clear, float(p[inside, 2].min()) - roof)
+        clear = clearance(transform(v, pose_matrix(x, y, h, z)), parked)
         if clear >= 0.0:
             return float(h)
         if clear > least:
             best, least = float(h), clear
     return best
+
+
+def clearance(p: np.ndarray, parked: list) -> float:
+    """How far (m) the placed vertices ``p`` stay above the roof of every ``parked`` car's space (:func:`_car_box`)
+    they reach into (negative: that deep under a roof; inf: they reach into none)."""
+    clear = np.inf
+    for centre, along, half_l, half_w, roof in parked:
+        d = p[:, :2] - centre
+        inside = (np.abs(d @ along) < half_l) & (np.abs(d @ [-along[1], along[0]]) < half_w)
+        if inside.any():
+            clear = min(clear, float(p[inside, 2].min()) - roof)
+    return clear
 
 
 #: how far (m) a facade steps back behind a placed model that would pass through it (a tree's crown)

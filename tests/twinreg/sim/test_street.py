@@ -478,20 +478,11 @@ def test_a_facade_stands_back_behind_a_street_tree(street_lib):
 
 def _in_car_spaces(meshes, labels, items) -> float:
     """The deepest (m) any furniture model's vertex lies under a parked car's roof inside its space (-inf: none)."""
-    from twinreg.sim.street import _car_box
+    from twinreg.sim.street import _car_box, clearance
 
     placed = {lab: np.asarray(m[0]) for m, lab in zip(meshes, labels) if lab >= 0}
     spaces = [_car_box(placed[k], it) for k, it in enumerate(items) if it.kind == "car"]
-    deepest = -np.inf
-    for k, it in enumerate(items):
-        if it.kind == "car":
-            continue
-        for centre, along, half_l, half_w, roof in spaces:
-            d = placed[k][:, :2] - centre
-            inside = (np.abs(d @ along) < half_l) & (np.abs(d @ [-along[1], along[0]]) < half_w)
-            if inside.any():
-                deepest = max(deepest, roof - float(placed[k][inside, 2].min()))
-    return deepest
+    return max((-clearance(placed[k], spaces) for k, it in enumerate(items) if it.kind != "car"), default=-np.inf)
 
 
 def test_no_parked_car_stands_in_a_street_trees_branches(street_lib, catalogue16, monkeypatch):
